@@ -1,0 +1,176 @@
+//! `htfid simulate CONFIG`: the limit cycle and the excited time series.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use htfid_data::OutputDir;
+use htfid_hybrid::{simulate, Stats};
+use htfid_model::{Hopper, HopperOrbit};
+use htfid_orbit::ShootingOptions;
+use serde_json::{json, Value};
+
+use crate::output::{json_text, open, resolve_dir};
+use crate::progress::Stages;
+use crate::settings::Settings;
+use crate::signals::{self, Built};
+
+/// Samples of the orbit written to `limit_cycle.csv`.
+const ORBIT_SAMPLES: usize = 1000;
+
+/// Everything `simulate` computes; `run` continues from it.
+pub struct Simulated {
+    pub hopper: Hopper,
+    pub orbit: HopperOrbit,
+    pub excitation: Built,
+    pub t: Vec<f64>,
+    pub f: Vec<f64>,
+    pub u: Vec<f64>,
+    pub x: Vec<f64>,
+    pub xd: Vec<f64>,
+    pub stats: Stats,
+    pub switches: usize,
+}
+
+pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
+    let settings = Settings::from_file(config)?;
+    let dir = resolve_dir(out, &settings.name);
+    let mut outdir = open(&dir, force, &["timeseries.csv", "limit_cycle.csv", "summary.json"])?;
+    let mut stages = Stages::new(false);
+    let sim = simulate_experiment(&settings, &mut stages)?;
+    stages.run("write outputs", || write_simulation(&settings, &sim, &mut outdir))?;
+    let mut summary = base_summary(&settings, &sim);
+    summary["timings_ms"] = stages.to_json();
+    outdir.write_text("summary.json", &json_text(&summary))?;
+    let written = outdir.commit()?;
+    report_written(&written);
+    Ok(())
+}
+
+/// Limit cycle, then the whole experiment from `t = 0` on the orbit.
+pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
+    let hopper = Hopper::with_effects(settings.params, settings.damper, settings.effects)
+        .with_context(|| format!("{}: invalid model", settings.path.display()))?;
+    let shooting = ShootingOptions {
+        settle_periods: settings.settle_periods.max(30),
+        ..ShootingOptions::default()
+    };
+    let orbit = stages
+        .run("limit cycle", || hopper.limit_cycle(&shooting, &settings.integrator))
+        .with_context(|| {
+            format!(
+                "{}: no limit cycle for these parameters",
+                settings.path.display()
+            )
+        })?;
+    let excitation = signals::build(settings)?;
+    let period = settings.params.period;
+    let end = excitation.end.max(settings.settle_time()).max(period);
+    let dt = 1.0 / settings.sample_rate;
+    let n = (end / dt + 1e-9).floor() as usize + 1;
+    let grid: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+    let driven = hopper.with_input(excitation.input_fn());
+    let traj = stages
+        .run("simulate", || {
+            simulate(
+                &driven,
+                orbit.cycle.mode0,
+                0.0,
+                &orbit.cycle.state0,
+                end,
+                &grid,
+                &settings.integrator,
+            )
+        })
+        .context("simulation of the experiment failed")?;
+    let u: Vec<f64> = match &excitation.signal {
+        Some(s) => s.sample(&grid),
+        None => vec![0.0; n],
+    };
+    let f: Vec<f64> = grid
+        .iter()
+        .zip(&u)
+        .map(|(&t, &u)| hopper.forcing(t) + u)
+        .collect();
+    let x = (0..n).map(|i| traj.state(i)[0]).collect();
+    let xd = (0..n).map(|i| traj.state(i)[1]).collect();
+    let switches = traj.events.len();
+    Ok(Simulated {
+        hopper,
+        orbit,
+        excitation,
+        t: grid,
+        f,
+        u,
+        x,
+        xd,
+        stats: traj.stats,
+        switches,
+    })
+}
+
+/// `timeseries.csv` and `limit_cycle.csv`.
+pub fn write_simulation(settings: &Settings, sim: &Simulated, out: &mut OutputDir) -> Result<()> {
+    out.write_timeseries_csv(
+        "timeseries.csv",
+        &sim.t,
+        &[("f", &sim.f), ("x", &sim.x), ("xd", &sim.xd), ("u", &sim.u)],
+    )?;
+    let samples = sim
+        .hopper
+        .sample_orbit(&sim.orbit, ORBIT_SAMPLES, &settings.integrator)?;
+    let mut csv = out.csv("limit_cycle.csv", &["phase", "x", "xd", "s"])?;
+    for s in &samples {
+        csv.write_row(&[s.phase, s.x, s.xd, s.s])?;
+    }
+    csv.finish()?;
+    Ok(())
+}
+
+/// The `limit_cycle` block of `summary.json`.
+pub fn limit_cycle_json(orbit: &HopperOrbit) -> Value {
+    let c = &orbit.cycle;
+    let n = c.jacobian.nrows();
+    let jac: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..n).map(|j| c.jacobian[(i, j)]).collect())
+        .collect();
+    json!({
+        "period": c.period,
+        "t_on": orbit.t_on,
+        "t_off": orbit.t_off,
+        "duty": orbit.duty,
+        "state_phase0": c.state0,
+        "mode_phase0": c.mode0,
+        "period_map_jacobian": jac,
+        "floquet_multipliers": c.multipliers.iter().map(|m| [m.re, m.im]).collect::<Vec<_>>(),
+        "periodicity_residual": c.residual,
+        "newton_iterations": c.newton_iterations,
+    })
+}
+
+/// The summary common to every command that simulates.
+pub fn base_summary(settings: &Settings, sim: &Simulated) -> Value {
+    json!({
+        "name": settings.name,
+        "config": settings.path.display().to_string(),
+        "htfid_version": env!("CARGO_PKG_VERSION"),
+        "limit_cycle": limit_cycle_json(&sim.orbit),
+        "simulation": {
+            "t_end": sim.t.last().copied().unwrap_or(0.0),
+            "samples": sim.t.len(),
+            "sample_rate": settings.sample_rate,
+            "switches": sim.switches,
+            "steps": sim.stats.steps,
+            "rejected_steps": sim.stats.rejected,
+            "rhs_evaluations": sim.stats.rhs_evals,
+            "excitation_segments": sim.excitation.segments.iter().map(|s| json!({
+                "index": s.index, "start": s.start, "end": s.end, "phase": s.delay,
+            })).collect::<Vec<_>>(),
+        },
+    })
+}
+
+pub fn report_written(paths: &[PathBuf]) {
+    for p in paths {
+        eprintln!("[htfid] wrote {}", p.display());
+    }
+}

@@ -1,0 +1,161 @@
+//! Experiment configs: raw TOML options (serde, unknown keys rejected) resolved into checked
+//! settings. Every range error names the file, the line, the key and what was expected.
+
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+/// A config problem located in a file.
+#[derive(Debug)]
+pub struct ConfigError {
+    pub path: PathBuf,
+    pub line: Option<usize>,
+    pub key: String,
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{}: {}: {}", self.path.display(), line, self.key, self.message),
+            None => write!(f, "{}: {}: {}", self.path.display(), self.key, self.message),
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// The source text of a config, for turning spans into line numbers.
+#[derive(Debug)]
+pub struct Source {
+    pub path: PathBuf,
+    pub text: String,
+}
+
+impl Source {
+    pub fn line_of(&self, span: &Range<usize>) -> usize {
+        let end = span.start.min(self.text.len());
+        self.text[..end].bytes().filter(|&b| b == b'\n').count() + 1
+    }
+
+    pub fn error(&self, span: Option<&Range<usize>>, key: &str, message: impl Into<String>) -> ConfigError {
+        ConfigError {
+            path: self.path.clone(),
+            line: span.map(|s| self.line_of(s)),
+            key: key.to_string(),
+            message: message.into(),
+        }
+    }
+
+    /// A number that must satisfy `ok`; `expected` is what the message says.
+    pub fn number(
+        &self,
+        value: &Spanned<f64>,
+        key: &str,
+        expected: &str,
+        ok: impl Fn(f64) -> bool,
+    ) -> Result<f64, ConfigError> {
+        let v = *value.get_ref();
+        if v.is_finite() && ok(v) {
+            Ok(v)
+        } else {
+            Err(self.error(Some(&value.span()), key, format!("must be {expected} (got {v})")))
+        }
+    }
+
+    pub fn positive(&self, value: &Spanned<f64>, key: &str) -> Result<f64, ConfigError> {
+        self.number(value, key, "> 0", |v| v > 0.0)
+    }
+
+    pub fn non_negative(&self, value: &Spanned<f64>, key: &str) -> Result<f64, ConfigError> {
+        self.number(value, key, ">= 0", |v| v >= 0.0)
+    }
+
+    pub fn finite(&self, value: &Spanned<f64>, key: &str) -> Result<f64, ConfigError> {
+        self.number(value, key, "a finite number", |_| true)
+    }
+
+    /// An optional number with a default.
+    pub fn opt_number(
+        &self,
+        value: &Option<Spanned<f64>>,
+        default: f64,
+        key: &str,
+        expected: &str,
+        ok: impl Fn(f64) -> bool,
+    ) -> Result<f64, ConfigError> {
+        match value {
+            Some(v) => self.number(v, key, expected, ok),
+            None => Ok(default),
+        }
+    }
+
+    /// A string that must be one of `choices`.
+    pub fn choice<'a>(
+        &self,
+        value: &'a Spanned<String>,
+        key: &str,
+        choices: &[&str],
+    ) -> Result<&'a str, ConfigError> {
+        let v = value.get_ref().as_str();
+        if choices.contains(&v) {
+            Ok(v)
+        } else {
+            Err(self.error(
+                Some(&value.span()),
+                key,
+                format!("must be one of {} (got \"{v}\")", quote_list(choices)),
+            ))
+        }
+    }
+
+    /// Rejects a key that has no meaning for the chosen variant.
+    pub fn forbid<T>(&self, value: &Option<Spanned<T>>, key: &str, why: &str) -> Result<(), ConfigError> {
+        match value {
+            Some(v) => Err(self.error(Some(&v.span()), key, format!("is not used {why}; remove it"))),
+            None => Ok(()),
+        }
+    }
+
+    pub fn require<'a, T>(
+        &self,
+        value: &'a Option<Spanned<T>>,
+        key: &str,
+        why: &str,
+    ) -> Result<&'a Spanned<T>, ConfigError> {
+        value
+            .as_ref()
+            .ok_or_else(|| self.error(None, key, format!("is required {why}")))
+    }
+}
+
+pub fn quote_list(choices: &[&str]) -> String {
+    choices.iter().map(|c| format!("\"{c}\"")).collect::<Vec<_>>().join(", ")
+}
+
+/// Reads and parses a config file into raw options.
+pub fn load<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<(T, Source), ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+        path: path.to_path_buf(),
+        line: None,
+        key: "file".into(),
+        message: format!("cannot read: {e}"),
+    })?;
+    let source = Source {
+        path: path.to_path_buf(),
+        text,
+    };
+    let raw: T = toml::from_str(&source.text).map_err(|e| {
+        let line = e.span().map(|s| source.line_of(&s));
+        ConfigError {
+            path: path.to_path_buf(),
+            line,
+            key: "toml".into(),
+            message: e.message().trim().to_string(),
+        }
+    })?;
+    Ok((raw, source))
+}

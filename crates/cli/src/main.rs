@@ -1,0 +1,61 @@
+//! `htfid`: identify rhythmic hybrid systems through harmonic transfer functions.
+//!
+//! Commands (each reads a TOML experiment config, see `docs/config.md`):
+//! - `htfid simulate CONFIG`: limit cycle and the excited time series;
+//! - `htfid theory CONFIG`: linearisation about the orbit and the harmonic transfer functions;
+//! - `htfid run CONFIG`: the whole pipeline: simulate, estimate, fit, compare with theory;
+//! - `htfid diagnose CONFIG`: measured data against the model: what is wrong and why.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod commands;
+mod config;
+mod output;
+mod progress;
+mod settings;
+mod signals;
+
+#[derive(Debug, Parser)]
+#[command(name = "htfid", version, about = "Harmonic transfer functions of rhythmic hybrid systems")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, clap::Args)]
+struct OutArgs {
+    /// Output directory (default: out/<config name>/).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Replace output files that already exist in the output directory.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Find the limit cycle and simulate the configured experiment.
+    Simulate {
+        /// Experiment config (TOML).
+        config: PathBuf,
+        #[command(flatten)]
+        out: OutArgs,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Simulate { config, out } => commands::simulate::run(&config, out.out, out.force),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

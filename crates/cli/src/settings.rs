@@ -1,0 +1,337 @@
+//! The experiment config: raw options (as written in TOML) and resolved settings.
+//!
+//! Every key is documented in `docs/config.md`.
+
+use std::path::{Path, PathBuf};
+
+use htfid_hybrid::{Method, Options};
+use htfid_model::{DamperLaw, Effects, HopperParams};
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::config::{load, ConfigError, Source};
+
+type Num = Spanned<f64>;
+type OptNum = Option<Spanned<f64>>;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawConfig {
+    pub name: Option<Spanned<String>>,
+    pub model: RawModel,
+    pub forcing: RawForcing,
+    #[serde(default)]
+    pub simulation: RawSimulation,
+    pub excitation: Option<RawExcitation>,
+    pub theory: Option<RawTheory>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawModel {
+    pub m: Num,
+    pub k: Num,
+    pub c: Num,
+    pub g: Num,
+    pub x0: Num,
+    pub damper: Option<Spanned<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawForcing {
+    pub amplitude: Num,
+    pub period: Num,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSimulation {
+    pub settle_periods: Option<Spanned<i64>>,
+    pub sample_rate: OptNum,
+    pub rtol: OptNum,
+    pub atol: OptNum,
+    pub method: Option<Spanned<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawExcitation {
+    pub kind: Spanned<String>,
+    pub waveform: Option<Spanned<String>>,
+    pub f_start_hz: OptNum,
+    pub f_end_hz: OptNum,
+    pub duration: OptNum,
+    pub amplitude: OptNum,
+    pub copies: Option<Spanned<i64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawTheory {
+    pub harmonics: Option<Spanned<Vec<i64>>>,
+    pub omega_min: OptNum,
+    pub omega_max: OptNum,
+    pub points: Option<Spanned<i64>>,
+    pub spacing: Option<Spanned<String>>,
+    pub plot_harmonics: Option<Spanned<Vec<i64>>>,
+}
+
+/// Resolved, range-checked settings of one experiment.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    pub name: String,
+    pub path: PathBuf,
+    pub params: HopperParams,
+    pub damper: DamperLaw,
+    pub effects: Effects,
+    pub settle_periods: usize,
+    pub sample_rate: f64,
+    pub integrator: Options,
+    pub excitation: Excitation,
+    pub theory: TheorySettings,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Waveform {
+    /// `u = a sin(14 pi t^2 / 30)`, exactly as printed in the paper (rises to 14 Hz).
+    Paper,
+    Linear,
+    Log,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Excitation {
+    None,
+    ChirpTrain {
+        waveform: Waveform,
+        f_start_hz: f64,
+        f_end_hz: f64,
+        duration: f64,
+        amplitude: f64,
+        copies: usize,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct TheorySettings {
+    pub harmonics: Vec<i32>,
+    pub omegas: Vec<f64>,
+    pub plot_harmonics: Vec<i32>,
+}
+
+fn int_in(
+    src: &Source,
+    v: &Spanned<i64>,
+    key: &str,
+    lo: i64,
+    hi: i64,
+) -> Result<i64, ConfigError> {
+    let x = *v.get_ref();
+    if (lo..=hi).contains(&x) {
+        Ok(x)
+    } else {
+        Err(src.error(Some(&v.span()), key, format!("must be an integer in {lo}..={hi} (got {x})")))
+    }
+}
+
+fn harmonics_list(src: &Source, v: &Spanned<Vec<i64>>, key: &str) -> Result<Vec<i32>, ConfigError> {
+    let list = v.get_ref();
+    if list.is_empty() {
+        return Err(src.error(Some(&v.span()), key, "must list at least one harmonic"));
+    }
+    let mut out = Vec::with_capacity(list.len());
+    for &n in list {
+        if !(-50..=50).contains(&n) {
+            return Err(src.error(Some(&v.span()), key, format!("harmonics must lie in -50..=50 (got {n})")));
+        }
+        if out.contains(&(n as i32)) {
+            return Err(src.error(Some(&v.span()), key, format!("harmonic {n} is listed twice")));
+        }
+        out.push(n as i32);
+    }
+    Ok(out)
+}
+
+impl Settings {
+    /// Loads and resolves a config file.
+    pub fn from_file(path: &Path) -> Result<Settings, ConfigError> {
+        let (raw, src): (RawConfig, Source) = load(path)?;
+        Self::resolve(raw, &src)
+    }
+
+    pub fn resolve(raw: RawConfig, src: &Source) -> Result<Settings, ConfigError> {
+        let name = match &raw.name {
+            Some(n) => {
+                let s = n.get_ref().trim().to_string();
+                if s.is_empty() || s.contains(['/', '\\']) || s.starts_with('.') {
+                    return Err(src.error(
+                        Some(&n.span()),
+                        "name",
+                        format!("must be a plain file name (no slashes, not empty, not starting with '.') (got \"{s}\")"),
+                    ));
+                }
+                s
+            }
+            None => src
+                .path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "experiment".into()),
+        };
+        let m = &raw.model;
+        let params = HopperParams {
+            m: src.positive(&m.m, "model.m")?,
+            k: src.positive(&m.k, "model.k")?,
+            c: src.non_negative(&m.c, "model.c")?,
+            g: src.finite(&m.g, "model.g")?,
+            x0: src.finite(&m.x0, "model.x0")?,
+            forcing_amplitude: src.finite(&raw.forcing.amplitude, "forcing.amplitude")?,
+            period: src.positive(&raw.forcing.period, "forcing.period")?,
+        };
+        let damper = match &m.damper {
+            None => DamperLaw::Switching,
+            Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
+                "always_on" => DamperLaw::AlwaysOn,
+                _ => DamperLaw::Switching,
+            },
+        };
+        let s = &raw.simulation;
+        let settle_periods = match &s.settle_periods {
+            Some(v) => int_in(src, v, "simulation.settle_periods", 0, 100_000)? as usize,
+            None => 30,
+        };
+        let sample_rate = src.opt_number(&s.sample_rate, 100.0, "simulation.sample_rate", "> 0 (Hz)", |v| v > 0.0)?;
+        let mut integrator = Options {
+            rtol: src.opt_number(&s.rtol, 1e-10, "simulation.rtol", "in (0, 0.1]", |v| v > 0.0 && v <= 0.1)?,
+            atol: src.opt_number(&s.atol, 1e-12, "simulation.atol", "> 0", |v| v > 0.0)?,
+            ..Options::default()
+        };
+        if let Some(method) = &s.method {
+            integrator.method = match src.choice(method, "simulation.method", &["dop853", "dopri5"])? {
+                "dopri5" => Method::Dopri5,
+                _ => Method::Dop853,
+            };
+        }
+        let excitation = match &raw.excitation {
+            None => Excitation::None,
+            Some(e) => resolve_excitation(src, e, params.period)?,
+        };
+        let theory = resolve_theory(src, raw.theory.as_ref())?;
+        Ok(Settings {
+            name,
+            path: src.path.clone(),
+            params,
+            damper,
+            effects: Effects::default(),
+            settle_periods,
+            sample_rate,
+            integrator,
+            excitation,
+            theory,
+        })
+    }
+
+    /// Time at which the excitation starts (end of settling), s.
+    pub fn settle_time(&self) -> f64 {
+        self.settle_periods as f64 * self.params.period
+    }
+}
+
+fn resolve_excitation(src: &Source, e: &RawExcitation, _period: f64) -> Result<Excitation, ConfigError> {
+    match src.choice(&e.kind, "excitation.kind", &["none", "chirp_train"])? {
+        "none" => {
+            let why = "when excitation.kind = \"none\"";
+            src.forbid(&e.waveform, "excitation.waveform", why)?;
+            src.forbid(&e.amplitude, "excitation.amplitude", why)?;
+            src.forbid(&e.copies, "excitation.copies", why)?;
+            Ok(Excitation::None)
+        }
+        _ => {
+            let waveform = match &e.waveform {
+                None => Waveform::Linear,
+                Some(w) => match src.choice(w, "excitation.waveform", &["paper", "linear", "log"])? {
+                    "paper" => Waveform::Paper,
+                    "log" => Waveform::Log,
+                    _ => Waveform::Linear,
+                },
+            };
+            let copies = match &e.copies {
+                Some(v) => int_in(src, v, "excitation.copies", 1, 1000)? as usize,
+                None => 1,
+            };
+            let (f_start_hz, f_end_hz, duration, amplitude) = if waveform == Waveform::Paper {
+                let why = "with waveform = \"paper\" (the paper's chirp is fixed: 0.004 sin(14 pi t^2/30), 30 s)";
+                src.forbid(&e.f_start_hz, "excitation.f_start_hz", why)?;
+                src.forbid(&e.f_end_hz, "excitation.f_end_hz", why)?;
+                src.forbid(&e.duration, "excitation.duration", why)?;
+                src.forbid(&e.amplitude, "excitation.amplitude", why)?;
+                (0.0, 14.0, 30.0, 0.004)
+            } else {
+                let why = "for a linear or log chirp";
+                let f0 = src.non_negative(src.require(&e.f_start_hz, "excitation.f_start_hz", why)?, "excitation.f_start_hz")?;
+                let f1v = src.require(&e.f_end_hz, "excitation.f_end_hz", why)?;
+                let f1 = src.number(f1v, "excitation.f_end_hz", &format!("> f_start_hz ({f0})"), |v| v > f0)?;
+                if waveform == Waveform::Log && f0 <= 0.0 {
+                    return Err(src.error(e.f_start_hz.as_ref().map(|v| v.span()).as_ref(), "excitation.f_start_hz", "must be > 0 for a log chirp (got 0)"));
+                }
+                let d = src.positive(src.require(&e.duration, "excitation.duration", why)?, "excitation.duration")?;
+                let a = src.positive(src.require(&e.amplitude, "excitation.amplitude", why)?, "excitation.amplitude")?;
+                (f0, f1, d, a)
+            };
+            Ok(Excitation::ChirpTrain {
+                waveform,
+                f_start_hz,
+                f_end_hz,
+                duration,
+                amplitude,
+                copies,
+            })
+        }
+    }
+}
+
+fn resolve_theory(src: &Source, t: Option<&RawTheory>) -> Result<TheorySettings, ConfigError> {
+    let default_h: Vec<i32> = (-3..=3).collect();
+    let Some(t) = t else {
+        return Ok(TheorySettings {
+            harmonics: default_h.clone(),
+            omegas: log_grid(1.0, 40.0, 400),
+            plot_harmonics: default_h,
+        });
+    };
+    let harmonics = match &t.harmonics {
+        Some(h) => harmonics_list(src, h, "theory.harmonics")?,
+        None => default_h,
+    };
+    let lo = src.opt_number(&t.omega_min, 1.0, "theory.omega_min", "> 0 (rad/s)", |v| v > 0.0)?;
+    let hi = src.opt_number(&t.omega_max, 40.0, "theory.omega_max", &format!("> omega_min ({lo})"), |v| v > lo)?;
+    let points = match &t.points {
+        Some(p) => int_in(src, p, "theory.points", 2, 1_000_000)? as usize,
+        None => 400,
+    };
+    let omegas = match &t.spacing {
+        None => log_grid(lo, hi, points),
+        Some(s) => match src.choice(s, "theory.spacing", &["log", "linear"])? {
+            "linear" => (0..points).map(|i| lo + (hi - lo) * i as f64 / (points - 1) as f64).collect(),
+            _ => log_grid(lo, hi, points),
+        },
+    };
+    let plot_harmonics = match &t.plot_harmonics {
+        Some(h) => harmonics_list(src, h, "theory.plot_harmonics")?,
+        None => harmonics.clone(),
+    };
+    Ok(TheorySettings {
+        harmonics,
+        omegas,
+        plot_harmonics,
+    })
+}
+
+/// `points` logarithmically spaced values from `lo` to `hi` inclusive.
+pub fn log_grid(lo: f64, hi: f64, points: usize) -> Vec<f64> {
+    let (a, b) = (lo.ln(), hi.ln());
+    (0..points)
+        .map(|i| (a + (b - a) * i as f64 / (points.max(2) - 1) as f64).exp())
+        .collect()
+}

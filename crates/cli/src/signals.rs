@@ -1,0 +1,77 @@
+//! Builds the configured excitation as a signal of absolute time.
+
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use htfid_excite::{LinearChirp, LogChirp, PaperChirp, PhaseShiftedTrain, Segment, Signal, TrainLayout};
+use htfid_model::InputFn;
+
+use crate::settings::{Excitation, Settings, Waveform};
+
+/// The excitation of an experiment: the input signal and where its parts lie in time.
+pub struct Built {
+    pub signal: Option<Arc<dyn Signal>>,
+    /// Phase-shifted segments (chirp trains), absolute times.
+    pub segments: Vec<Segment>,
+    /// End of the excitation (absolute time, s).
+    pub end: f64,
+}
+
+impl Built {
+    /// The input as a model input function.
+    pub fn input_fn(&self) -> Option<InputFn> {
+        self.signal.clone().map(|s| {
+            let f: InputFn = Arc::new(move |t| s.value(t));
+            f
+        })
+    }
+}
+
+pub fn build(settings: &Settings) -> Result<Built> {
+    let start = settings.settle_time();
+    match &settings.excitation {
+        Excitation::None => Ok(Built {
+            signal: None,
+            segments: Vec::new(),
+            end: start,
+        }),
+        Excitation::ChirpTrain {
+            waveform,
+            f_start_hz,
+            f_end_hz,
+            duration,
+            amplitude,
+            copies,
+        } => {
+            let base: Box<dyn Signal> = match waveform {
+                Waveform::Paper => Box::new(PaperChirp),
+                Waveform::Linear => Box::new(
+                    LinearChirp::new(*f_start_hz, *f_end_hz, *duration, *amplitude)
+                        .context("excitation: invalid linear chirp")?,
+                ),
+                Waveform::Log => Box::new(
+                    LogChirp::new(*f_start_hz, *f_end_hz, *duration, *amplitude)
+                        .context("excitation: invalid log chirp")?,
+                ),
+            };
+            let train = PhaseShiftedTrain::new(
+                base,
+                TrainLayout {
+                    duration: *duration,
+                    copies: *copies,
+                    period: settings.params.period,
+                    start,
+                    min_gap: 0.0,
+                },
+            )
+            .context("excitation: invalid chirp train")?;
+            let segments = train.segments();
+            let end = train.end();
+            Ok(Built {
+                signal: Some(Arc::new(train)),
+                segments,
+                end,
+            })
+        }
+    }
+}

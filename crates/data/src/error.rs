@@ -1,0 +1,361 @@
+use std::fmt;
+use std::io;
+use std::path::PathBuf;
+
+/// Where in an input an error sits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Location {
+    /// A 1-based line number of a text file, counting every line (header, comments and blank
+    /// lines included), as an editor shows it. Displayed as `:17` right after the path.
+    Line(usize),
+    /// A 0-based sample (row) index, as NumPy indexes arrays. Displayed as `: row 17`.
+    Row(usize),
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(line) => write!(f, ":{line}"),
+            Location::Row(row) => write!(f, ": row {row}"),
+        }
+    }
+}
+
+/// A column named in an error: by header name (CSV) or by 0-based index (NPY).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ColumnId {
+    /// A header name, displayed in double quotes.
+    Name(String),
+    /// A 0-based column index, displayed bare.
+    Index(usize),
+}
+
+impl fmt::Display for ColumnId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ColumnId::Name(name) => write!(f, "\"{name}\""),
+            ColumnId::Index(index) => write!(f, "{index}"),
+        }
+    }
+}
+
+fn quoted_list(items: &[String]) -> String {
+    if items.is_empty() {
+        return "(none)".to_owned();
+    }
+    let quoted: Vec<String> = items.iter().map(|s| format!("\"{s}\"")).collect();
+    quoted.join(", ")
+}
+
+/// Everything that can go wrong reading measured data or writing results.
+///
+/// Messages start with the file (and line) they concern, compiler style:
+/// `SNLS80mV.csv:17: column "V2": cannot parse "abc" as a number`.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DataError {
+    /// The file could not be opened or read.
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: io::Error,
+    },
+    /// A file or directory could not be created, written, synced or renamed.
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        /// The file or directory.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: io::Error,
+    },
+    /// The text file is not UTF-8 (or ASCII).
+    #[error("{}:{line}: the file is not valid UTF-8 text", path.display())]
+    NotUtf8 {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the first invalid byte.
+        line: usize,
+    },
+    /// The file holds nothing but blank and comment lines.
+    #[error("{}: the file holds no data (it is empty or has only blank and comment lines)", path.display())]
+    EmptyFile {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The first non-comment line consists of numbers only, so there is no header.
+    #[error(
+        "{}:{line}: expected a header row of column names, found only numbers or empty cells \
+         (a header line that starts with the comment character is skipped as a comment)",
+        path.display()
+    )]
+    MissingHeader {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the would-be header.
+        line: usize,
+    },
+    /// A requested column is not in the header.
+    #[error(
+        "{}:{line}: no column \"{column}\" in the header; available columns: {}",
+        path.display(),
+        quoted_list(available)
+    )]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the header.
+        line: usize,
+        /// The requested name.
+        column: String,
+        /// The non-empty names the header does have, in order.
+        available: Vec<String>,
+    },
+    /// A requested column name occurs twice in the header, so the choice is ambiguous.
+    #[error(
+        "{}:{line}: column \"{column}\" appears more than once in the header (cells {first} and {second})",
+        path.display()
+    )]
+    DuplicateColumn {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the header.
+        line: usize,
+        /// The ambiguous name.
+        column: String,
+        /// 1-based position of its first occurrence.
+        first: usize,
+        /// 1-based position of its second occurrence.
+        second: usize,
+    },
+    /// A data row has a different number of cells than the header.
+    #[error("{}:{line}: expected {expected} cells as in the header, found {found}", path.display())]
+    CellCount {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the row.
+        line: usize,
+        /// Number of header columns.
+        expected: usize,
+        /// Number of cells in the row.
+        found: usize,
+    },
+    /// A quoted cell is not closed, or text follows its closing quote.
+    #[error(
+        "{}:{line}: malformed quoted cell (a quote is not closed, or text follows a closing quote)",
+        path.display()
+    )]
+    BadQuote {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+    },
+    /// A cell of a used column is not a number.
+    #[error("{}:{line}: column {column}: cannot parse \"{value}\" as a number", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// The column.
+        column: ColumnId,
+        /// The cell's text (trimmed, without quotes).
+        value: String,
+    },
+    /// A value of a used column is NaN or infinite (or overflows `f64`, like `1e400`).
+    #[error("{}{location}: column {column}: value \"{value}\" is not a finite number", path.display())]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// Line (text) or row (binary) of the value.
+        location: Location,
+        /// The column.
+        column: ColumnId,
+        /// The value as written in the file, or as formatted from the binary value.
+        value: String,
+    },
+    /// A time is not strictly after the one before it.
+    #[error(
+        "{}{location}: column {column}: time {found} s is not after the previous time {previous} s",
+        path.display()
+    )]
+    NonMonotonicTime {
+        /// The file.
+        path: PathBuf,
+        /// Line (text) or row (binary) of the offending time.
+        location: Location,
+        /// The time column.
+        column: ColumnId,
+        /// The time before it, in s.
+        previous: f64,
+        /// The offending time, in s.
+        found: f64,
+    },
+    /// A time step differs from the typical (median) step by more than the tolerance.
+    #[error(
+        "{}{location}: column {column}: time step {found_dt} s differs from the expected {expected_dt} s \
+         by more than the relative tolerance {tolerance:e} (the data must be uniformly sampled; \
+         if the times are printed with few digits, raise the time tolerance or give the sample rate instead)",
+        path.display()
+    )]
+    NonUniformTime {
+        /// The file.
+        path: PathBuf,
+        /// Line (text) or row (binary) of the time that ends the offending step.
+        location: Location,
+        /// The time column.
+        column: ColumnId,
+        /// The step found there, in s.
+        found_dt: f64,
+        /// The median step of the whole record, in s.
+        expected_dt: f64,
+        /// The relative tolerance in force.
+        tolerance: f64,
+    },
+    /// Fewer samples than the spec's minimum (never fewer than 2, which a sample step needs).
+    #[error("{}: {found} data rows, at least {min} needed", path.display())]
+    TooFewSamples {
+        /// The file.
+        path: PathBuf,
+        /// Data rows found.
+        found: usize,
+        /// Minimum required.
+        min: usize,
+    },
+    /// The sample rate is zero, negative, NaN or infinite.
+    #[error("sample rate must be finite and > 0 (got {rate_hz} Hz)")]
+    InvalidSampleRate {
+        /// The rate given, in Hz.
+        rate_hz: f64,
+    },
+    /// The start time is NaN or infinite.
+    #[error("start time must be finite (got {start} s)")]
+    InvalidStartTime {
+        /// The start time given, in s.
+        start: f64,
+    },
+    /// The relative time tolerance is negative, NaN or infinite.
+    #[error("relative time tolerance must be finite and >= 0 (got {tolerance})")]
+    InvalidTolerance {
+        /// The tolerance given.
+        tolerance: f64,
+    },
+    /// The comment character would make data lines or quoted cells ambiguous.
+    #[error("comment character {comment:?} clashes with the delimiter, the quote or whitespace")]
+    InvalidComment {
+        /// The character given.
+        comment: char,
+    },
+    /// The `.npy` file is malformed (magic, version, header).
+    #[error("{}: not a valid .npy file: {reason}", path.display())]
+    NpyFormat {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The `.npy` file is valid but holds an array this crate does not read.
+    #[error("{}: unsupported .npy array: {what}", path.display())]
+    NpyUnsupported {
+        /// The file.
+        path: PathBuf,
+        /// What is unsupported and how to convert it.
+        what: String,
+    },
+    /// A column index beyond the array's columns.
+    #[error(
+        "{}: column index {index} out of range: the array has {columns} columns (indices are 0-based)",
+        path.display()
+    )]
+    NpyColumn {
+        /// The file.
+        path: PathBuf,
+        /// The index requested.
+        index: usize,
+        /// Columns in the array.
+        columns: usize,
+    },
+    /// The data section is shorter or longer than the header's shape and dtype imply.
+    #[error("{}: the .npy header promises {expected} data bytes, the file holds {found}", path.display())]
+    NpyDataLength {
+        /// The file.
+        path: PathBuf,
+        /// Bytes implied by shape and dtype.
+        expected: u64,
+        /// Bytes present after the header.
+        found: u64,
+    },
+    /// Two vectors that must have one value per sample differ in length.
+    #[error("{}: column \"{column}\" has {found} values, the time vector has {expected}", path.display())]
+    LengthMismatch {
+        /// The source or target file.
+        path: PathBuf,
+        /// The column.
+        column: String,
+        /// Length of the time vector.
+        expected: usize,
+        /// Length of the column.
+        found: usize,
+    },
+    /// A row handed to a CSV writer has the wrong number of values.
+    #[error("{}: row {row} has {found} values, the header has {expected} columns", path.display())]
+    RowLength {
+        /// The target file.
+        path: PathBuf,
+        /// 0-based data row.
+        row: usize,
+        /// Header columns.
+        expected: usize,
+        /// Values given.
+        found: usize,
+    },
+    /// A CSV writer was given no columns.
+    #[error("{}: a CSV file needs at least one column", path.display())]
+    EmptyHeader {
+        /// The target file.
+        path: PathBuf,
+    },
+    /// A sample range outside the series or shorter than two samples.
+    #[error("sample range {start}..{end} is not a range of at least 2 samples within 0..{len}")]
+    InvalidRange {
+        /// First sample (inclusive).
+        start: usize,
+        /// Last sample (exclusive).
+        end: usize,
+        /// Samples in the series.
+        len: usize,
+    },
+    /// The output path exists but is not a directory.
+    #[error("output path {} exists and is not a directory", path.display())]
+    NotADirectory {
+        /// The path.
+        path: PathBuf,
+    },
+    /// The output directory already holds files the run would write, and overwriting was not asked for.
+    #[error(
+        "output directory {} already holds files this run would write: {}; \
+         allow overwriting or choose another directory",
+        dir.display(),
+        quoted_list(files)
+    )]
+    WouldOverwrite {
+        /// The output directory.
+        dir: PathBuf,
+        /// The clashing files, relative to the directory.
+        files: Vec<String>,
+    },
+    /// An output name that is empty, absolute, or leaves the output directory.
+    #[error("output name \"{name}\" must be a relative file path inside the output directory")]
+    InvalidOutputName {
+        /// The name given.
+        name: String,
+    },
+    /// The same output file is written twice in one run.
+    #[error("output \"{name}\" is written twice in one run")]
+    DuplicateOutput {
+        /// The name given.
+        name: String,
+    },
+}

@@ -1,0 +1,293 @@
+use std::fmt::Write as _;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::DataError;
+
+/// Distinguishes temporary files of one process; the process id distinguishes processes.
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// A file written under a temporary name beside its target and renamed onto the target on
+/// [`commit`](Self::commit). Dropped uncommitted, it deletes the temporary file, so the target
+/// is either untouched or complete.
+#[derive(Debug)]
+pub(crate) struct AtomicFile {
+    target: PathBuf,
+    temp: PathBuf,
+    file: Option<BufWriter<File>>,
+}
+
+impl AtomicFile {
+    pub(crate) fn create(target: &Path) -> Result<Self, DataError> {
+        let write_err = |source| DataError::Write {
+            path: target.to_path_buf(),
+            source,
+        };
+        let Some(name) = target.file_name() else {
+            return Err(write_err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "the path does not name a file",
+            )));
+        };
+        // Same directory as the target: a rename is atomic only within one file system.
+        let dir = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let pid = std::process::id();
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+            let mut temp_name = std::ffi::OsString::from(".");
+            temp_name.push(name);
+            temp_name.push(format!(".{pid}-{n}.tmp"));
+            let temp = dir.join(temp_name);
+            match OpenOptions::new().write(true).create_new(true).open(&temp) {
+                Ok(file) => {
+                    return Ok(Self {
+                        target: target.to_path_buf(),
+                        temp,
+                        file: Some(BufWriter::new(file)),
+                    })
+                }
+                // A stale file of an earlier process with the same id: take the next number.
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 1000 => continue,
+                Err(e) => return Err(write_err(e)),
+            }
+        }
+    }
+
+    pub(crate) fn target(&self) -> &Path {
+        &self.target
+    }
+
+    pub(crate) fn write_all(&mut self, bytes: &[u8]) -> Result<(), DataError> {
+        let result = match self.file.as_mut() {
+            Some(f) => f.write_all(bytes),
+            None => Err(io::Error::other("file already finished")),
+        };
+        result.map_err(|source| DataError::Write {
+            path: self.target.clone(),
+            source,
+        })
+    }
+
+    /// Flushes, syncs to disk (so a crash cannot leave a renamed but empty file) and renames.
+    pub(crate) fn commit(mut self) -> Result<(), DataError> {
+        let result = (|| {
+            let file = self
+                .file
+                .take()
+                .ok_or_else(|| io::Error::other("file already finished"))?;
+            let file = file.into_inner().map_err(|e| e.into_error())?;
+            file.sync_all()?;
+            drop(file);
+            fs::rename(&self.temp, &self.target)
+        })();
+        result.map_err(|source| DataError::Write {
+            path: self.target.clone(),
+            source,
+        })?;
+        self.temp = PathBuf::new();
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        self.file.take();
+        if !self.temp.as_os_str().is_empty() {
+            // Nothing useful can be done if this fails; the name marks it as a temporary.
+            let _ = fs::remove_file(&self.temp);
+        }
+    }
+}
+
+/// Appends `x` in the shortest form that parses back to the identical `f64`.
+///
+/// Rust's `Display` and `LowerExp` for `f64` both print the shortest round-trip digits; plain
+/// notation reads better for ordinary magnitudes, exponent notation keeps tiny and huge values
+/// short (`1e-300`, not 300 zeros). Non-finite values print as `NaN`, `inf`, `-inf`, which
+/// Python and NumPy parse too.
+pub(crate) fn push_f64(buf: &mut String, x: f64) {
+    let a = x.abs();
+    let plain = a == 0.0 || !a.is_finite() || (1e-5..1e16).contains(&a);
+    // Writing to a String cannot fail.
+    let _ = if plain {
+        write!(buf, "{x}")
+    } else {
+        write!(buf, "{x:e}")
+    };
+}
+
+/// Appends a header name, quoting it (with doubled inner quotes) when it would otherwise not
+/// read back as the same single cell.
+fn push_name(buf: &mut String, name: &str) {
+    let needs_quotes = name.contains([',', '"', '\n', '\r', ';', '\t'])
+        || name.starts_with([' ', '#'])
+        || name.ends_with(' ');
+    if needs_quotes {
+        buf.push('"');
+        buf.push_str(&name.replace('"', "\"\""));
+        buf.push('"');
+    } else {
+        buf.push_str(name);
+    }
+}
+
+/// Writes a comma-separated file of numbers atomically: rows go to a temporary file beside the
+/// target, which replaces the target only on [`finish`](Self::finish). Dropping the writer
+/// unfinished (an error, a panic) leaves the target as it was.
+///
+/// Values are written with full round-trip precision: reading them back gives the identical
+/// `f64` bits. This writer replaces an existing target; the policy of what may be overwritten
+/// belongs to [`OutputDir`](crate::OutputDir).
+#[derive(Debug)]
+pub struct CsvWriter {
+    file: AtomicFile,
+    columns: usize,
+    rows: usize,
+    line: String,
+}
+
+impl CsvWriter {
+    /// Starts a file at `path` with the given header. Names that contain separators, quotes or
+    /// leading `#` are quoted.
+    pub fn create(path: impl AsRef<Path>, header: &[&str]) -> Result<Self, DataError> {
+        let path = path.as_ref();
+        if header.is_empty() {
+            return Err(DataError::EmptyHeader {
+                path: path.to_path_buf(),
+            });
+        }
+        let mut file = AtomicFile::create(path)?;
+        let mut line = String::new();
+        for (i, name) in header.iter().enumerate() {
+            if i > 0 {
+                line.push(',');
+            }
+            push_name(&mut line, name);
+        }
+        line.push('\n');
+        file.write_all(line.as_bytes())?;
+        Ok(Self {
+            file,
+            columns: header.len(),
+            rows: 0,
+            line,
+        })
+    }
+
+    /// Appends one row; it must have one value per header column.
+    pub fn write_row(&mut self, values: &[f64]) -> Result<(), DataError> {
+        if values.len() != self.columns {
+            return Err(DataError::RowLength {
+                path: self.file.target().to_path_buf(),
+                row: self.rows,
+                expected: self.columns,
+                found: values.len(),
+            });
+        }
+        self.line.clear();
+        for (i, &v) in values.iter().enumerate() {
+            if i > 0 {
+                self.line.push(',');
+            }
+            push_f64(&mut self.line, v);
+        }
+        self.line.push('\n');
+        self.file.write_all(self.line.as_bytes())?;
+        self.rows += 1;
+        Ok(())
+    }
+
+    /// Data rows written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The file this writer will create.
+    pub fn path(&self) -> &Path {
+        self.file.target()
+    }
+
+    /// Completes the file and moves it into place.
+    pub fn finish(self) -> Result<(), DataError> {
+        self.file.commit()
+    }
+}
+
+/// Writes a time series as CSV with header `t,<name>,...`: one row per sample, time first.
+/// Every column must have one value per time. Atomic like [`CsvWriter`].
+pub fn write_timeseries_csv(
+    path: impl AsRef<Path>,
+    t: &[f64],
+    columns: &[(&str, &[f64])],
+) -> Result<(), DataError> {
+    let path = path.as_ref();
+    for &(name, values) in columns {
+        if values.len() != t.len() {
+            return Err(DataError::LengthMismatch {
+                path: path.to_path_buf(),
+                column: name.to_owned(),
+                expected: t.len(),
+                found: values.len(),
+            });
+        }
+    }
+    let header: Vec<&str> = std::iter::once("t")
+        .chain(columns.iter().map(|&(name, _)| name))
+        .collect();
+    let mut writer = CsvWriter::create(path, &header)?;
+    let mut row = vec![0.0; header.len()];
+    for (k, &tk) in t.iter().enumerate() {
+        row[0] = tk;
+        for (slot, &(_, values)) in row[1..].iter_mut().zip(columns) {
+            *slot = values[k];
+        }
+        writer.write_row(&row)?;
+    }
+    writer.finish()
+}
+
+/// Writes `json` (any text) to `path` atomically: complete or not at all.
+pub fn write_json_atomic(path: impl AsRef<Path>, json: &str) -> Result<(), DataError> {
+    let mut file = AtomicFile::create(path.as_ref())?;
+    file.write_all(json.as_bytes())?;
+    file.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fmt(x: f64) -> String {
+        let mut s = String::new();
+        push_f64(&mut s, x);
+        s
+    }
+
+    #[test]
+    fn numbers_use_plain_notation_for_ordinary_magnitudes() {
+        assert_eq!(fmt(0.0057756), "0.0057756");
+        assert_eq!(fmt(-0.0), "-0");
+        assert_eq!(fmt(1e-300), "1e-300");
+        assert_eq!(fmt(1e16), "1e16");
+        assert_eq!(fmt(123456.0), "123456");
+        assert_eq!(fmt(f64::NAN), "NaN");
+        assert_eq!(fmt(f64::NEG_INFINITY), "-inf");
+    }
+
+    #[test]
+    fn awkward_names_are_quoted() {
+        let mut s = String::new();
+        for n in ["t", "a,b", "say \"x\"", "# n", "plain name"] {
+            push_name(&mut s, n);
+            s.push('|');
+        }
+        assert_eq!(s, "t|\"a,b\"|\"say \"\"x\"\"\"|\"# n\"|plain name|");
+    }
+}

@@ -1,0 +1,1 @@
+//! htfid-diagnose (under construction).

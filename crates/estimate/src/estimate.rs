@@ -1,0 +1,277 @@
+//! The result type shared by all non-parametric estimators.
+
+use std::fmt;
+
+use num_complex::Complex64;
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+
+/// Which estimator produced an [`HtfEstimate`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+#[non_exhaustive]
+pub enum Method {
+    /// Single-record smoothness-regularised least squares ([`siddiqi`](crate::siddiqi)).
+    Siddiqi,
+    /// Per-bin least squares over several records.
+    MultiExperiment,
+    /// Several records, ridge-regularised per bin.
+    MultiExperimentRidge,
+    /// Several records, smoothness-regularised across bins.
+    MultiExperimentSmooth,
+    /// Several records with local polynomial transient suppression.
+    MultiExperimentLpm,
+    /// Ratios at the lines of a periodic multisine.
+    PeriodicLines,
+    /// Periodic lines from a `+u` / `-u` record pair.
+    PeriodicLinesPaired,
+}
+
+impl Method {
+    /// Short kebab-case name, as written to files.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::Siddiqi => "siddiqi",
+            Self::MultiExperiment => "multi-experiment",
+            Self::MultiExperimentRidge => "multi-experiment-ridge",
+            Self::MultiExperimentSmooth => "multi-experiment-smooth",
+            Self::MultiExperimentLpm => "multi-experiment-lpm",
+            Self::PeriodicLines => "periodic-lines",
+            Self::PeriodicLinesPaired => "periodic-lines-paired",
+        }
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Estimated harmonic transfer functions `G_n(j omega)` at output frequencies `omega`.
+///
+/// For each harmonic `harmonics[i]` there are parallel arrays of output frequencies (rad/s,
+/// ascending), complex values and standard errors. A standard error is
+/// `sqrt(E|G_hat - E G_hat|^2)`, the spread of the complex estimate (each of the real and
+/// imaginary parts has about `stderr / sqrt(2)` when the noise is circular); `NaN` means that no
+/// residual degrees of freedom were left to estimate it and `inf` that the bin was rank
+/// deficient.
+#[derive(Debug, Clone, Serialize)]
+pub struct HtfEstimate {
+    harmonics: Vec<i32>,
+    omegas: Vec<Vec<f64>>,
+    values: Vec<Vec<Complex64>>,
+    stderr: Vec<Vec<f64>>,
+    cond: Option<Vec<f64>>,
+    alpha: Option<f64>,
+    alpha_effective: Option<f64>,
+    dof: Option<f64>,
+    method: Method,
+}
+
+/// One row of an estimate, as written to CSV (`omega,n,re,im,stderr`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HtfRow {
+    /// Output frequency, rad/s.
+    pub omega: f64,
+    /// Harmonic index.
+    pub n: i32,
+    /// `G_n(j omega)`.
+    pub value: Complex64,
+    /// Standard error of `value` (see [`HtfEstimate`]).
+    pub stderr: f64,
+}
+
+/// All values of one harmonic.
+#[derive(Debug, Clone, Copy)]
+pub struct HarmonicSeries<'a> {
+    /// Harmonic index.
+    pub n: i32,
+    /// Output frequencies, rad/s.
+    pub omegas: &'a [f64],
+    /// Estimates.
+    pub values: &'a [Complex64],
+    /// Standard errors.
+    pub stderr: &'a [f64],
+}
+
+impl HtfEstimate {
+    /// Assembles an estimate, checking that every harmonic has one value and one standard error
+    /// per frequency.
+    pub fn new(
+        method: Method,
+        harmonics: Vec<i32>,
+        omegas: Vec<Vec<f64>>,
+        values: Vec<Vec<Complex64>>,
+        stderr: Vec<Vec<f64>>,
+    ) -> Result<Self> {
+        crate::record::validate_harmonics(&harmonics)?;
+        let h = harmonics.len();
+        for (what, found) in [
+            ("omegas", omegas.len()),
+            ("values", values.len()),
+            ("stderr", stderr.len()),
+        ] {
+            if found != h {
+                return Err(Error::InconsistentEstimate {
+                    what,
+                    found,
+                    expected: h,
+                });
+            }
+        }
+        for i in 0..h {
+            let expected = omegas[i].len();
+            for (what, found) in [("values", values[i].len()), ("stderr", stderr[i].len())] {
+                if found != expected {
+                    return Err(Error::InconsistentEstimate {
+                        what,
+                        found,
+                        expected,
+                    });
+                }
+            }
+        }
+        Ok(Self {
+            harmonics,
+            omegas,
+            values,
+            stderr,
+            cond: None,
+            alpha: None,
+            alpha_effective: None,
+            dof: None,
+            method,
+        })
+    }
+
+    /// Attaches per-bin condition numbers; all harmonics must share one frequency grid of the
+    /// same length.
+    pub fn with_cond(mut self, cond: Vec<f64>) -> Result<Self> {
+        for om in &self.omegas {
+            if om.len() != cond.len() {
+                return Err(Error::InconsistentEstimate {
+                    what: "cond",
+                    found: cond.len(),
+                    expected: om.len(),
+                });
+            }
+        }
+        self.cond = Some(cond);
+        Ok(self)
+    }
+
+    /// Records the regularisation weight: `alpha` as the user states it (dimensionless) and the
+    /// weight actually used in the normal equations.
+    pub fn with_alpha(mut self, alpha: f64, alpha_effective: f64) -> Self {
+        self.alpha = Some(alpha);
+        self.alpha_effective = Some(alpha_effective);
+        self
+    }
+
+    /// Records the residual degrees of freedom behind the standard errors.
+    pub fn with_dof(mut self, dof: f64) -> Self {
+        self.dof = Some(dof);
+        self
+    }
+
+    /// Harmonic indices, in the order given to the estimator.
+    pub fn harmonics(&self) -> &[i32] {
+        &self.harmonics
+    }
+
+    /// The values of harmonic `n`, if it was estimated.
+    pub fn harmonic(&self, n: i32) -> Option<HarmonicSeries<'_>> {
+        let i = self.harmonics.iter().position(|&m| m == n)?;
+        Some(HarmonicSeries {
+            n,
+            omegas: &self.omegas[i],
+            values: &self.values[i],
+            stderr: &self.stderr[i],
+        })
+    }
+
+    /// Every value as `(omega, n, G, stderr)`, harmonic by harmonic, ascending in `omega`.
+    pub fn rows(&self) -> impl Iterator<Item = HtfRow> + '_ {
+        self.harmonics.iter().enumerate().flat_map(move |(i, &n)| {
+            self.omegas[i]
+                .iter()
+                .zip(&self.values[i])
+                .zip(&self.stderr[i])
+                .map(move |((&omega, &value), &stderr)| HtfRow {
+                    omega,
+                    n,
+                    value,
+                    stderr,
+                })
+        })
+    }
+
+    /// Condition number of the per-bin least-squares problem (multi-experiment estimators),
+    /// aligned with every harmonic's frequencies.
+    pub fn cond(&self) -> Option<&[f64]> {
+        self.cond.as_deref()
+    }
+
+    /// Dimensionless regularisation weight, when one was used.
+    pub fn alpha(&self) -> Option<f64> {
+        self.alpha
+    }
+
+    /// The weight as used in the normal equations (`alpha` times the mean diagonal of the data
+    /// Gram matrix).
+    pub fn alpha_effective(&self) -> Option<f64> {
+        self.alpha_effective
+    }
+
+    /// Residual degrees of freedom (complex) behind the standard errors; for pooled per-bin
+    /// estimates, the smallest over the bins.
+    pub fn dof(&self) -> Option<f64> {
+        self.dof
+    }
+
+    /// The estimator that produced this estimate.
+    pub fn method(&self) -> Method {
+        self.method
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_walk_harmonics_then_frequencies() {
+        let est = HtfEstimate::new(
+            Method::PeriodicLines,
+            vec![0, 1],
+            vec![vec![1.0, 2.0], vec![3.0]],
+            vec![
+                vec![Complex64::new(1.0, 0.0), Complex64::new(2.0, 0.0)],
+                vec![Complex64::new(0.0, 3.0)],
+            ],
+            vec![vec![0.1, 0.2], vec![0.3]],
+        )
+        .unwrap();
+        let rows: Vec<(i32, f64)> = est.rows().map(|r| (r.n, r.omega)).collect();
+        assert_eq!(rows, [(0, 1.0), (0, 2.0), (1, 3.0)]);
+        assert!(est.with_cond(vec![1.0, 1.0]).is_err());
+    }
+
+    #[test]
+    fn inconsistent_lengths_are_rejected() {
+        let e = HtfEstimate::new(
+            Method::Siddiqi,
+            vec![0],
+            vec![vec![1.0, 2.0]],
+            vec![vec![Complex64::new(1.0, 0.0)]],
+            vec![vec![0.1, 0.2]],
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "estimate arrays are inconsistent: values has length 1, expected 2"
+        );
+    }
+}

@@ -1,0 +1,1 @@
+//! htfid-estimate (under construction).

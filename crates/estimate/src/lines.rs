@@ -1,0 +1,259 @@
+//! Direct estimation at the lines of a periodic multisine.
+
+use std::collections::HashMap;
+use std::f64::consts::PI;
+
+use num_complex::Complex64;
+use rustfft::FftPlanner;
+
+use crate::error::{Error, Result};
+use crate::estimate::{HtfEstimate, Method};
+use crate::record::{validate_harmonics, validate_period, Record, Spectrum};
+
+/// Tolerance on "whole number" of periods and samples, as for records.
+const WHOLE_TOL: f64 = 1e-6;
+/// A line whose mean input is below this fraction of the largest line is treated as unexcited.
+const UNEXCITED: f64 = 1e-10;
+
+/// The excited lines of a periodic multisine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LineSpec {
+    multisine_period: f64,
+    lines: Vec<usize>,
+}
+
+impl LineSpec {
+    /// `lines` are DFT bins of one multisine period: line `b` is at `2 pi b / multisine_period`
+    /// rad/s. Lines must be `>= 1` and distinct; the period must be positive and, when used, a
+    /// whole number of system periods and of samples.
+    pub fn new(multisine_period: f64, lines: Vec<usize>) -> Result<Self> {
+        validate_period(multisine_period)?;
+        if lines.is_empty() {
+            return Err(Error::InvalidOption {
+                name: "lines",
+                value: 0.0,
+                reason: "at least one line is needed",
+            });
+        }
+        for (i, &b) in lines.iter().enumerate() {
+            if b == 0 {
+                return Err(Error::InvalidOption {
+                    name: "lines",
+                    value: 0.0,
+                    reason: "lines must be >= 1 (DC carries no harmonic information)",
+                });
+            }
+            if lines[..i].contains(&b) {
+                return Err(Error::DuplicateLine { line: b });
+            }
+        }
+        Ok(Self {
+            multisine_period,
+            lines,
+        })
+    }
+
+    /// Multisine period, s.
+    pub fn multisine_period(&self) -> f64 {
+        self.multisine_period
+    }
+
+    /// Excited lines (bins of one multisine period).
+    pub fn lines(&self) -> &[usize] {
+        &self.lines
+    }
+}
+
+/// Estimates `G_n` at the output frequencies reached by the lines of a periodic multisine from a
+/// steady-state record of `M >= 2` whole multisine periods.
+///
+/// With `Q` system periods per multisine period, line `b` reaches output bin `b + nQ` through
+/// harmonic `n`, so `G_n(j w_{b+nQ}) = Y[b + nQ] / U[b]`; its mirror gives
+/// `G_n(j(n wp - w_b)) = Y[-b + nQ] / conj(U[b])` (this output frequency may be negative). Every
+/// `(signed line, harmonic)` pair must reach its own bin, otherwise [`Error::LineCollision`].
+/// Each period is transformed with absolute-time phase; `Y` and `U` are averaged over periods and
+/// the standard error is the period-to-period scatter of `Y`,
+/// `sqrt(sum_m |Y_m - Y_mean|^2 / (M (M - 1))) / |U_mean|`, with `M - 1` complex degrees of freedom.
+/// The input is taken as noise free, and output bins are assumed to receive nothing from
+/// harmonics outside `harmonics` (unmodelled harmonics alias onto modelled bins).
+pub fn periodic_lines(
+    record: &Record,
+    period: f64,
+    lines: &LineSpec,
+    harmonics: &[i32],
+) -> Result<HtfEstimate> {
+    estimate(record, None, period, lines, harmonics)
+}
+
+/// As [`periodic_lines`], from a record driven by `+u` and one driven by `-u` at the same orbit
+/// phases. Each period uses `U = (U+ - U-) / 2` and `Y = (Y+ - Y-) / 2`: the linear response
+/// survives while every even-order term of a nonlinear response (equal for `+u` and `-u`)
+/// cancels.
+pub fn periodic_lines_paired(
+    plus: &Record,
+    minus: &Record,
+    period: f64,
+    lines: &LineSpec,
+    harmonics: &[i32],
+) -> Result<HtfEstimate> {
+    if plus.len() != minus.len() || (plus.dt() - minus.dt()).abs() > 1e-12 * plus.dt() {
+        return Err(Error::PairMismatch {
+            plus_samples: plus.len(),
+            plus_dt: plus.dt(),
+            minus_samples: minus.len(),
+            minus_dt: minus.dt(),
+        });
+    }
+    estimate(plus, Some(minus), period, lines, harmonics)
+}
+
+fn whole(x: f64) -> Option<usize> {
+    let r = x.round();
+    (r >= 1.0 && (x - r).abs() <= WHOLE_TOL).then_some(r as usize)
+}
+
+fn estimate(
+    plus: &Record,
+    minus: Option<&Record>,
+    period: f64,
+    spec: &LineSpec,
+    harmonics: &[i32],
+) -> Result<HtfEstimate> {
+    validate_period(period)?;
+    validate_harmonics(harmonics)?;
+    let dt = plus.dt();
+    let tm = spec.multisine_period;
+    let q = whole(tm / period).ok_or(Error::MultisineNotWholePeriods {
+        multisine_period: tm,
+        period,
+        ratio: tm / period,
+    })? as i64;
+    let nm = whole(tm / dt).ok_or(Error::MultisineNotWholeSamples {
+        multisine_period: tm,
+        dt,
+        ratio: tm / dt,
+    })?;
+    if plus.len() % nm != 0 {
+        return Err(Error::NotWholeMultisinePeriods {
+            samples: plus.len(),
+            period_samples: nm,
+        });
+    }
+    let periods = plus.len() / nm;
+    if periods < 2 {
+        return Err(Error::TooFewPeriods {
+            periods,
+            minimum: 2,
+        });
+    }
+    let below_nyquist = |k: i64| 2 * k.unsigned_abs() < nm as u64;
+    let dw = 2.0 * PI / (nm as f64 * dt);
+    for &b in &spec.lines {
+        if !below_nyquist(b as i64) {
+            return Err(Error::InvalidLine {
+                line: b,
+                nyquist_bin: nm / 2,
+            });
+        }
+    }
+    // Every (signed line, harmonic) pair and its output bin; no bin may be reached twice.
+    let mut targets: Vec<(usize, i64, usize, i64)> = Vec::new(); // (line idx, sign, harmonic idx, bin)
+    let mut owner: HashMap<i64, (i64, i32)> = HashMap::new();
+    for (li, &b) in spec.lines.iter().enumerate() {
+        for sign in [1i64, -1] {
+            let s = sign * b as i64;
+            for (hi, &n) in harmonics.iter().enumerate() {
+                let bin = s + i64::from(n) * q;
+                if !below_nyquist(bin) {
+                    return Err(Error::BeyondNyquist {
+                        omega: bin as f64 * dw,
+                        n,
+                        needed: bin as f64 * dw,
+                        nyquist: PI / dt,
+                    });
+                }
+                if let Some(&(line_b, n_b)) = owner.get(&bin) {
+                    return Err(Error::LineCollision {
+                        bin,
+                        line_a: line_b,
+                        n_a: n_b,
+                        line_b: s,
+                        n_b: n,
+                    });
+                }
+                owner.insert(bin, (s, n));
+                targets.push((li, sign, hi, bin));
+            }
+        }
+    }
+    let fft = FftPlanner::new().plan_fft_forward(nm);
+    let nl = spec.lines.len();
+    let nt = targets.len();
+    // Per period: U at the lines, Y at the targets.
+    let mut u_lines = vec![Complex64::new(0.0, 0.0); periods * nl];
+    let mut y_bins = vec![Complex64::new(0.0, 0.0); periods * nt];
+    for m in 0..periods {
+        let range = m * nm..(m + 1) * nm;
+        let t0 = plus.t_start() + (m * nm) as f64 * dt;
+        let mut su = Spectrum::new(&plus.u()[range.clone()], dt, t0, &fft);
+        let mut sy = Spectrum::new(&plus.y()[range.clone()], dt, t0, &fft);
+        if let Some(minus) = minus {
+            let t0m = minus.t_start() + (m * nm) as f64 * dt;
+            let mu = Spectrum::new(&minus.u()[range.clone()], dt, t0m, &fft);
+            let my = Spectrum::new(&minus.y()[range], dt, t0m, &fft);
+            su = su.half_difference(&mu);
+            sy = sy.half_difference(&my);
+        }
+        for (li, &b) in spec.lines.iter().enumerate() {
+            u_lines[m * nl + li] = su.at(b as i64);
+        }
+        for (ti, t) in targets.iter().enumerate() {
+            y_bins[m * nt + ti] = sy.at(t.3);
+        }
+    }
+    let mean = |v: &[Complex64], stride: usize, i: usize| -> Complex64 {
+        (0..periods).map(|m| v[m * stride + i]).sum::<Complex64>() / periods as f64
+    };
+    let u_mean: Vec<Complex64> = (0..nl).map(|li| mean(&u_lines, nl, li)).collect();
+    let largest = u_mean.iter().map(|c| c.norm()).fold(0.0, f64::max);
+    for (li, u) in u_mean.iter().enumerate() {
+        if !(u.norm() > UNEXCITED * largest) {
+            return Err(Error::LineNotExcited {
+                line: spec.lines[li],
+                magnitude: u.norm(),
+                largest,
+            });
+        }
+    }
+    let h = harmonics.len();
+    let mut rows: Vec<Vec<(f64, Complex64, f64)>> = vec![Vec::new(); h];
+    for (ti, &(li, sign, hi, bin)) in targets.iter().enumerate() {
+        let y_mean = mean(&y_bins, nt, ti);
+        let scatter: f64 = (0..periods)
+            .map(|m| (y_bins[m * nt + ti] - y_mean).norm_sqr())
+            .sum();
+        let var_mean = scatter / (periods * (periods - 1)) as f64;
+        let u = if sign > 0 {
+            u_mean[li]
+        } else {
+            u_mean[li].conj()
+        };
+        rows[hi].push((bin as f64 * dw, y_mean / u, var_mean.sqrt() / u.norm()));
+    }
+    for r in &mut rows {
+        r.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    let method = if minus.is_some() {
+        Method::PeriodicLinesPaired
+    } else {
+        Method::PeriodicLines
+    };
+    Ok(HtfEstimate::new(
+        method,
+        harmonics.to_vec(),
+        rows.iter().map(|r| r.iter().map(|v| v.0).collect()).collect(),
+        rows.iter().map(|r| r.iter().map(|v| v.1).collect()).collect(),
+        rows.iter().map(|r| r.iter().map(|v| v.2).collect()).collect(),
+    )?
+    .with_dof((periods - 1) as f64))
+}

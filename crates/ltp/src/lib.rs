@@ -1,0 +1,44 @@
+//! Linear time-periodic (LTP) models for htfid.
+//!
+//! An LTP system is `x' = A(t) x + B(t) u`, `y = C(t) x + D(t) u` with
+//! matrices of period `T`; `wp = 2 pi / T` is the pumping frequency. Time is
+//! absolute: `t = 0` is phase 0 of the orbit (the phase 0 of the forcing).
+//!
+//! - [`PiecewiseLti`]: a periodic system made of time-invariant [`Piece`]s
+//!   tiling one period from a start time `tau_0` (pieces wrap modulo `T`),
+//!   each with constant `A_i, B_i, C_i, D_i` and a jump `x -> J_i x` at its
+//!   start. Built by a validating constructor.
+//! - Fourier coefficients, `M(t) = sum_n M_n exp(j n wp t)` with
+//!   `M_n = (1/T) int_0^T M(t) exp(-j n wp t) dt`:
+//!   [`PiecewiseLti::fourier_coefficient`] and [`square_wave_fourier`] in
+//!   closed form, [`fft_fourier`] for sampled periodic matrices.
+//! - Floquet analysis: [`expm`] (Pade-13 scaling and squaring),
+//!   [`PiecewiseLti::monodromy`], [`Floquet`] multipliers and exponents,
+//!   [`PiecewiseLti::liouville_determinant`].
+//!
+//! ```
+//! use htfid_ltp::{Floquet, Piece, PiecewiseLti};
+//! use nalgebra::{dmatrix, dvector, RowDVector};
+//!
+//! // Mass-spring system whose damper is on during [0.2, 0.7) of each period.
+//! let (k, c) = (200.0, 2.0);
+//! let b = dvector![0.0, 1.0];
+//! let out = RowDVector::from_row_slice(&[1.0, 0.0]);
+//! let on = Piece::siso(0.5, dmatrix![0.0, 1.0; -k, -c], b.clone(), out.clone(), 0.0);
+//! let off = Piece::siso(0.5, dmatrix![0.0, 1.0; -k, 0.0], b, out, 0.0);
+//! let lti = PiecewiseLti::new(1.0, 0.2, vec![on, off])?;
+//!
+//! let floquet = Floquet::new(&lti);
+//! assert!(floquet.spectral_radius() < 1.0);
+//! // det(monodromy) = exp(int trace A) = exp(-c * 0.5).
+//! assert!((floquet.monodromy().determinant() - (-1.0_f64).exp()).abs() < 1e-12);
+//! # Ok::<(), htfid_ltp::LtpError>(())
+//! ```
+
+mod floquet;
+mod fourier;
+mod piecewise;
+
+pub use floquet::{expm, Floquet};
+pub use fourier::{fft_fourier, fft_fourier_fn, square_wave_fourier, MatrixFourierSeries};
+pub use piecewise::{LtpError, Piece, PiecewiseLti, SystemMatrix};

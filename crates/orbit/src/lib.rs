@@ -1,0 +1,52 @@
+//! Periodic orbits of clock-driven hybrid systems.
+//!
+//! Given any [`HybridSystem`](htfid_hybrid::HybridSystem) whose inputs repeat with a known
+//! period `T` (a forced, clock-driven oscillator), this crate
+//!
+//! - integrates the **variational equations** `Phi' = Df(t, x) Phi` alongside the state, with
+//!   the **saltation matrix** applied at every transition ([`saltation`], [`Variational`]);
+//! - evaluates the **period map** `P(x) = phi(t0 + T; t0, x)` and its Jacobian ([`period_map`]);
+//! - finds the limit cycle by settling followed by **Newton shooting** on `P(x) - x = 0`
+//!   ([`find_limit_cycle`]), and reports its Floquet multipliers (the eigenvalues of `DP`) and
+//!   the periodicity residual, refusing orbits that are not asymptotically stable.
+//!
+//! # Saltation
+//!
+//! At a transition from chart `a` to chart `b` at time `t*`, guard `h(t, x) = 0`, reset `R`,
+//! a perturbation `dx` just before the event maps to `S dx` just after it, where
+//!
+//! ```text
+//! S = DR + (f_b(x+) - DR f_a(x-)) grad(h)^T / (grad(h) . f_a(x-) + dh/dt)
+//! ```
+//!
+//! With the identity reset and a vector field that is continuous across the switching surface
+//! (the hopper's damper force `c xd` vanishes on `xd = 0`), `f_b = f_a` there and `S = I`.
+//!
+//! # Example
+//!
+//! ```
+//! use htfid_hybrid::{HybridSystem, Options};
+//! use htfid_orbit::{find_limit_cycle, ShootingOptions};
+//!
+//! /// x' = -x + cos(t): one chart, a stable 2*pi-periodic orbit with multiplier exp(-2*pi).
+//! struct Forced;
+//! impl HybridSystem for Forced {
+//!     type Mode = ();
+//!     fn dim(&self) -> usize { 1 }
+//!     fn vector_field(&self, _: (), t: f64, x: &[f64], dx: &mut [f64]) { dx[0] = -x[0] + t.cos(); }
+//! }
+//! let period = 2.0 * std::f64::consts::PI;
+//! let cycle = find_limit_cycle(&Forced, (), 0.0, &[0.0], period, &ShootingOptions::default(),
+//!     &Options::default()).unwrap();
+//! // The periodic solution is (cos t + sin t)/2, so x(0) = 1/2.
+//! assert!((cycle.state0[0] - 0.5).abs() < 1e-9);
+//! assert!((cycle.multipliers[0].re - (-period).exp()).abs() < 1e-9);
+//! ```
+
+mod error;
+mod shooting;
+mod variational;
+
+pub use error::OrbitError;
+pub use shooting::{find_limit_cycle, period_map, LimitCycle, PeriodMap, ShootingOptions};
+pub use variational::{guard_gradient, reset_jacobian, saltation, vector_field_jacobian, Variational};

@@ -1,0 +1,212 @@
+//! Variational equations with saltation, and finite-difference fallbacks for the derivatives a
+//! system does not supply.
+
+use htfid_hybrid::{Crossing, HybridSystem};
+use nalgebra::{DMatrix, DVector};
+
+/// Relative finite-difference step for central differences: the cube root of machine epsilon
+/// balances truncation (h^2) against rounding (eps/h) error.
+const FD_REL: f64 = 6.0e-6;
+
+fn fd_step(x: f64) -> f64 {
+    FD_REL * x.abs().max(1.0)
+}
+
+/// `df/dx` of chart `mode` at `(t, x)`: the system's own Jacobian where it supplies one,
+/// central finite differences otherwise.
+pub fn vector_field_jacobian<S: HybridSystem>(
+    sys: &S,
+    mode: S::Mode,
+    t: f64,
+    x: &[f64],
+) -> DMatrix<f64> {
+    let n = sys.dim();
+    let mut jac = vec![0.0; n * n];
+    if sys.jacobian(mode, t, x, &mut jac) {
+        return DMatrix::from_row_slice(n, n, &jac);
+    }
+    let mut xp = x.to_vec();
+    let (mut fp, mut fm) = (vec![0.0; n], vec![0.0; n]);
+    let mut out = DMatrix::zeros(n, n);
+    for j in 0..n {
+        let h = fd_step(x[j]);
+        xp[j] = x[j] + h;
+        sys.vector_field(mode, t, &xp, &mut fp);
+        xp[j] = x[j] - h;
+        sys.vector_field(mode, t, &xp, &mut fm);
+        xp[j] = x[j];
+        for i in 0..n {
+            out[(i, j)] = (fp[i] - fm[i]) / (2.0 * h);
+        }
+    }
+    out
+}
+
+/// Gradient of guard `index` of `mode` with respect to `x`, and its partial derivative with
+/// respect to time (always by finite differences).
+pub fn guard_gradient<S: HybridSystem>(
+    sys: &S,
+    mode: S::Mode,
+    index: usize,
+    t: f64,
+    x: &[f64],
+) -> (DVector<f64>, f64) {
+    let n = sys.dim();
+    let mut grad = vec![0.0; n];
+    if !sys.guard_gradient(mode, index, t, x, &mut grad) {
+        let mut xp = x.to_vec();
+        for j in 0..n {
+            let h = fd_step(x[j]);
+            xp[j] = x[j] + h;
+            let gp = sys.guard(mode, index, t, &xp);
+            xp[j] = x[j] - h;
+            let gm = sys.guard(mode, index, t, &xp);
+            xp[j] = x[j];
+            grad[j] = (gp - gm) / (2.0 * h);
+        }
+    }
+    let ht = fd_step(t);
+    let dhdt = (sys.guard(mode, index, t + ht, x) - sys.guard(mode, index, t - ht, x)) / (2.0 * ht);
+    (DVector::from_vec(grad), dhdt)
+}
+
+/// Jacobian of the reset map of guard `index` of `mode` at `(t, x)`.
+pub fn reset_jacobian<S: HybridSystem>(
+    sys: &S,
+    mode: S::Mode,
+    index: usize,
+    t: f64,
+    x: &[f64],
+) -> DMatrix<f64> {
+    let n = sys.dim();
+    let mut jac = vec![0.0; n * n];
+    if sys.reset_jacobian(mode, index, t, x, &mut jac) {
+        return DMatrix::from_row_slice(n, n, &jac);
+    }
+    let mut out = DMatrix::zeros(n, n);
+    let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
+    for j in 0..n {
+        let h = fd_step(x[j]);
+        xp.copy_from_slice(x);
+        xm.copy_from_slice(x);
+        xp[j] += h;
+        xm[j] -= h;
+        sys.transition(mode, index, t, &mut xp);
+        sys.transition(mode, index, t, &mut xm);
+        for i in 0..n {
+            out[(i, j)] = (xp[i] - xm[i]) / (2.0 * h);
+        }
+    }
+    out
+}
+
+/// The saltation matrix of the transition through guard `index` from chart `from` at time `t`,
+/// pre-event state `x_minus`. Returns the matrix and the post-event chart.
+///
+/// `S = DR + (f_to(x+) - DR f_from(x-)) grad(h)^T / (grad(h) . f_from(x-) + dh/dt)`.
+/// A transversality failure (denominator zero: a grazing trajectory) gives non-finite entries;
+/// callers see them through the `NonFiniteState` check of the integrator.
+pub fn saltation<S: HybridSystem>(
+    sys: &S,
+    from: S::Mode,
+    index: usize,
+    t: f64,
+    x_minus: &[f64],
+) -> (DMatrix<f64>, S::Mode) {
+    let n = sys.dim();
+    let mut x_plus = x_minus.to_vec();
+    let to = sys.transition(from, index, t, &mut x_plus);
+    let dr = reset_jacobian(sys, from, index, t, x_minus);
+    let mut f_minus = vec![0.0; n];
+    let mut f_plus = vec![0.0; n];
+    sys.vector_field(from, t, x_minus, &mut f_minus);
+    sys.vector_field(to, t, &x_plus, &mut f_plus);
+    let f_minus = DVector::from_vec(f_minus);
+    let f_plus = DVector::from_vec(f_plus);
+    let (grad, dhdt) = guard_gradient(sys, from, index, t, x_minus);
+    let denom = grad.dot(&f_minus) + dhdt;
+    let jump = &f_plus - &dr * &f_minus;
+    let s = &dr + (jump * grad.transpose()) / denom;
+    (s, to)
+}
+
+/// A hybrid system augmented with its variational equations: the state is `[x, Phi]` with
+/// `Phi` the `n x n` sensitivity `dx(t)/dx(t0)` stored row-major. At each transition `Phi` is
+/// multiplied by the saltation matrix, so after integrating over a time span `Phi` is the
+/// Jacobian of the flow map, jumps included.
+#[derive(Debug)]
+pub struct Variational<'a, S> {
+    inner: &'a S,
+}
+
+impl<'a, S: HybridSystem> Variational<'a, S> {
+    /// Wraps `inner`.
+    pub fn new(inner: &'a S) -> Self {
+        Variational { inner }
+    }
+
+    /// The initial augmented state `[x0, I]`.
+    pub fn initial_state(&self, x0: &[f64]) -> Vec<f64> {
+        let n = self.inner.dim();
+        let mut z = vec![0.0; n + n * n];
+        z[..n].copy_from_slice(x0);
+        for i in 0..n {
+            z[n + i * n + i] = 1.0;
+        }
+        z
+    }
+}
+
+impl<S: HybridSystem> HybridSystem for Variational<'_, S> {
+    type Mode = S::Mode;
+
+    fn dim(&self) -> usize {
+        let n = self.inner.dim();
+        n + n * n
+    }
+
+    fn vector_field(&self, mode: S::Mode, t: f64, z: &[f64], dz: &mut [f64]) {
+        let n = self.inner.dim();
+        let (x, phi) = z.split_at(n);
+        let (dx, dphi) = dz.split_at_mut(n);
+        self.inner.vector_field(mode, t, x, dx);
+        let a = vector_field_jacobian(self.inner, mode, t, x);
+        for i in 0..n {
+            for j in 0..n {
+                let mut acc = 0.0;
+                for l in 0..n {
+                    acc += a[(i, l)] * phi[l * n + j];
+                }
+                dphi[i * n + j] = acc;
+            }
+        }
+    }
+
+    fn num_guards(&self, mode: S::Mode) -> usize {
+        self.inner.num_guards(mode)
+    }
+
+    fn guard(&self, mode: S::Mode, index: usize, t: f64, z: &[f64]) -> f64 {
+        self.inner.guard(mode, index, t, &z[..self.inner.dim()])
+    }
+
+    fn guard_direction(&self, mode: S::Mode, index: usize) -> Crossing {
+        self.inner.guard_direction(mode, index)
+    }
+
+    fn transition(&self, mode: S::Mode, index: usize, t: f64, z: &mut [f64]) -> S::Mode {
+        let n = self.inner.dim();
+        let (s, to) = saltation(self.inner, mode, index, t, &z[..n]);
+        let phi = DMatrix::from_row_slice(n, n, &z[n..]);
+        let phi_plus = s * phi;
+        let (x, phi_out) = z.split_at_mut(n);
+        let to_check = self.inner.transition(mode, index, t, x);
+        debug_assert_eq!(to_check, to, "transition must be deterministic");
+        for i in 0..n {
+            for j in 0..n {
+                phi_out[i * n + j] = phi_plus[(i, j)];
+            }
+        }
+        to
+    }
+}

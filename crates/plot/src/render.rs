@@ -1,0 +1,837 @@
+//! Validation, layout and drawing of a [`Figure`] on any plotters backend.
+
+use std::path::Path;
+
+use plotters::coord::ranged1d::{KeyPointHint, NoDefaultFormatting, ValueFormatter};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use crate::error::PlotError;
+use crate::figure::{Figure, Scale, Style};
+use crate::ticks::{angle_ticks, linear_ticks, log_ticks, Ticks};
+
+/// Smallest and largest accepted image side in pixels. The upper bound keeps the RGB buffer of
+/// the PNG renderer below 200 MB.
+pub(crate) const MIN_SIDE: u32 = 64;
+pub(crate) const MAX_SIDE: u32 = 8192;
+
+/// Colour-blind-tolerant categorical palette (the "tab10" set of matplotlib), cycled by series
+/// index.
+const PALETTE: [RGBColor; 10] = [
+    RGBColor(0x1f, 0x77, 0xb4),
+    RGBColor(0xff, 0x7f, 0x0e),
+    RGBColor(0x2c, 0xa0, 0x2c),
+    RGBColor(0xd6, 0x27, 0x28),
+    RGBColor(0x94, 0x67, 0xbd),
+    RGBColor(0x8c, 0x56, 0x4b),
+    RGBColor(0xe3, 0x77, 0xc2),
+    RGBColor(0x7f, 0x7f, 0x7f),
+    RGBColor(0xbc, 0xbd, 0x22),
+    RGBColor(0x17, 0xbe, 0xcf),
+];
+
+const TEXT: RGBColor = RGBColor(0x20, 0x20, 0x20);
+const AXIS: RGBColor = RGBColor(0x40, 0x40, 0x40);
+const GRID_MAJOR: RGBColor = RGBColor(0xdc, 0xdc, 0xdc);
+const GRID_MINOR: RGBColor = RGBColor(0xf0, 0xf0, 0xf0);
+const LEGEND_BORDER: RGBColor = RGBColor(0xb4, 0xb4, 0xb4);
+
+const FONT: &str = "sans-serif";
+const FIGURE_TITLE_PX: f64 = 21.0;
+const PANEL_TITLE_PX: f64 = 16.0;
+const AXIS_DESC_PX: f64 = 14.0;
+const TICK_PX: f64 = 13.0;
+const LEGEND_PX: f64 = 13.0;
+
+const LINE_WIDTH: u32 = 2;
+const MARKER_RADIUS: i32 = 4;
+const TICK_LEN: i32 = 5;
+/// plotters puts tick labels this far from the axis line.
+const LABEL_DIST: u32 = 2 * TICK_LEN as u32;
+
+/// One axis after validation, in plot space (log10 of the value on a logarithmic axis).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct AxisRange {
+    pub scale: Scale,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+/// A series converted to plot space; `NaN` marks a skipped point (a gap).
+#[derive(Debug, Clone)]
+pub(crate) struct PlotSeries {
+    pub label: String,
+    pub style: Style,
+    pub color: RGBColor,
+    pub points: Vec<(f64, f64)>,
+}
+
+#[derive(Debug, Clone)]
+pub(crate) struct PlotPanel {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub x: AxisRange,
+    pub y: AxisRange,
+    pub series: Vec<PlotSeries>,
+}
+
+fn to_plot(v: f64, scale: Scale) -> f64 {
+    match scale {
+        Scale::Linear | Scale::Degrees if v.is_finite() => v,
+        Scale::Log10 if v.is_finite() && v > 0.0 => v.log10(),
+        _ => f64::NAN,
+    }
+}
+
+/// Checks the figure and converts every series to plot space with resolved axis ranges.
+pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotError> {
+    if fig.panels.is_empty() {
+        return Err(PlotError::EmptyFigure {
+            path: path.to_path_buf(),
+        });
+    }
+    if fig.columns == 0 {
+        return Err(PlotError::NoColumns {
+            path: path.to_path_buf(),
+        });
+    }
+    let side_ok = |s: u32| (MIN_SIDE..=MAX_SIDE).contains(&s);
+    if !side_ok(fig.width) || !side_ok(fig.height) {
+        return Err(PlotError::InvalidSize {
+            path: path.to_path_buf(),
+            width: fig.width,
+            height: fig.height,
+            min: MIN_SIDE,
+            max: MAX_SIDE,
+        });
+    }
+    let mut out = Vec::with_capacity(fig.panels.len());
+    for (ip, panel) in fig.panels.iter().enumerate() {
+        let range_err = |axis: &'static str, (lo, hi): (f64, f64), reason: &'static str| {
+            PlotError::InvalidRange {
+                path: path.to_path_buf(),
+                panel: ip,
+                title: panel.title.clone(),
+                axis,
+                lo,
+                hi,
+                reason,
+            }
+        };
+        let explicit = |axis: &'static str, r: Option<(f64, f64)>, scale: Scale| {
+            r.map(|(lo, hi)| {
+                if !(lo.is_finite() && hi.is_finite()) {
+                    Err(range_err(axis, (lo, hi), "bounds must be finite"))
+                } else if lo >= hi {
+                    Err(range_err(axis, (lo, hi), "lower bound must be below upper bound"))
+                } else if scale == Scale::Log10 && lo <= 0.0 {
+                    Err(range_err(axis, (lo, hi), "a logarithmic axis needs positive bounds"))
+                } else {
+                    Ok((to_plot(lo, scale), to_plot(hi, scale)))
+                }
+            })
+            .transpose()
+        };
+        let x_fixed = explicit("x", panel.x_range, panel.x_scale)?;
+        let y_fixed = explicit("y", panel.y_range, panel.y_scale)?;
+
+        let mut series = Vec::with_capacity(panel.series.len());
+        for (is, s) in panel.series.iter().enumerate() {
+            if s.x.len() != s.y.len() {
+                return Err(PlotError::LengthMismatch {
+                    path: path.to_path_buf(),
+                    panel: ip,
+                    title: panel.title.clone(),
+                    series: s.label.clone(),
+                    x_len: s.x.len(),
+                    y_len: s.y.len(),
+                });
+            }
+            let points = s
+                .x
+                .iter()
+                .zip(&s.y)
+                .map(|(&x, &y)| {
+                    let (px, py) = (to_plot(x, panel.x_scale), to_plot(y, panel.y_scale));
+                    if px.is_nan() || py.is_nan() {
+                        (f64::NAN, f64::NAN)
+                    } else {
+                        (px, py)
+                    }
+                })
+                .collect();
+            series.push(PlotSeries {
+                label: s.label.clone(),
+                style: s.style,
+                color: PALETTE[is % PALETTE.len()],
+                points,
+            });
+        }
+
+        let has_markers = series.iter().any(|s| s.style.has_markers());
+        let x = match x_fixed {
+            Some((lo, hi)) => (lo, hi),
+            None => {
+                let (lo, hi) = data_extent(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+                // Markers at the very edge would be cut in half.
+                let pad = if has_markers { 0.03 } else { 0.0 };
+                pad_extent(lo, hi, pad, panel.x_scale)
+            }
+        };
+        let y = match y_fixed {
+            Some((lo, hi)) => (lo, hi),
+            None => {
+                // Fit only what is visible horizontally.
+                let (lo, hi) = data_extent(series.iter().flat_map(|s| {
+                    s.points
+                        .iter()
+                        .filter(|p| p.0 >= x.0 && p.0 <= x.1)
+                        .map(|p| p.1)
+                }));
+                pad_extent(lo, hi, 0.05, panel.y_scale)
+            }
+        };
+        out.push(PlotPanel {
+            title: panel.title.clone(),
+            x_label: panel.x_label.clone(),
+            y_label: panel.y_label.clone(),
+            x: AxisRange {
+                scale: panel.x_scale,
+                lo: x.0,
+                hi: x.1,
+            },
+            y: AxisRange {
+                scale: panel.y_scale,
+                lo: y.0,
+                hi: y.1,
+            },
+            series,
+        });
+    }
+    Ok(out)
+}
+
+fn data_extent(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+}
+
+/// Widens a data extent by `pad` of its span; an empty or single-valued extent gets a unit
+/// (or one-decade) span so the axes stay drawable.
+fn pad_extent(lo: f64, hi: f64, pad: f64, scale: Scale) -> (f64, f64) {
+    if !(lo.is_finite() && hi.is_finite()) {
+        return (0.0, 1.0);
+    }
+    let span = hi - lo;
+    if span <= 1e-12 * lo.abs().max(hi.abs()) || span <= f64::MIN_POSITIVE {
+        let half = match scale {
+            Scale::Log10 => 0.5,
+            Scale::Linear | Scale::Degrees => (0.1 * lo.abs()).max(0.5),
+        };
+        return (lo - half, hi + half);
+    }
+    (lo - pad * span, hi + pad * span)
+}
+
+fn font(px: f64) -> FontDesc<'static> {
+    (FONT, px).into_font()
+}
+
+fn text_size(f: &FontDesc<'_>, text: &str) -> (u32, u32) {
+    f.box_size(text).unwrap_or((0, 0))
+}
+
+type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+/// Draws the whole figure on `root`; `raster` selects line drawing suited to bitmaps.
+pub(crate) fn draw_figure<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    fig: &Figure,
+    panels: &[PlotPanel],
+    raster: bool,
+) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let body = if fig.title.is_empty() {
+        root.clone()
+    } else {
+        root.margin(8, 0, 0, 0)
+            .titled(&fig.title, font(FIGURE_TITLE_PX).color(&TEXT))?
+    };
+    let cols = fig.columns.min(panels.len()).max(1);
+    let rows = panels.len().div_ceil(cols);
+    let cells = body.split_evenly((rows, cols));
+    for (cell, panel) in cells.iter().zip(panels) {
+        draw_panel(cell, panel, raster)?;
+    }
+    Ok(())
+}
+
+fn draw_panel<DB: DrawingBackend>(
+    cell: &DrawingArea<DB, Shift>,
+    p: &PlotPanel,
+    raster: bool,
+) -> DrawResult<DB> {
+    let cell = cell.margin(10, 8, 8, 22);
+    let area = if p.title.is_empty() {
+        cell
+    } else {
+        cell.titled(&p.title, font(PANEL_TITLE_PX).color(&TEXT))?
+    };
+    let (w, h) = area.dim_in_pixel();
+
+    let tick_font = font(TICK_PX);
+    let desc_font = font(AXIS_DESC_PX);
+    let tick_h = text_size(&tick_font, "0123456789").1;
+    let desc_h = text_size(&desc_font, "Ag(|").1;
+
+    // Room above the plot so the topmost y label is not cut.
+    let top_pad = tick_h / 2 + 2;
+    let x_area_h = LABEL_DIST + tick_h + if p.x_label.is_empty() { 4 } else { 10 + desc_h };
+    let plot_h = h.saturating_sub(top_pad + x_area_h).max(10);
+
+    let y_span_px = f64::from(plot_h) / (p.y.hi - p.y.lo);
+    let min_y_gap = (2.4 * f64::from(tick_h)).max(30.0);
+    let fits_y = |pos: &[f64], _: &[String]| {
+        pos.windows(2)
+            .all(|w| (w[1] - w[0]).abs() * y_span_px >= min_y_gap)
+    };
+    let y_ticks = axis_ticks(&p.y, &fits_y);
+    let y_label_w = y_ticks
+        .labels
+        .iter()
+        .map(|l| text_size(&tick_font, l).0)
+        .max()
+        .unwrap_or(0);
+    let y_area_w = LABEL_DIST + y_label_w + if p.y_label.is_empty() { 4 } else { 12 + desc_h };
+    let plot_w = w.saturating_sub(y_area_w).max(10);
+
+    let x_span_px = f64::from(plot_w) / (p.x.hi - p.x.lo);
+    let fits_x = |pos: &[f64], labels: &[String]| {
+        let widths: Vec<f64> = labels
+            .iter()
+            .map(|l| f64::from(text_size(&tick_font, l).0))
+            .collect();
+        pos.windows(2).zip(widths.windows(2)).all(|(pp, ww)| {
+            let gap = (pp[1] - pp[0]).abs() * x_span_px;
+            gap >= 0.5 * (ww[0] + ww[1]) + 18.0 && gap >= 45.0
+        })
+    };
+    let x_ticks = axis_ticks(&p.x, &fits_x);
+
+    let mut chart = ChartBuilder::on(&area)
+        .margin_top(top_pad)
+        .x_label_area_size(x_area_h)
+        .y_label_area_size(y_area_w)
+        .build_cartesian_2d(
+            TickedAxis::new(&p.x, x_ticks),
+            TickedAxis::new(&p.y, y_ticks),
+        )?;
+
+    chart
+        .configure_mesh()
+        .x_desc(p.x_label.as_str())
+        .y_desc(p.y_label.as_str())
+        .label_style(tick_font.color(&TEXT))
+        .axis_desc_style(desc_font.color(&TEXT))
+        .bold_line_style(GRID_MAJOR.stroke_width(1))
+        .light_line_style(GRID_MINOR.stroke_width(1))
+        .axis_style(AXIS.stroke_width(1))
+        .set_all_tick_mark_size(TICK_LEN)
+        .draw()?;
+
+    let pieces: Vec<Vec<Vec<(f64, f64)>>> = p
+        .series
+        .iter()
+        .map(|s| {
+            if s.style.has_line() {
+                line_pieces(&s.points, &p.x, &p.y, plot_w as usize)
+            } else {
+                Vec::new()
+            }
+        })
+        .collect();
+    let markers: Vec<Vec<(f64, f64)>> = p
+        .series
+        .iter()
+        .map(|s| {
+            if s.style.has_markers() {
+                visible_markers(&s.points, &p.x, &p.y)
+            } else {
+                Vec::new()
+            }
+        })
+        .collect();
+
+    let plot = chart.plotting_area().strip_coord_spec();
+    let (bx, by) = chart.plotting_area().get_base_pixel();
+    let to_px = |pt: &(f64, f64)| {
+        let (x, y) = chart.backend_coord(pt);
+        (x - bx, y - by)
+    };
+    let px_lines: Vec<Vec<Vec<(i32, i32)>>> = pieces
+        .iter()
+        .map(|lines| lines.iter().map(|l| dedup(l.iter().map(to_px))).collect())
+        .collect();
+    // Markers landing on the same pixel add nothing but file size.
+    let px_markers: Vec<Vec<(i32, i32)>> = markers
+        .iter()
+        .map(|pts| dedup(pts.iter().map(to_px)))
+        .collect();
+
+    for (s, lines) in p.series.iter().zip(&px_lines) {
+        for line in lines {
+            if s.style == Style::Dashed {
+                for dash in dashes(line) {
+                    stroke(&plot, &dash, s.color, raster)?;
+                }
+            } else {
+                stroke(&plot, line, s.color, raster)?;
+            }
+        }
+    }
+    for (s, pts) in p.series.iter().zip(&px_markers) {
+        let style = s.color.stroke_width(LINE_WIDTH);
+        for &pt in pts {
+            plot.draw(&Circle::new(pt, MARKER_RADIUS, style))?;
+        }
+    }
+
+    let (pw, ph) = plot.dim_in_pixel();
+    let (pw, ph) = (pw as i32, ph as i32);
+    // Close the frame: plotters draws only the left and bottom axes.
+    plot.draw(&PathElement::new(
+        vec![(0, 0), (pw - 1, 0), (pw - 1, ph - 1)],
+        AXIS.stroke_width(1),
+    ))?;
+
+    draw_legend(&plot, &p.series, &px_lines, &px_markers, raster)
+}
+
+fn dedup(points: impl Iterator<Item = (i32, i32)>) -> Vec<(i32, i32)> {
+    let mut out: Vec<(i32, i32)> = Vec::new();
+    for p in points {
+        if out.last() != Some(&p) {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// Dash length and gap in pixels.
+const DASH: (f64, f64) = (9.0, 5.0);
+
+/// Splits a pixel polyline into dashes whose pattern runs on across vertices.
+fn dashes(line: &[(i32, i32)]) -> Vec<Vec<(i32, i32)>> {
+    let mut out = Vec::new();
+    let mut cur: Vec<(i32, i32)> = Vec::new();
+    let mut on = true;
+    let mut left = DASH.0;
+    let round = |x: f64, y: f64| (x.round() as i32, y.round() as i32);
+    for w in line.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let (ax, ay) = (f64::from(a.0), f64::from(a.1));
+        let (dx, dy) = (f64::from(b.0) - ax, f64::from(b.1) - ay);
+        let len = dx.hypot(dy);
+        let mut t = 0.0;
+        if on && cur.is_empty() {
+            cur.push(a);
+        }
+        while len - t > left {
+            t += left;
+            let p = round(ax + dx * t / len, ay + dy * t / len);
+            if on {
+                cur.push(p);
+                out.push(std::mem::take(&mut cur));
+                left = DASH.1;
+            } else {
+                cur.push(p);
+                left = DASH.0;
+            }
+            on = !on;
+        }
+        left -= len - t;
+        if on {
+            cur.push(b);
+        }
+    }
+    if on && cur.len() >= 2 {
+        out.push(cur);
+    }
+    out
+}
+
+/// Draws a polyline two pixels wide. Raster output strokes three one-pixel anti-aliased copies
+/// offset by a pixel, because plotters fills wide bitmap paths as one polygon whose integer
+/// vertices fray on dense data.
+fn stroke<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    line: &[(i32, i32)],
+    color: RGBColor,
+    raster: bool,
+) -> DrawResult<DB> {
+    if line.len() < 2 {
+        return Ok(());
+    }
+    if raster {
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1)] {
+            let shifted: Vec<(i32, i32)> = line.iter().map(|&(x, y)| (x + dx, y + dy)).collect();
+            area.draw(&PathElement::new(shifted, color.stroke_width(1)))?;
+        }
+        Ok(())
+    } else {
+        area.draw(&PathElement::new(line.to_vec(), color.stroke_width(LINE_WIDTH)))
+    }
+}
+
+/// A linear plot-space axis whose grid lines and labels come from precomputed [`Ticks`].
+struct TickedAxis {
+    lo: f64,
+    hi: f64,
+    ticks: Ticks,
+}
+
+impl TickedAxis {
+    fn new(axis: &AxisRange, ticks: Ticks) -> Self {
+        Self {
+            lo: axis.lo,
+            hi: axis.hi,
+            ticks,
+        }
+    }
+}
+
+impl Ranged for TickedAxis {
+    type FormatOption = NoDefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        let frac = (value - self.lo) / (self.hi - self.lo);
+        let px = f64::from(limit.0) + frac * f64::from(limit.1 - limit.0);
+        // Values are clipped to the axis before drawing; the clamp only guards the cast.
+        px.round().clamp(f64::from(i32::MIN / 2), f64::from(i32::MAX / 2)) as i32
+    }
+
+    fn key_points<H: KeyPointHint>(&self, hint: H) -> Vec<f64> {
+        if hint.weight().allow_light_points() {
+            self.ticks.minor.clone()
+        } else {
+            self.ticks.major.clone()
+        }
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.lo..self.hi
+    }
+}
+
+impl ValueFormatter<f64> for TickedAxis {
+    fn format_ext(&self, value: &f64) -> String {
+        self.ticks.label_at(*value)
+    }
+}
+
+fn axis_ticks(axis: &AxisRange, fits: crate::ticks::Fits<'_>) -> Ticks {
+    match axis.scale {
+        Scale::Linear => linear_ticks(axis.lo, axis.hi, fits),
+        Scale::Log10 => log_ticks(axis.lo, axis.hi, fits),
+        Scale::Degrees => angle_ticks(axis.lo, axis.hi, fits),
+    }
+}
+
+/// Clips the segment `a`-`b` to the rectangle (Liang-Barsky). Returns the clipped end points
+/// and whether the start and the end were moved.
+fn clip_segment(
+    a: (f64, f64),
+    b: (f64, f64),
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+) -> Option<((f64, f64), (f64, f64), bool, bool)> {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let mut t0 = 0.0_f64;
+    let mut t1 = 1.0_f64;
+    for (p, q) in [(-dx, a.0 - x0), (dx, x1 - a.0), (-dy, a.1 - y0), (dy, y1 - a.1)] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                t0 = t0.max(r);
+            } else {
+                t1 = t1.min(r);
+            }
+        }
+    }
+    if t0 > t1 {
+        return None;
+    }
+    let at = |t: f64| (a.0 + t * dx, a.1 + t * dy);
+    Some((at(t0), at(t1), t0 > 0.0, t1 < 1.0))
+}
+
+/// Splits a plot-space polyline at gaps (NaN) and at the axis box into visible pieces, each
+/// thinned to at most four points per pixel column.
+fn line_pieces(
+    points: &[(f64, f64)],
+    x: &AxisRange,
+    y: &AxisRange,
+    plot_w: usize,
+) -> Vec<Vec<(f64, f64)>> {
+    let mut pieces = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let mut open = false;
+    let flush = |cur: &mut Vec<(f64, f64)>, pieces: &mut Vec<Vec<(f64, f64)>>| {
+        if cur.len() >= 2 {
+            pieces.push(thin(std::mem::take(cur), x, plot_w));
+        } else {
+            cur.clear();
+        }
+    };
+    for w in points.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if a.0.is_nan() || b.0.is_nan() {
+            flush(&mut cur, &mut pieces);
+            open = false;
+            continue;
+        }
+        match clip_segment(a, b, (x.lo, x.hi), (y.lo, y.hi)) {
+            Some((p, q, start_moved, end_moved)) => {
+                if !(open && !start_moved) {
+                    flush(&mut cur, &mut pieces);
+                    cur.push(p);
+                }
+                cur.push(q);
+                open = !end_moved;
+            }
+            None => {
+                flush(&mut cur, &mut pieces);
+                open = false;
+            }
+        }
+    }
+    flush(&mut cur, &mut pieces);
+    pieces
+}
+
+/// Keeps the first, lowest, highest and last point of each run of points falling in one
+/// pixel column, which draws the same picture as the full line.
+fn thin(line: Vec<(f64, f64)>, x: &AxisRange, plot_w: usize) -> Vec<(f64, f64)> {
+    if line.len() <= 4 * plot_w.max(1) {
+        return line;
+    }
+    let scale = plot_w as f64 / (x.hi - x.lo);
+    let column = |p: &(f64, f64)| ((p.0 - x.lo) * scale).floor() as i64;
+    let mut out = Vec::with_capacity(4 * plot_w + 4);
+    let mut start = 0;
+    while start < line.len() {
+        let col = column(&line[start]);
+        let mut end = start + 1;
+        let (mut lo, mut hi) = (start, start);
+        while end < line.len() && column(&line[end]) == col {
+            if line[end].1 < line[lo].1 {
+                lo = end;
+            }
+            if line[end].1 > line[hi].1 {
+                hi = end;
+            }
+            end += 1;
+        }
+        let mut keep = [start, lo, hi, end - 1];
+        keep.sort_unstable();
+        let mut prev = usize::MAX;
+        for i in keep {
+            if i != prev {
+                out.push(line[i]);
+                prev = i;
+            }
+        }
+        start = end;
+    }
+    out
+}
+
+fn visible_markers(points: &[(f64, f64)], x: &AxisRange, y: &AxisRange) -> Vec<(f64, f64)> {
+    points
+        .iter()
+        .copied()
+        .filter(|p| p.0 >= x.lo && p.0 <= x.hi && p.1 >= y.lo && p.1 <= y.hi)
+        .collect()
+}
+
+/// Draws the legend in the corner of the plot where it covers the least data.
+fn draw_legend<DB: DrawingBackend>(
+    plot: &DrawingArea<DB, Shift>,
+    series: &[PlotSeries],
+    lines: &[Vec<Vec<(i32, i32)>>],
+    markers: &[Vec<(i32, i32)>],
+    raster: bool,
+) -> DrawResult<DB> {
+    let entries: Vec<&PlotSeries> = series.iter().filter(|s| !s.label.is_empty()).collect();
+    if entries.is_empty() {
+        return Ok(());
+    }
+    let f = font(LEGEND_PX);
+    let text_w = entries
+        .iter()
+        .map(|s| text_size(&f, &s.label).0)
+        .max()
+        .unwrap_or(0) as i32;
+    let row_h = text_size(&f, "Ag(|").1 as i32 + 6;
+    let (pad, sample_w, gap, inset) = (6, 30, 8, 8);
+    let bw = pad + sample_w + gap + text_w + pad + 2;
+    let bh = 2 * pad + row_h * entries.len() as i32 - 4;
+    let (pw, ph) = plot.dim_in_pixel();
+    let (pw, ph) = (pw as i32, ph as i32);
+
+    let left = inset;
+    let right = (pw - inset - bw).max(inset);
+    let top = inset;
+    let bottom = (ph - inset - bh).max(inset);
+    // Preference order on ties: upper right, upper left, lower right, lower left.
+    let corners = [(right, top), (left, top), (right, bottom), (left, bottom)];
+    let cost = |(cx, cy): (i32, i32)| {
+        let m = 4.0;
+        let xr = (f64::from(cx) - m, f64::from(cx + bw) + m);
+        let yr = (f64::from(cy) - m, f64::from(cy + bh) + m);
+        let f = |p: (i32, i32)| (f64::from(p.0), f64::from(p.1));
+        let segs: usize = lines
+            .iter()
+            .flatten()
+            .map(|l| {
+                l.windows(2)
+                    .filter(|w| clip_segment(f(w[0]), f(w[1]), xr, yr).is_some())
+                    .count()
+            })
+            .sum();
+        let pts = markers
+            .iter()
+            .flatten()
+            .map(|&p| f(p))
+            .filter(|p| p.0 >= xr.0 && p.0 <= xr.1 && p.1 >= yr.0 && p.1 <= yr.1)
+            .count();
+        segs + pts
+    };
+    let (x0, y0) = corners
+        .iter()
+        .copied()
+        .min_by_key(|&c| cost(c))
+        .unwrap_or(corners[0]);
+
+    plot.draw(&Rectangle::new(
+        [(x0, y0), (x0 + bw, y0 + bh)],
+        WHITE.mix(0.85).filled(),
+    ))?;
+    plot.draw(&Rectangle::new(
+        [(x0, y0), (x0 + bw, y0 + bh)],
+        LEGEND_BORDER.stroke_width(1),
+    ))?;
+    let text_style = f.color(&TEXT).pos(Pos::new(HPos::Left, VPos::Center));
+    for (i, s) in entries.iter().enumerate() {
+        let yc = y0 + pad + row_h * i as i32 + (row_h - 4) / 2;
+        let xs = x0 + pad;
+        let sample = [(xs, yc), (xs + sample_w, yc)];
+        match s.style {
+            Style::Line | Style::LineMarkers => stroke(plot, &sample, s.color, raster)?,
+            Style::Dashed => {
+                for dash in dashes(&sample) {
+                    stroke(plot, &dash, s.color, raster)?;
+                }
+            }
+            Style::Markers => {}
+        }
+        if s.style.has_markers() {
+            let style = s.color.stroke_width(LINE_WIDTH);
+            plot.draw(&Circle::new((xs + sample_w / 2, yc), MARKER_RADIUS, style))?;
+        }
+        plot.draw(&Text::new(
+            s.label.as_str(),
+            (xs + sample_w + gap, yc),
+            text_style.clone(),
+        ))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+
+    fn axis(lo: f64, hi: f64) -> AxisRange {
+        AxisRange {
+            scale: Scale::Linear,
+            lo,
+            hi,
+        }
+    }
+
+    #[test]
+    fn clipping_matches_the_line_equation() {
+        // y = x from (-1,-1) to (2,2) in the unit box enters at (0,0) and leaves at (1,1).
+        let (p, q, s, e) = clip_segment((-1.0, -1.0), (2.0, 2.0), (0.0, 1.0), (0.0, 1.0))
+            .expect("the diagonal crosses the box");
+        // Exact up to one rounding of t * d.
+        assert_abs_diff_eq!(p.0, 0.0, epsilon = 1e-15);
+        assert_abs_diff_eq!(p.1, 0.0, epsilon = 1e-15);
+        assert_abs_diff_eq!(q.0, 1.0, epsilon = 1e-15);
+        assert_abs_diff_eq!(q.1, 1.0, epsilon = 1e-15);
+        assert!(s && e);
+        assert!(clip_segment((2.0, 0.0), (3.0, 1.0), (0.0, 1.0), (0.0, 1.0)).is_none());
+    }
+
+    #[test]
+    fn gaps_and_excursions_split_lines() {
+        let nan = (f64::NAN, f64::NAN);
+        // A spike through the top of the box splits the line into two pieces; the NaN a third.
+        let pts = [(0.0, 0.5), (1.0, 0.5), (2.0, 5.0), (3.0, 0.5), (4.0, 0.5), nan, (5.0, 0.5), (6.0, 0.5)];
+        let pieces = line_pieces(&pts, &axis(0.0, 6.0), &axis(0.0, 1.0), 500);
+        assert_eq!(pieces.len(), 3);
+        // First piece: (0,.5), (1,.5), then the exit on y = 1 at x = 1 + 0.5/4.5.
+        assert_eq!(pieces[0].len(), 3);
+        assert_abs_diff_eq!(pieces[0][2].0, 1.0 + 0.5 / 4.5, epsilon = 1e-12);
+        assert_abs_diff_eq!(pieces[0][2].1, 1.0, epsilon = 1e-12);
+        assert_eq!(pieces[1].len(), 3);
+        assert_eq!(pieces[2].len(), 2);
+        for p in pieces.iter().flatten() {
+            assert!(p.0.is_finite() && p.1 <= 1.0 + 1e-12);
+        }
+    }
+
+    #[test]
+    fn thinning_keeps_the_envelope() {
+        // 100 000 samples of a sine over 100 pixel columns: per column the extremes survive.
+        let n = 100_000;
+        let line: Vec<(f64, f64)> = (0..n)
+            .map(|i| {
+                let t = i as f64 / (n - 1) as f64;
+                (t, (200.0 * t).sin())
+            })
+            .collect();
+        let out = thin(line.clone(), &axis(0.0, 1.0), 100);
+        assert!(out.len() <= 4 * 101, "{} points kept", out.len());
+        let max_in = line.iter().fold(f64::MIN, |m, p| m.max(p.1));
+        let max_out = out.iter().fold(f64::MIN, |m, p| m.max(p.1));
+        // The maximum sample is kept exactly.
+        assert_abs_diff_eq!(max_in, max_out, epsilon = 0.0);
+        // Thinning never reorders points.
+        assert!(out.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+
+    #[test]
+    fn padding_handles_empty_and_constant_data() {
+        let (lo, hi) = pad_extent(f64::INFINITY, f64::NEG_INFINITY, 0.05, Scale::Linear);
+        assert_abs_diff_eq!(lo, 0.0);
+        assert_abs_diff_eq!(hi, 1.0);
+        let (lo, hi) = pad_extent(3.0, 3.0, 0.05, Scale::Linear);
+        assert!(lo < 3.0 && hi > 3.0);
+        let (lo, hi) = pad_extent(0.0, 10.0, 0.05, Scale::Linear);
+        assert_abs_diff_eq!(lo, -0.5, epsilon = 1e-12);
+        assert_abs_diff_eq!(hi, 10.5, epsilon = 1e-12);
+    }
+}

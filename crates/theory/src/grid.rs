@@ -1,0 +1,65 @@
+//! The HTF trait and its tabulated values.
+
+use num_complex::Complex64;
+
+/// A harmonic transfer function in the estimation convention:
+/// `G_n(jw)` maps input at frequency `w - n wp` to output at frequency `w`.
+pub trait HarmonicTransferFunction {
+    /// Pumping frequency `wp = 2 pi / T` (rad per time unit).
+    fn pumping_frequency(&self) -> f64;
+
+    /// `G_n(jw)` at output frequency `w` (rad per time unit).
+    fn g(&self, n: i32, w: f64) -> Complex64;
+
+    /// `G_n(j w)` for every `w` in `omegas` and `n` in `harmonics`.
+    fn grid(&self, harmonics: &[i32], omegas: &[f64]) -> HtfGrid {
+        let mut values = Vec::with_capacity(harmonics.len() * omegas.len());
+        for &w in omegas {
+            for &n in harmonics {
+                values.push(self.g(n, w));
+            }
+        }
+        HtfGrid {
+            omegas: omegas.to_vec(),
+            harmonics: harmonics.to_vec(),
+            values,
+        }
+    }
+}
+
+/// `G_n(jw)` tabulated on frequencies x harmonics, stored row-major by
+/// frequency: `values[iw * harmonics.len() + ih] = G_{harmonics[ih]}(j omegas[iw])`.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct HtfGrid {
+    /// Output frequencies `w` (rad per time unit).
+    pub omegas: Vec<f64>,
+    /// Harmonic indices `n`.
+    pub harmonics: Vec<i32>,
+    /// Row-major `[w][n]` values.
+    pub values: Vec<Complex64>,
+}
+
+impl HtfGrid {
+    /// `G_{harmonics[ih]}(j omegas[iw])`, or `None` out of range.
+    pub fn get(&self, iw: usize, ih: usize) -> Option<Complex64> {
+        if iw < self.omegas.len() && ih < self.harmonics.len() {
+            self.values.get(iw * self.harmonics.len() + ih).copied()
+        } else {
+            None
+        }
+    }
+
+    /// All values of harmonic `n` along the frequency axis, or `None` when
+    /// `n` is not in the grid.
+    pub fn harmonic(&self, n: i32) -> Option<Vec<Complex64>> {
+        let ih = self.harmonics.iter().position(|&h| h == n)?;
+        let nh = self.harmonics.len();
+        Some(self.values.iter().skip(ih).step_by(nh).copied().collect())
+    }
+
+    /// Largest `|G|` in the grid (0 for an empty grid; NaN entries ignored).
+    pub fn max_abs(&self) -> f64 {
+        self.values.iter().map(|v| v.norm()).fold(0.0, f64::max)
+    }
+}

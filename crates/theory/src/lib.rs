@@ -1,0 +1,145 @@
+//! Theoretical harmonic transfer functions (HTFs) of linear time-periodic
+//! systems, the ground truth that htfid's estimates are compared with.
+//!
+//! - [`ExactHtf`]: the exact, untruncated HTF of a SISO
+//!   [`PiecewiseLti`](htfid_ltp::PiecewiseLti), state jumps included,
+//!   integrated in closed form piece by piece.
+//! - [`TruncatedHtf`]: Wereley's harmonic state space truncated to
+//!   harmonics `-N..=N`, from a piecewise-LTI system or any
+//!   [`FourierCoefficients`] provider such as [`FourierLtp`].
+//! - [`HarmonicTransferFunction`]: the common interface (`g`, `grid`), and
+//!   [`HtfGrid`], values tabulated over frequencies and harmonics.
+//!
+//! ```
+//! use htfid_ltp::{Piece, PiecewiseLti};
+//! use htfid_theory::{ExactHtf, HarmonicTransferFunction, TruncatedHtf};
+//! use nalgebra::{dmatrix, dvector, RowDVector};
+//!
+//! // The hopper's error dynamics: damper on during [0.23, 0.71) of T = 1.
+//! let (k, c) = (200.0, 2.0);
+//! let b = dvector![0.0, 1.0];
+//! let y = RowDVector::from_row_slice(&[1.0, 0.0]);
+//! let on = Piece::siso(0.48, dmatrix![0.0, 1.0; -k, -c], b.clone(), y.clone(), 0.0);
+//! let off = Piece::siso(0.52, dmatrix![0.0, 1.0; -k, 0.0], b, y, 0.0);
+//! let lti = PiecewiseLti::new(1.0, 0.23, vec![on, off])?;
+//!
+//! let exact = ExactHtf::new(&lti)?;
+//! let truncated = TruncatedHtf::new(&lti, 40)?;
+//! let grid = exact.grid(&[-1, 0, 1], &[5.0, 10.0, 20.0]);
+//! let w = 10.0;
+//! assert!((exact.g(0, w) - grid.get(1, 1).unwrap()).norm() < 1e-12);
+//! assert!((exact.g(1, w) - truncated.g(1, w)).norm() < 1e-3 * grid.max_abs());
+//! # Ok::<(), htfid_theory::TheoryError>(())
+//! ```
+//!
+//! # Conventions
+//!
+//! The system is `x' = A(t) x + B(t) u`, `y = C(t) x + D(t) u` with period
+//! `T` and pumping frequency `wp = 2 pi / T`. Time is absolute: `t = 0` is
+//! phase 0 of the orbit (phase 0 of the forcing). Fourier coefficients are
+//! `A(t) = sum_n A_n exp(j n wp t)`, `A_n = (1/T) int_0^T A(t) exp(-j n wp t) dt`.
+//! Frequencies are in rad per time unit.
+//!
+//! **Estimation convention** (the paper's output equation):
+//! `Y(jw) = sum_n G_n(jw) U(jw - j n wp)`. `G_n(jw)` is the response at
+//! *output* frequency `w` to input at `w - n wp`: for `u(t) = exp(j w0 t)`
+//! the steady state is `y(t) = sum_n G_n(j (w0 + n wp)) exp(j (w0 + n wp) t)`.
+//! Every `g(n, w)` in this crate is `G_n(jw)` in this convention.
+//!
+//! **Relation to Wereley's HTF matrix.** Wereley writes the input as an
+//! exponentially modulated periodic signal `u(t) = sum_q u_q exp((s + j q wp) t)`
+//! and the output likewise with coefficients `y_p`; harmonic balance gives
+//! `y_p = sum_q G_{p,q}(s) u_q`, block `(p, q)` mapping input harmonic `q` to
+//! output harmonic `p`. Take `s = jw`, a single input harmonic `q = -n`
+//! (frequency `w - n wp`) and read output harmonic `p = 0` (frequency `w`):
+//! that is `G_n(jw)`, so `G_n(jw) = G_{0,-n}(jw)`. Taking instead
+//! `s = j (w - n wp)`, input harmonic `q = 0` and output harmonic `p = n`
+//! describes the same input and output sinusoids, so also
+//! `G_n(jw) = G_{n,0}(j (w - n wp))`. (The two agree by the Toeplitz
+//! identity `G_{p,q}(s) = G_{p-q,0}(s + j q wp)`: shifting `s` by `j wp`
+//! relabels harmonics.)
+//!
+//! # Truncated harmonic state space
+//!
+//! Substituting `x = sum_p x_p exp((s + j p wp) t)` into the state equation
+//! and collecting `exp((s + j p wp) t)` gives
+//! `(s + j p wp) x_p = sum_q A_{p-q} x_q + sum_q B_{p-q} u_q`, i.e.
+//! `s X = (A - N) X + B U` with block-Toeplitz `A` (block `(p, q)` = `A_{p-q}`)
+//! and `N = blockdiag(j p wp I)`; likewise `Y = C X + D U`, hence
+//! `G(s) = C (sI - (A - N))^{-1} B + D`. [`TruncatedHtf`] keeps `|p|, |q| <= N`
+//! and reads the middle block row, `G_n(jw) = G_{0,-n}(jw)`. Piecewise-constant
+//! matrices have closed-form coefficients
+//! `A_n = sum_i A_i (exp(-j n wp tau_{i+1}) - exp(-j n wp tau_i)) / (-j n wp T)`.
+//! A state jump `x -> J x` is an impulse in `A(t)` with no such series, so
+//! systems with jumps are rejected ([`TheoryError::JumpNotRepresentable`]).
+//!
+//! **Truncation error.** A switch makes `A(t)` a square wave in time, whose
+//! coefficients decay only like `|A_n| ~ 1/n` (`|s_n| <= 1 / (pi |n|)`). The
+//! neglected harmonics `|p| > N` are reached through `A_{p-q}` with
+//! `|p - q| > N - |q|`, and a state harmonic `p` is itself filtered by the
+//! LTI-like resolvent `(j (w + p wp) - A_0)^{-1} ~ 1/(p wp)`; so the error in
+//! `G_n` decays only algebraically in `N` (roughly like `1/N^2` for the
+//! central harmonics here, slower for `|n|` near `N`), instead of the
+//! geometric decay seen for smooth `A(t)`. Measured for the hopper-like
+//! system (`k = 200, c = 2, m = 1`, damper on `[0.23, 0.71)`, `T = 1`),
+//! worst `|G_n - G_n^exact| / max|G|` over `|n| <= 10` and
+//! `w in {3, 9, 14, 20, 33}` rad/s (test `truncation_error_table`):
+//!
+//! | N  | all `\|n\| <= 10` | `\|n\| <= 3` |
+//! |----|------------------|-------------|
+//! | 5  | (filled from the test) | |
+//!
+//! # Exact HTF of a piecewise-LTI system
+//!
+//! For the input `u = exp(s t)`, `s = j w_in`, look for the steady state
+//! `x(t) = exp(s t) p(t)` with `p` T-periodic. On piece `i`
+//! (`[tau_i, tau_{i+1})`, length `h_i`) `p' = (A_i - s I) p + B_i`, and at its
+//! start `p(tau_i+) = J_i p(tau_i-)` (the factor `exp(s t)` is continuous).
+//! Over one piece, with `r = t - tau_i`,
+//! `p(tau_i + r) = exp((A_i - s) r) p(tau_i+) + int_0^r exp((A_i - s) q) dq B_i`.
+//! Chaining the pieces over a period gives an affine map
+//! `p(tau_0+) -> J_0 p(tau_0 + T-) = Phi(s) p(tau_0+) + psi(s)` with
+//! `Phi(s) = exp(-sT) M` and `M` the monodromy matrix from `tau_0+`; periodicity
+//! is the linear system `(I - Phi(s)) p(tau_0+) = psi(s)`, singular exactly
+//! when `exp(sT)` is a Floquet multiplier (then `g` returns NaN). The output is
+//! `y = exp(s t) (C(t) p(t) + D(t))`, so
+//! `y(t) = sum_k Y_k exp((s + j k wp) t)` with
+//! `Y_k = (1/T) int_{tau_0}^{tau_0 + T} (C(t) p(t) + D(t)) exp(-j k wp t) dt`
+//! and `G_k(j (w_in + k wp)) = Y_k`. For the grid point `(w, n)` the input
+//! frequency is `w_in = w - n wp`.
+//!
+//! *Modal method* (default). With `A_i = V diag(lambda) V^{-1}` computed once,
+//! in modal coordinates `z = V^{-1} p`, `beta = V^{-1} B_i`, `mu = lambda - s`:
+//! `z_j(r) = exp(mu_j r) z_j(0) + r phi1(mu_j r) beta_j` with
+//! `phi1(x) = (e^x - 1)/x`. Writing `b = -j k wp h_i` and
+//! `c_j = mu_j h_i + b = (lambda_j - j w) h_i`, the piece's contribution is
+//! `exp(-j k wp tau_i) [ sum_j (C_i V)_j ( h phi1(c_j) z_j(0)
+//! + h^2 e[0, b, c_j] beta_j ) + D_i h phi1(b) ]`,
+//! where `e[0, b, c]` is the second divided difference of the exponential
+//! (`int_0^h int_0^r exp(mu q + nu r) dq dr = h^2 e[0, nu h, (mu + nu) h]`,
+//! Hermite-Genocchi). `phi1` and the divided differences switch to Taylor
+//! series near coincident arguments, so nothing cancels as `mu -> 0`. All
+//! exponentials are products of cached factors (`exp(lambda h)`,
+//! `exp(-j w h)`, `exp(j n wp h)`), so a grid point costs arithmetic only.
+//! Pieces whose eigenvector matrix has condition above 1e8, or that are
+//! defective, make [`ExactMethod::Auto`] use the
+//!
+//! *block-exponential method*: per piece, `exp([[A - sI, B], [0, 0]] h)` gives
+//! the propagator and forced response, and with `nu = -j k wp`,
+//! `exp([[A - s + nu, B, 0], [0, nu, 0], [C, D, 0]] h)` applied to
+//! `[p(tau_i+); 1; 0]` ends with `int_0^h exp(nu r) (C p + D) dr` (Van Loan).
+//! The two methods share no numerical kernel and are tested against each
+//! other and against brute-force simulation.
+
+mod coefficients;
+mod error;
+mod exact;
+mod grid;
+mod kernels;
+mod truncated;
+
+pub use coefficients::{FourierCoefficients, FourierLtp};
+pub use error::TheoryError;
+pub use exact::{ExactHtf, ExactMethod};
+pub use grid::{HarmonicTransferFunction, HtfGrid};
+pub use truncated::TruncatedHtf;
