@@ -19,10 +19,15 @@ pub struct ConfigError {
 
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.line {
-            Some(line) => write!(f, "{}:{}: {}: {}", self.path.display(), line, self.key, self.message),
-            None => write!(f, "{}: {}: {}", self.path.display(), self.key, self.message),
+        write!(f, "{}", self.path.display())?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
         }
+        // Parse errors carry no key of their own: the TOML message names it.
+        if self.key != "toml" {
+            write!(f, ": {}", self.key)?;
+        }
+        write!(f, ": {}", self.message)
     }
 }
 
@@ -41,7 +46,12 @@ impl Source {
         self.text[..end].bytes().filter(|&b| b == b'\n').count() + 1
     }
 
-    pub fn error(&self, span: Option<&Range<usize>>, key: &str, message: impl Into<String>) -> ConfigError {
+    pub fn error(
+        &self,
+        span: Option<&Range<usize>>,
+        key: &str,
+        message: impl Into<String>,
+    ) -> ConfigError {
         ConfigError {
             path: self.path.clone(),
             line: span.map(|s| self.line_of(s)),
@@ -62,7 +72,11 @@ impl Source {
         if v.is_finite() && ok(v) {
             Ok(v)
         } else {
-            Err(self.error(Some(&value.span()), key, format!("must be {expected} (got {v})")))
+            Err(self.error(
+                Some(&value.span()),
+                key,
+                format!("must be {expected} (got {v})"),
+            ))
         }
     }
 
@@ -113,9 +127,18 @@ impl Source {
     }
 
     /// Rejects a key that has no meaning for the chosen variant.
-    pub fn forbid<T>(&self, value: &Option<Spanned<T>>, key: &str, why: &str) -> Result<(), ConfigError> {
+    pub fn forbid<T>(
+        &self,
+        value: &Option<Spanned<T>>,
+        key: &str,
+        why: &str,
+    ) -> Result<(), ConfigError> {
         match value {
-            Some(v) => Err(self.error(Some(&v.span()), key, format!("is not used {why}; remove it"))),
+            Some(v) => Err(self.error(
+                Some(&v.span()),
+                key,
+                format!("is not used {why}; remove it"),
+            )),
             None => Ok(()),
         }
     }
@@ -133,7 +156,11 @@ impl Source {
 }
 
 pub fn quote_list(choices: &[&str]) -> String {
-    choices.iter().map(|c| format!("\"{c}\"")).collect::<Vec<_>>().join(", ")
+    choices
+        .iter()
+        .map(|c| format!("\"{c}\""))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Reads and parses a config file into raw options.

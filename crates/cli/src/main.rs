@@ -19,7 +19,11 @@ mod settings;
 mod signals;
 
 #[derive(Debug, Parser)]
-#[command(name = "htfid", version, about = "Harmonic transfer functions of rhythmic hybrid systems")]
+#[command(
+    name = "htfid",
+    version,
+    about = "Harmonic transfer functions of rhythmic hybrid systems"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -120,18 +120,16 @@ pub struct TheorySettings {
     pub plot_harmonics: Vec<i32>,
 }
 
-fn int_in(
-    src: &Source,
-    v: &Spanned<i64>,
-    key: &str,
-    lo: i64,
-    hi: i64,
-) -> Result<i64, ConfigError> {
+fn int_in(src: &Source, v: &Spanned<i64>, key: &str, lo: i64, hi: i64) -> Result<i64, ConfigError> {
     let x = *v.get_ref();
     if (lo..=hi).contains(&x) {
         Ok(x)
     } else {
-        Err(src.error(Some(&v.span()), key, format!("must be an integer in {lo}..={hi} (got {x})")))
+        Err(src.error(
+            Some(&v.span()),
+            key,
+            format!("must be an integer in {lo}..={hi} (got {x})"),
+        ))
     }
 }
 
@@ -143,10 +141,18 @@ fn harmonics_list(src: &Source, v: &Spanned<Vec<i64>>, key: &str) -> Result<Vec<
     let mut out = Vec::with_capacity(list.len());
     for &n in list {
         if !(-50..=50).contains(&n) {
-            return Err(src.error(Some(&v.span()), key, format!("harmonics must lie in -50..=50 (got {n})")));
+            return Err(src.error(
+                Some(&v.span()),
+                key,
+                format!("harmonics must lie in -50..=50 (got {n})"),
+            ));
         }
         if out.contains(&(n as i32)) {
-            return Err(src.error(Some(&v.span()), key, format!("harmonic {n} is listed twice")));
+            return Err(src.error(
+                Some(&v.span()),
+                key,
+                format!("harmonic {n} is listed twice"),
+            ));
         }
         out.push(n as i32);
     }
@@ -201,17 +207,26 @@ impl Settings {
             Some(v) => int_in(src, v, "simulation.settle_periods", 0, 100_000)? as usize,
             None => 30,
         };
-        let sample_rate = src.opt_number(&s.sample_rate, 100.0, "simulation.sample_rate", "> 0 (Hz)", |v| v > 0.0)?;
+        let sample_rate = src.opt_number(
+            &s.sample_rate,
+            100.0,
+            "simulation.sample_rate",
+            "> 0 (Hz)",
+            |v| v > 0.0,
+        )?;
         let mut integrator = Options {
-            rtol: src.opt_number(&s.rtol, 1e-10, "simulation.rtol", "in (0, 0.1]", |v| v > 0.0 && v <= 0.1)?,
+            rtol: src.opt_number(&s.rtol, 1e-10, "simulation.rtol", "in (0, 0.1]", |v| {
+                v > 0.0 && v <= 0.1
+            })?,
             atol: src.opt_number(&s.atol, 1e-12, "simulation.atol", "> 0", |v| v > 0.0)?,
             ..Options::default()
         };
         if let Some(method) = &s.method {
-            integrator.method = match src.choice(method, "simulation.method", &["dop853", "dopri5"])? {
-                "dopri5" => Method::Dopri5,
-                _ => Method::Dop853,
-            };
+            integrator.method =
+                match src.choice(method, "simulation.method", &["dop853", "dopri5"])? {
+                    "dopri5" => Method::Dopri5,
+                    _ => Method::Dop853,
+                };
         }
         let excitation = match &raw.excitation {
             None => Excitation::None,
@@ -238,7 +253,11 @@ impl Settings {
     }
 }
 
-fn resolve_excitation(src: &Source, e: &RawExcitation, _period: f64) -> Result<Excitation, ConfigError> {
+fn resolve_excitation(
+    src: &Source,
+    e: &RawExcitation,
+    _period: f64,
+) -> Result<Excitation, ConfigError> {
     match src.choice(&e.kind, "excitation.kind", &["none", "chirp_train"])? {
         "none" => {
             let why = "when excitation.kind = \"none\"";
@@ -250,11 +269,13 @@ fn resolve_excitation(src: &Source, e: &RawExcitation, _period: f64) -> Result<E
         _ => {
             let waveform = match &e.waveform {
                 None => Waveform::Linear,
-                Some(w) => match src.choice(w, "excitation.waveform", &["paper", "linear", "log"])? {
-                    "paper" => Waveform::Paper,
-                    "log" => Waveform::Log,
-                    _ => Waveform::Linear,
-                },
+                Some(w) => {
+                    match src.choice(w, "excitation.waveform", &["paper", "linear", "log"])? {
+                        "paper" => Waveform::Paper,
+                        "log" => Waveform::Log,
+                        _ => Waveform::Linear,
+                    }
+                }
             };
             let copies = match &e.copies {
                 Some(v) => int_in(src, v, "excitation.copies", 1, 1000)? as usize,
@@ -269,14 +290,32 @@ fn resolve_excitation(src: &Source, e: &RawExcitation, _period: f64) -> Result<E
                 (0.0, 14.0, 30.0, 0.004)
             } else {
                 let why = "for a linear or log chirp";
-                let f0 = src.non_negative(src.require(&e.f_start_hz, "excitation.f_start_hz", why)?, "excitation.f_start_hz")?;
+                let f0 = src.non_negative(
+                    src.require(&e.f_start_hz, "excitation.f_start_hz", why)?,
+                    "excitation.f_start_hz",
+                )?;
                 let f1v = src.require(&e.f_end_hz, "excitation.f_end_hz", why)?;
-                let f1 = src.number(f1v, "excitation.f_end_hz", &format!("> f_start_hz ({f0})"), |v| v > f0)?;
+                let f1 = src.number(
+                    f1v,
+                    "excitation.f_end_hz",
+                    &format!("> f_start_hz ({f0})"),
+                    |v| v > f0,
+                )?;
                 if waveform == Waveform::Log && f0 <= 0.0 {
-                    return Err(src.error(e.f_start_hz.as_ref().map(|v| v.span()).as_ref(), "excitation.f_start_hz", "must be > 0 for a log chirp (got 0)"));
+                    return Err(src.error(
+                        e.f_start_hz.as_ref().map(|v| v.span()).as_ref(),
+                        "excitation.f_start_hz",
+                        "must be > 0 for a log chirp (got 0)",
+                    ));
                 }
-                let d = src.positive(src.require(&e.duration, "excitation.duration", why)?, "excitation.duration")?;
-                let a = src.positive(src.require(&e.amplitude, "excitation.amplitude", why)?, "excitation.amplitude")?;
+                let d = src.positive(
+                    src.require(&e.duration, "excitation.duration", why)?,
+                    "excitation.duration",
+                )?;
+                let a = src.positive(
+                    src.require(&e.amplitude, "excitation.amplitude", why)?,
+                    "excitation.amplitude",
+                )?;
                 (f0, f1, d, a)
             };
             Ok(Excitation::ChirpTrain {
@@ -304,8 +343,16 @@ fn resolve_theory(src: &Source, t: Option<&RawTheory>) -> Result<TheorySettings,
         Some(h) => harmonics_list(src, h, "theory.harmonics")?,
         None => default_h,
     };
-    let lo = src.opt_number(&t.omega_min, 1.0, "theory.omega_min", "> 0 (rad/s)", |v| v > 0.0)?;
-    let hi = src.opt_number(&t.omega_max, 40.0, "theory.omega_max", &format!("> omega_min ({lo})"), |v| v > lo)?;
+    let lo = src.opt_number(&t.omega_min, 1.0, "theory.omega_min", "> 0 (rad/s)", |v| {
+        v > 0.0
+    })?;
+    let hi = src.opt_number(
+        &t.omega_max,
+        40.0,
+        "theory.omega_max",
+        &format!("> omega_min ({lo})"),
+        |v| v > lo,
+    )?;
     let points = match &t.points {
         Some(p) => int_in(src, p, "theory.points", 2, 1_000_000)? as usize,
         None => 400,
@@ -313,7 +360,9 @@ fn resolve_theory(src: &Source, t: Option<&RawTheory>) -> Result<TheorySettings,
     let omegas = match &t.spacing {
         None => log_grid(lo, hi, points),
         Some(s) => match src.choice(s, "theory.spacing", &["log", "linear"])? {
-            "linear" => (0..points).map(|i| lo + (hi - lo) * i as f64 / (points - 1) as f64).collect(),
+            "linear" => (0..points)
+                .map(|i| lo + (hi - lo) * i as f64 / (points - 1) as f64)
+                .collect(),
             _ => log_grid(lo, hi, points),
         },
     };

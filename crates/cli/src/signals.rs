@@ -3,7 +3,9 @@
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use htfid_excite::{LinearChirp, LogChirp, PaperChirp, PhaseShiftedTrain, Segment, Signal, TrainLayout};
+use htfid_excite::{
+    LinearChirp, LogChirp, PaperChirp, PhaseShiftedTrain, Segment, Signal, TrainLayout,
+};
 use htfid_model::InputFn;
 
 use crate::settings::{Excitation, Settings, Waveform};

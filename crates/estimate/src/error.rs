@@ -192,7 +192,9 @@ pub enum Error {
         unknowns: usize,
     },
     /// LPM was combined with across-bin regularisation.
-    #[error("the local polynomial method cannot be combined with ridge or smoothness regularisation")]
+    #[error(
+        "the local polynomial method cannot be combined with ridge or smoothness regularisation"
+    )]
     LpmWithRegularisation,
     /// A multisine period is not a whole number of system periods.
     #[error(
@@ -324,7 +326,9 @@ pub enum Error {
         expected: usize,
     },
     /// A parameter bound pair is not an interval.
-    #[error("parameter {index}: bounds [{lower}, {upper}] are invalid (need lower <= upper, no NaN)")]
+    #[error(
+        "parameter {index}: bounds [{lower}, {upper}] are invalid (need lower <= upper, no NaN)"
+    )]
     InvalidBounds {
         /// Parameter index.
         index: usize,
@@ -334,7 +338,9 @@ pub enum Error {
         upper: f64,
     },
     /// A start value is not finite or lies outside its bounds.
-    #[error("parameter {index}: start value {value} is not finite or lies outside [{lower}, {upper}]")]
+    #[error(
+        "parameter {index}: start value {value} is not finite or lies outside [{lower}, {upper}]"
+    )]
     InvalidStart {
         /// Parameter index.
         index: usize,

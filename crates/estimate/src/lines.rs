@@ -251,9 +251,15 @@ fn estimate(
     Ok(HtfEstimate::new(
         method,
         harmonics.to_vec(),
-        rows.iter().map(|r| r.iter().map(|v| v.0).collect()).collect(),
-        rows.iter().map(|r| r.iter().map(|v| v.1).collect()).collect(),
-        rows.iter().map(|r| r.iter().map(|v| v.2).collect()).collect(),
+        rows.iter()
+            .map(|r| r.iter().map(|v| v.0).collect())
+            .collect(),
+        rows.iter()
+            .map(|r| r.iter().map(|v| v.1).collect())
+            .collect(),
+        rows.iter()
+            .map(|r| r.iter().map(|v| v.2).collect())
+            .collect(),
     )?
     .with_dof((periods - 1) as f64))
 }

@@ -137,7 +137,14 @@ pub fn multi_experiment(
             let sys = BinSystem::new(&prep);
             let res = smooth::estimate(&sys, Alpha::Fixed(0.0), lambda)?;
             let lambda_eff = lambda * sys.gram_scale();
-            regularised(&prep, Method::MultiExperimentRidge, res, lambda, lambda_eff, options)
+            regularised(
+                &prep,
+                Method::MultiExperimentRidge,
+                res,
+                lambda,
+                lambda_eff,
+                options,
+            )
         }
         (Leakage::None, Regularisation::Smoothness(alpha)) => {
             let sys = BinSystem::new(&prep);

@@ -376,9 +376,7 @@ mod tests {
                 let w = 2.0 * PI * k / (n as f64 * dt);
                 x.iter()
                     .enumerate()
-                    .map(|(s, &v)| {
-                        Complex64::from_polar(v * dt, -w * (t_start + s as f64 * dt))
-                    })
+                    .map(|(s, &v)| Complex64::from_polar(v * dt, -w * (t_start + s as f64 * dt)))
                     .sum()
             })
             .collect()
@@ -388,7 +386,9 @@ mod tests {
     fn dft_matches_the_documented_formula() {
         // Odd and even lengths, a start time that is not a multiple of dt and a large one.
         for (n, t_start) in [(37usize, 0.123), (64, -5.5), (50, 1234.567)] {
-            let x: Vec<f64> = (0..n).map(|i| ((i * 7919) % 97) as f64 / 97.0 - 0.5).collect();
+            let x: Vec<f64> = (0..n)
+                .map(|i| ((i * 7919) % 97) as f64 / 97.0 - 0.5)
+                .collect();
             let fast = dft(&x, 0.02, t_start).unwrap();
             let slow = naive(&x, 0.02, t_start);
             // The naive sum accumulates phase error ~ w t eps ~ 1e-10 at t = 1234 s; 1e-9 of the
@@ -438,8 +438,8 @@ mod tests {
             e.to_string(),
             "input has 5 samples but output has 4; a record needs one output sample per input sample"
         );
-        let e = Record::new(vec![0.0; 5], vec![0.0, 0.0, f64::NAN, 0.0, 0.0], 0.1, 0.0)
-            .unwrap_err();
+        let e =
+            Record::new(vec![0.0; 5], vec![0.0, 0.0, f64::NAN, 0.0, 0.0], 0.1, 0.0).unwrap_err();
         assert!(matches!(
             e,
             Error::NonFiniteSample {

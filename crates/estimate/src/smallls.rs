@@ -66,7 +66,12 @@ impl SmallLs {
     /// Solves `min |y - A x|`, discarding singular directions below `rcond * sigma_max`
     /// (minimum-norm solution), and writes `diag((A^H A)^+)` into `var_diag`. Overwrites the
     /// matrix and right-hand side.
-    pub(crate) fn solve(&mut self, rcond: f64, x: &mut [Complex64], var_diag: &mut [f64]) -> LsInfo {
+    pub(crate) fn solve(
+        &mut self,
+        rcond: f64,
+        x: &mut [Complex64],
+        var_diag: &mut [f64],
+    ) -> LsInfo {
         let (m, p) = (self.m, self.p);
         let zero = Complex64::new(0.0, 0.0);
         // Householder QR: column j is reflected onto alpha e_j, alpha = -phase(x0) |x|.
@@ -126,7 +131,11 @@ impl SmallLs {
         self.jacobi();
         let smax = self.sigma.iter().copied().fold(0.0, f64::max);
         let smin = self.sigma.iter().copied().fold(f64::INFINITY, f64::min);
-        let cond = if smin > 0.0 { smax / smin } else { f64::INFINITY };
+        let cond = if smin > 0.0 {
+            smax / smin
+        } else {
+            f64::INFINITY
+        };
         let mut rank = 0;
         x.iter_mut().for_each(|v| *v = zero);
         var_diag.iter_mut().for_each(|v| *v = 0.0);

@@ -99,6 +99,8 @@ pub(crate) struct SmoothFit {
     pub trace: f64,
     /// Diagonal of the inverse normal matrix (empty unless asked for).
     pub zdiag: Vec<f64>,
+    /// Effort counters; only the linear-work test reads them.
+    #[cfg_attr(not(test), allow(dead_code))]
     pub work: Work,
 }
 
@@ -327,7 +329,7 @@ mod tests {
     fn banded_fit_matches_dense_stacked_least_squares() {
         let (m, k, h) = (9usize, 2usize, 3usize);
         let sys = random_system(m, k, h, 5);
-        let (alpha, ridge) = (0.7, 0.05);
+        let (alpha, ridge) = (0.7f64, 0.05f64);
         let n = m * h;
         let rows = m * k + (m - 2) * h + n;
         let mut big = DMatrix::<Complex64>::zeros(rows, n);
@@ -378,7 +380,11 @@ mod tests {
         let h = 7;
         let work: Vec<Work> = [300usize, 1200]
             .iter()
-            .map(|&m| fit(&random_system(m, 1, h, 3), 1.0, 0.0, true).unwrap().work)
+            .map(|&m| {
+                fit(&random_system(m, 1, h, 3), 1.0, 0.0, true)
+                    .unwrap()
+                    .work
+            })
             .collect();
         for (a, b) in [
             (work[0].factor as f64, work[1].factor as f64),

@@ -20,7 +20,10 @@ fn main() -> Result<(), htfid_excite::ExciteError> {
     })?;
     let report = design.report();
     if std::env::args().any(|a| a == "--json") {
-        println!("{}", serde_json::to_string_pretty(&report).expect("report serializes"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).expect("report serializes")
+        );
     } else {
         print!("{report}");
     }

@@ -313,21 +313,35 @@ mod tests {
     fn constructors_reject_bad_parameters() {
         assert!(matches!(
             LinearChirp::new(-1.0, 2.0, 3.0, 1.0),
-            Err(ExciteError::InvalidParameter { name: "f_start_hz", .. })
+            Err(ExciteError::InvalidParameter {
+                name: "f_start_hz",
+                ..
+            })
         ));
         assert!(matches!(
             LinearChirp::new(1.0, 2.0, 0.0, 1.0),
-            Err(ExciteError::InvalidParameter { name: "duration", .. })
+            Err(ExciteError::InvalidParameter {
+                name: "duration",
+                ..
+            })
         ));
         assert!(matches!(
             LinearChirp::new(1.0, f64::NAN, 1.0, 1.0),
-            Err(ExciteError::InvalidParameter { name: "f_end_hz", .. })
+            Err(ExciteError::InvalidParameter {
+                name: "f_end_hz",
+                ..
+            })
         ));
         assert!(matches!(
             LogChirp::new(0.0, 2.0, 3.0, 1.0),
-            Err(ExciteError::InvalidParameter { name: "f_start_hz", .. })
+            Err(ExciteError::InvalidParameter {
+                name: "f_start_hz",
+                ..
+            })
         ));
-        let msg = LinearChirp::new(1.0, 2.0, -3.0, 1.0).unwrap_err().to_string();
+        let msg = LinearChirp::new(1.0, 2.0, -3.0, 1.0)
+            .unwrap_err()
+            .to_string();
         assert_eq!(msg, "duration must be finite and > 0 (got -3)");
     }
 

@@ -224,22 +224,31 @@ pub struct Design {
 ///    harmonic n spans `n wp +- J h dw`, so it brackets the band iff
 ///    `J h dw >= max(omega_hi - n wp, n wp - omega_lo)`; the worst case is
 ///    `n = -H`: the input lines must run from `D / 2` up to at least
-///    `omega_hi + H wp`. Lines whose images miss `[omega_lo - D, omega_hi + D]`
-///    for every `|n| <= H` are dropped (narrow bands).
-/// 6. **Choosing P.** `h <= spacing P / (2 wp)`, `J >= (omega_hi + H wp) P / (h wp)`,
-///    `J <= P - 2` give `P >= 2 (omega_hi + H wp) / spacing + 2`. Odd P are
-///    tried upwards from that bound, each with the largest admissible h coprime
-///    to P (fewest lines); the first that fits is the smallest P of this
-///    family. The record is `blocks * (settle + P T)`.
+///    `omega_hi + H wp`. More precisely only the input frequencies
+///    `|w - n wp|`, `w` in the band, `|n| <= H`, are needed (plus one grid
+///    step around them); lines elsewhere are dropped, which matters for
+///    narrow bands.
+/// 6. **Choosing P.** For a wide band every line up to `omega_hi + H wp` is
+///    kept, and `h <= spacing P / (2 wp)`, `J >= (omega_hi + H wp) P / (h wp)`,
+///    `J <= P - 2` give `P >= 2 (omega_hi + H wp) / spacing + 2`. In general
+///    odd P are tried upwards from a lower bound set by the number of lines
+///    needed (step 5), each with h running down from the largest value the
+///    spacing allows (coprime to P), and a grid is accepted only after its
+///    kept residues are checked to be non-zero and distinct (step 2; with
+///    dropped lines, residues of j beyond `P - 2` may still be distinct).
+///    The record is `blocks * (settle + P T)`.
 /// 7. **Even orders.** Around a stable orbit the response is a Volterra
 ///    series with T-periodic kernels; the order-k term is homogeneous,
 ///    `V_k[-u] = (-1)^k V_k[u]`. Second-order products of lines i, j fall on
 ///    residues `+-r_i +- r_j`, which (all residues being used) are estimation
 ///    bins. [`EvenOrder::SignReversal`] measures `+u` and `-u` and uses
-///    `(y(+u) - y(-u)) / 2`, cancelling every even order and the orbit;
-///    [`EvenOrder::QuadraticGuard`] keeps `3 J < P`: a collision
-///    `+-j_i +- j_k +- j_l = 0 (mod P)` would need an odd integer of size at
-///    most `3J < P` to vanish, impossible; [`EvenOrder::Unprotected`] only
+///    `(y(+u) - y(-u)) / 2`, cancelling every even order and the orbit.
+///    [`EvenOrder::QuadraticGuard`] additionally requires, checked on the kept
+///    residues, that no `+-r_i +- r_j` equals any `+-r_k`; such grids exist
+///    once `3 J < P`, because a collision `+-j_i +- j_k +- j_l = 0 (mod P)`
+///    would need an odd integer of size at most `3J < P` to vanish. The guarded
+///    residue set is sum-free, so it holds at most P/5 lines (P odd): about
+///    three times the unguarded P in practice. [`EvenOrder::Unprotected`] only
 ///    reports the exposed lines. Odd orders (third, ...) fall on residues
 ///    `+-r_i +- r_j +- r_k`, which can be estimation bins in any design: they
 ///    are not separated from `G_n` and bias it in proportion to amplitude^2.
@@ -280,9 +289,19 @@ pub fn design_htf_multisine(spec: DesignSpec) -> Result<Design, ExciteError> {
     let start = start_periods * t;
 
     let wp = TAU / t;
-    let hh = f64::from(spec.max_harmonic);
-    let grid = find_grid(hi / wp + hh, spacing / wp, spec.even_order)?;
-    let Grid { p, h, top_odd } = grid;
+    let targets = Targets {
+        lo: lo / wp,
+        hi: hi / wp,
+        spacing: spacing / wp,
+        max_harmonic: spec.max_harmonic,
+        guard: spec.even_order == EvenOrder::QuadraticGuard,
+    };
+    let Grid {
+        p,
+        h,
+        top_odd,
+        bins,
+    } = find_grid(&targets)?;
     let tm = p as f64 * t;
     let settle = (settle_req / t - 1e-9).ceil().max(0.0) * t;
     let n_blocks = spec.even_order.blocks();
@@ -297,20 +316,6 @@ pub fn design_htf_multisine(spec: DesignSpec) -> Result<Design, ExciteError> {
     }
 
     let dw = wp / p as f64;
-    let step = 2.0 * h as f64 * dw;
-    let (beta_lo, beta_hi) = ((lo - step) / dw, (hi + step) / dw);
-    let hmax = i64::from(spec.max_harmonic);
-    let bins: Vec<u64> = (1..=top_odd)
-        .step_by(2)
-        .map(|j| j * h)
-        .filter(|&b| {
-            (-hmax..=hmax).any(|n| {
-                let c = (n * p as i64) as f64;
-                let (d, m) = (c + b as f64, c - b as f64);
-                (beta_lo..=beta_hi).contains(&d) || (beta_lo..=beta_hi).contains(&m)
-            })
-        })
-        .collect();
     let phases = phase_values(spec.phases, &vec![1.0; bins.len()]);
     let unit = Multisine::new(
         tm,
@@ -391,51 +396,150 @@ fn spec_h(d: &Design) -> i32 {
     i32::try_from(d.spec.max_harmonic).unwrap_or(i32::MAX)
 }
 
+/// Design targets in units of wp (so one unit is P bins).
 #[derive(Debug, Clone, Copy)]
+struct Targets {
+    lo: f64,
+    hi: f64,
+    spacing: f64,
+    max_harmonic: u32,
+    guard: bool,
+}
+
+#[derive(Debug, Clone)]
 struct Grid {
     p: u64,
     h: u64,
     top_odd: u64,
+    bins: Vec<u64>,
 }
 
-/// Smallest odd P (with its h and top odd index J) meeting spacing, coverage
-/// and residue capacity; `reach` and `spacing` are in units of wp.
-fn find_grid(reach: f64, spacing: f64, even: EvenOrder) -> Result<Grid, ExciteError> {
-    let guard = even == EvenOrder::QuadraticGuard;
-    // Lower bound from step 6 of the derivation (3x for the guard).
-    let factor = if guard { 6.0 } else { 2.0 };
-    let bound = (factor * reach / spacing).floor();
-    if !bound.is_finite() || bound > 1e15 {
-        return Err(ExciteError::NoDesign {
-            searched_up_to: u64::MAX,
-        });
-    }
-    let mut p = (bound as u64).saturating_sub(1).max(3) | 1;
-    let limit = p.saturating_add(4_000_000);
+/// Smallest odd P (with its h, top odd index J and kept bins) for which an
+/// odd grid meets spacing and coverage with valid residues.
+///
+/// P starts at a lower bound from the number of lines any grid of step
+/// `<= spacing` needs (half the residues are usable; with the guard at most
+/// P/5 lines, the largest sum-free symmetric set in Z_P for odd P). For each
+/// P, h runs down from the largest value the spacing allows, skipping h not
+/// coprime to P, until the kept lines exceed that capacity.
+fn find_grid(t: &Targets) -> Result<Grid, ExciteError> {
+    let min_lines = min_line_count(t);
+    let bound = if t.guard {
+        min_lines.saturating_mul(5)
+    } else {
+        min_lines.saturating_mul(2).saturating_add(1)
+    };
+    let start = bound.max(3) | 1;
+    let limit = start.saturating_add(start.max(100_000));
+    let mut p = start;
     while p <= limit {
-        let pf = p as f64;
-        let h_max = (spacing * pf / 2.0 + 1e-9).floor() as u64;
-        let reach_bins = reach * pf;
+        let capacity = if t.guard { p / 5 } else { (p - 1) / 2 };
+        let h_max = (t.spacing * p as f64 / 2.0 + 1e-9).floor() as u64;
         for h in (1..=h_max).rev() {
             if gcd(h, p) != 1 {
                 continue;
             }
-            let mut j = ((reach_bins / h as f64) - 1e-9).ceil().max(1.0) as u64;
-            if j % 2 == 0 {
-                j += 1;
+            let reach = (t.hi + f64::from(t.max_harmonic)) * p as f64 / h as f64;
+            let mut top_odd = (reach - 1e-9).ceil().max(1.0) as u64;
+            if top_odd % 2 == 0 {
+                top_odd += 1;
             }
-            let fits = if guard { 3 * j < p } else { j + 2 <= p };
-            if fits {
-                return Ok(Grid { p, h, top_odd: j });
+            // Smaller h needs more lines against the same capacity.
+            let Some(bins) = kept_bins(t, p, h, top_odd, capacity) else {
+                break;
+            };
+            if residues_valid(&bins, p, t.guard) {
+                return Ok(Grid {
+                    p,
+                    h,
+                    top_odd,
+                    bins,
+                });
             }
-            // Smaller h needs a larger J against the same capacity.
-            break;
         }
         p += 2;
     }
     Err(ExciteError::NoDesign {
         searched_up_to: limit,
     })
+}
+
+/// Lower bound on the number of lines: for every harmonic the band maps to
+/// input frequencies `|w - n wp|`; on the union of those intervals a grid of
+/// step `<= spacing` has at least `floor(length / spacing)` lines.
+fn min_line_count(t: &Targets) -> u64 {
+    let hh = f64::from(t.max_harmonic);
+    let mut iv: Vec<(f64, f64)> = (0..=2 * t.max_harmonic)
+        .map(|k| {
+            let n = f64::from(k) - hh;
+            let (a, b) = (t.lo - n, t.hi - n);
+            if a <= 0.0 && b >= 0.0 {
+                (0.0, b.max(-a))
+            } else {
+                (a.abs().min(b.abs()), a.abs().max(b.abs()))
+            }
+        })
+        .collect();
+    iv.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut merged: Vec<(f64, f64)> = Vec::new();
+    for (a, b) in iv {
+        match merged.last_mut() {
+            Some(last) if a <= last.1 => last.1 = last.1.max(b),
+            _ => merged.push((a, b)),
+        }
+    }
+    merged
+        .iter()
+        .map(|(a, b)| ((b - a) / t.spacing - 1e-9).floor().max(0.0) as u64)
+        .sum()
+}
+
+/// Bins `j h`, odd `j <= top_odd`, whose image through some `|n| <= H` lies
+/// within one grid step of the band; `None` once more than `capacity` are kept.
+fn kept_bins(t: &Targets, p: u64, h: u64, top_odd: u64, capacity: u64) -> Option<Vec<u64>> {
+    let pf = p as f64;
+    let step = 2.0 * h as f64;
+    let (lo, hi) = (t.lo * pf - step, t.hi * pf + step);
+    let hmax = i64::from(t.max_harmonic);
+    let mut bins = Vec::new();
+    for j in (1..=top_odd).step_by(2) {
+        let b = (j * h) as f64;
+        let needed = (-hmax..=hmax).any(|n| {
+            let c = n as f64 * pf;
+            (lo..=hi).contains(&(c + b)) || (lo..=hi).contains(&(c - b))
+        });
+        if needed {
+            if bins.len() as u64 == capacity {
+                return None;
+            }
+            bins.push(j * h);
+        }
+    }
+    Some(bins)
+}
+
+/// Residues `b mod P` and `P - b mod P` of all bins non-zero and pairwise
+/// distinct; with `guard`, additionally no `+-r_i +- r_j` equal to any of them.
+fn residues_valid(bins: &[u64], p: u64, guard: bool) -> bool {
+    let mut used = std::collections::HashSet::with_capacity(2 * bins.len());
+    for &b in bins {
+        let r = b % p;
+        if r == 0 || !used.insert(r) || !used.insert(p - r) {
+            return false;
+        }
+    }
+    if guard {
+        // `used` is symmetric under negation, so one sign of each product suffices.
+        for (i, &bi) in bins.iter().enumerate() {
+            for &bj in &bins[i..] {
+                let (ri, rj) = (bi % p, bj % p);
+                if used.contains(&((ri + rj) % p)) || used.contains(&((ri + p - rj) % p)) {
+                    return false;
+                }
+            }
+        }
+    }
+    true
 }
 
 fn gcd(mut a: u64, mut b: u64) -> u64 {
@@ -822,7 +926,11 @@ impl fmt::Display for DesignReport {
                 c.first_omega,
                 c.last_omega,
                 c.max_gap,
-                if c.meets_target { "" } else { "  MISSES TARGET" }
+                if c.meets_target {
+                    ""
+                } else {
+                    "  MISSES TARGET"
+                }
             )?;
         }
         writeln!(

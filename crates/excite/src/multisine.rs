@@ -167,7 +167,13 @@ impl Multisine {
 
     /// Root mean square over a period: `sqrt(sum A^2 / 2)` (exact, lines are orthogonal).
     pub fn rms(&self) -> f64 {
-        (self.lines.iter().map(|l| l.amplitude * l.amplitude).sum::<f64>() / 2.0).sqrt()
+        (self
+            .lines
+            .iter()
+            .map(|l| l.amplitude * l.amplitude)
+            .sum::<f64>()
+            / 2.0)
+            .sqrt()
     }
 
     /// Largest |u(t)| over one period.
@@ -462,7 +468,10 @@ mod tests {
             phase: 0.0,
         };
         assert_eq!(Multisine::new(1.0, vec![]), Err(ExciteError::NoLines));
-        assert_eq!(Multisine::new(1.0, vec![line(0)]), Err(ExciteError::ZeroBin));
+        assert_eq!(
+            Multisine::new(1.0, vec![line(0)]),
+            Err(ExciteError::ZeroBin)
+        );
         assert_eq!(
             Multisine::new(1.0, vec![line(3), line(2), line(3)]),
             Err(ExciteError::DuplicateBin { bin: 3 })

@@ -151,8 +151,8 @@ impl PhaseShiftedTrain {
         (0..copies)
             .map(|k| {
                 let s = start + k as f64 * self.stride;
-                let mut delay =
-                    (start.rem_euclid(period) + k as f64 * period / copies as f64).rem_euclid(period);
+                let mut delay = (start.rem_euclid(period) + k as f64 * period / copies as f64)
+                    .rem_euclid(period);
                 // A phase a rounding error below T is phase 0.
                 if period - delay < 1e-9 * period {
                     delay = 0.0;
@@ -267,7 +267,11 @@ mod tests {
         // D = 30 s is a multiple of T = 1 s, so the gap is T/K = 1/9 s.
         assert_abs_diff_eq!(tr.gap(), 1.0 / 9.0, epsilon = 1e-12);
         assert_abs_diff_eq!(tr.stride(), 30.0 + 1.0 / 9.0, epsilon = 1e-12);
-        assert_abs_diff_eq!(tr.total_duration(), 8.0 * (30.0 + 1.0 / 9.0) + 30.0, epsilon = 1e-9);
+        assert_abs_diff_eq!(
+            tr.total_duration(),
+            8.0 * (30.0 + 1.0 / 9.0) + 30.0,
+            epsilon = 1e-9
+        );
         let segs = tr.segments();
         assert_eq!(segs.len(), 9);
         for s in &segs {
@@ -303,7 +307,11 @@ mod tests {
             );
             for j in 0..50 {
                 let local = j as f64 * 0.046;
-                assert_abs_diff_eq!(tr.value(s.start + local), chirp.value(local), epsilon = 1e-9);
+                assert_abs_diff_eq!(
+                    tr.value(s.start + local),
+                    chirp.value(local),
+                    epsilon = 1e-9
+                );
             }
         }
         for w in segs.windows(2) {

@@ -126,7 +126,11 @@ fn every_harmonic_brackets_the_band_at_the_target_spacing() {
         let d = design_htf_multisine(spec.clone()).unwrap();
         let wp = TAU / spec.period;
         let tm = d.multisine_period();
-        assert_abs_diff_eq!(tm, d.periods_per_multisine() as f64 * spec.period, epsilon = 1e-9);
+        assert_abs_diff_eq!(
+            tm,
+            d.periods_per_multisine() as f64 * spec.period,
+            epsilon = 1e-9
+        );
         for l in d.lines() {
             assert_abs_diff_eq!(l.omega, TAU * l.bin as f64 / tm, epsilon = 1e-9);
         }
@@ -141,7 +145,10 @@ fn every_harmonic_brackets_the_band_at_the_target_spacing() {
             w.sort_by(f64::total_cmp);
             let below = w.iter().rposition(|&x| x <= spec.omega_lo + 1e-9);
             let above = w.iter().position(|&x| x >= spec.omega_hi - 1e-9);
-            let (a, b) = (below.expect("point below band"), above.expect("point above band"));
+            let (a, b) = (
+                below.expect("point below band"),
+                above.expect("point above band"),
+            );
             let gap = w[a..=b].windows(2).map(|p| p[1] - p[0]).fold(0.0, f64::max);
             // 1e-9 relative: spacing is met exactly by construction, up to rounding.
             assert!(
@@ -167,8 +174,12 @@ fn narrow_band_design_drops_unneeded_lines() {
     // |w - n wp| in [23.7, 25.7], [30, 32], [36.3, 38.3].
     for l in d.lines() {
         let near = [-1.0, 0.0, 1.0].iter().any(|&n| {
-            let lo = (spec.omega_lo - n * wp).abs().min((spec.omega_hi - n * wp).abs());
-            let hi = (spec.omega_lo - n * wp).abs().max((spec.omega_hi - n * wp).abs());
+            let lo = (spec.omega_lo - n * wp)
+                .abs()
+                .min((spec.omega_hi - n * wp).abs());
+            let hi = (spec.omega_lo - n * wp)
+                .abs()
+                .max((spec.omega_hi - n * wp).abs());
             l.omega >= lo - 1.0 && l.omega <= hi + 1.0
         });
         assert!(near, "line at {} rad/s serves no harmonic", l.omega);
@@ -329,7 +340,12 @@ fn designs_are_reproducible_from_the_seed() {
         })
         .unwrap()
     };
-    let bits = |d: &Design| d.lines().iter().map(|l| l.phase.to_bits()).collect::<Vec<_>>();
+    let bits = |d: &Design| {
+        d.lines()
+            .iter()
+            .map(|l| l.phase.to_bits())
+            .collect::<Vec<_>>()
+    };
     assert_eq!(bits(&make(1)), bits(&make(1)));
     assert_ne!(bits(&make(1)), bits(&make(2)));
 }

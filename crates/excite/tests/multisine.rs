@@ -31,7 +31,11 @@ fn headline(phases: PhaseRule) -> DesignSpec {
 fn check_spectrum(m: &Multisine, samples: &[f64], sign: f64) {
     let n = samples.len();
     let dft = NaiveDft::new(n);
-    let a_max = m.lines().iter().map(|l| l.amplitude.abs()).fold(0.0, f64::max);
+    let a_max = m
+        .lines()
+        .iter()
+        .map(|l| l.amplitude.abs())
+        .fold(0.0, f64::max);
     // Relative to the largest line's DFT magnitude. Per-sample errors are
     // ~1e-12 * a_max (phase argument rounding, oscillator drift) and add
     // incoherently over N samples, so 1e-12 relative has a wide margin.
@@ -46,7 +50,11 @@ fn check_spectrum(m: &Multisine, samples: &[f64], sign: f64) {
                 assert!((x - expect).norm() <= tol, "bin {c}: {x} vs {expect}");
                 lines.next();
             }
-            _ => assert!(x.norm() <= tol, "bin {c} should be empty: |X| = {}", x.norm()),
+            _ => assert!(
+                x.norm() <= tol,
+                "bin {c} should be empty: |X| = {}",
+                x.norm()
+            ),
         }
     }
     assert!(lines.next().is_none(), "lines above N/2");
@@ -137,8 +145,13 @@ fn scaling_hits_the_requested_rms_and_peak() {
     assert_abs_diff_eq!(rms_time_domain(&m), 0.25, epsilon = 1e-12);
     assert_abs_diff_eq!(m.rms(), 0.25, epsilon = 1e-14);
 
-    let p = Multisine::flat(10.0, &bins, PhaseRule::Random { seed: 9 }, Amplitude::Peak(0.004))
-        .unwrap();
+    let p = Multisine::flat(
+        10.0,
+        &bins,
+        PhaseRule::Random { seed: 9 },
+        Amplitude::Peak(0.004),
+    )
+    .unwrap();
     let max_bin = p.lines().last().unwrap().bin;
     let brute = brute_peak(&p, 10.0, max_bin, 512);
     // The brute grid can only under-estimate, by at most 1 - cos(pi/512) = 1.9e-5
@@ -155,7 +168,12 @@ fn random_phases_are_reproducible_and_seed_dependent() {
     let make = |seed| {
         Multisine::flat(5.0, &bins, PhaseRule::Random { seed }, Amplitude::Rms(1.0)).unwrap()
     };
-    let bits = |m: &Multisine| m.lines().iter().map(|l| l.phase.to_bits()).collect::<Vec<_>>();
+    let bits = |m: &Multisine| {
+        m.lines()
+            .iter()
+            .map(|l| l.phase.to_bits())
+            .collect::<Vec<_>>()
+    };
     assert_eq!(bits(&make(7)), bits(&make(7)));
     assert_ne!(bits(&make(7)), bits(&make(8)));
     for l in make(7).lines() {

@@ -40,11 +40,14 @@ pub enum HybridError {
         /// The value returned.
         value: f64,
     },
-    /// More than `Options::zeno_max_events` transitions happened within `Options::zeno_window`
-    /// seconds: the trajectory is (numerically) Zeno.
-    #[error("Zeno behaviour: {events} transitions within {window} s, the last at t = {time} s")]
+    /// The events accumulate: more than `Options::zeno_max_events` transitions happened within
+    /// `Options::zeno_window` seconds, or, right after a transition, a guard sitting on zero
+    /// heads back toward its pre-crossing side by less than can be resolved (the accumulation
+    /// point has been reached numerically, as for a bouncing ball whose bounces shrink below the
+    /// event resolution).
+    #[error("Zeno behaviour at t = {time} s: {events} transitions within the last {window} s")]
     Zeno {
-        /// Time of the transition that exceeded the cap (s).
+        /// Time of the transition that exceeded the cap or after which the guard stuck (s).
         time: f64,
         /// Transitions within the window ending at `time`.
         events: usize,

@@ -32,6 +32,23 @@ pub(crate) fn fsal_row(method: Method) -> usize {
     }
 }
 
+/// `out = y + h sum_j a_j k_j` over the first `a.len()` stage rows. The increment is summed
+/// before it is added to `y`, which keeps the rounding relative to the increment. Component-
+/// outer order: the state dimension is small here, so the short inner loop over the stages
+/// beats streaming over whole rows.
+#[inline]
+fn combine(y: &[f64], h: f64, a: &[f64], k: &[f64], out: &mut [f64]) {
+    let n = y.len();
+    let k = &k[..a.len() * n];
+    for i in 0..n {
+        let mut acc = 0.0;
+        for (j, &aj) in a.iter().enumerate() {
+            acc += aj * k[j * n + i];
+        }
+        out[i] = y[i] + h * acc;
+    }
+}
+
 /// Evaluates stage `s`: `k_s = f(t + c h, y + h sum_j a_j k_j)`.
 #[inline]
 fn stage<S: HybridSystem>(
@@ -48,14 +65,22 @@ fn stage<S: HybridSystem>(
 ) {
     let n = y.len();
     let (done, rest) = k.split_at_mut(s * n);
-    for i in 0..n {
-        let mut acc = 0.0;
-        for (j, &aj) in a.iter().enumerate() {
-            acc += aj * done[j * n + i];
-        }
-        ytmp[i] = y[i] + h * acc;
-    }
+    combine(y, h, a, done, ytmp);
     sys.vector_field(mode, t + c * h, ytmp, &mut rest[..n]);
+}
+
+/// `out = sum_j w_j k_j` over the first `w.len()` stage rows.
+#[inline]
+fn weighted(w: &[f64], k: &[f64], out: &mut [f64]) {
+    let n = out.len();
+    let k = &k[..w.len() * n];
+    for (i, o) in out.iter_mut().enumerate() {
+        let mut acc = 0.0;
+        for (j, &wj) in w.iter().enumerate() {
+            acc += wj * k[j * n + i];
+        }
+        *o = acc;
+    }
 }
 
 /// Scratch vectors of a trial step.
@@ -63,13 +88,16 @@ pub(crate) struct Work<'w> {
     pub k: &'w mut [f64],
     pub ynew: &'w mut [f64],
     pub ytmp: &'w mut [f64],
+    /// Weighted stage sums (`n`).
     pub incr: &'w mut [f64],
+    /// A second scratch vector (`n`).
+    pub acc: &'w mut [f64],
 }
 
 /// One trial step of size `h` from `(t, y)`; `k` row 0 must hold `f(t, y)`.
 /// Writes `ynew` and the stages (including the FSAL row) and returns the scaled error norm
-/// (accept when `<= 1`), `INFINITY` when anything is not finite. Returns the number of
-/// vector-field evaluations alongside.
+/// (accept when `<= 1`), `INFINITY` when anything is not finite, with the number of
+/// vector-field evaluations.
 pub(crate) fn trial_step<S: HybridSystem>(
     method: Method,
     sys: &S,
@@ -85,58 +113,65 @@ pub(crate) fn trial_step<S: HybridSystem>(
     let (err, evals) = match method {
         Method::Dopri5 => {
             for s in 1..6 {
-                stage(sys, mode, t, h, dopri5::C[s], dopri5::A[s], y, w.k, s, w.ytmp);
+                stage(
+                    sys,
+                    mode,
+                    t,
+                    h,
+                    dopri5::C[s],
+                    dopri5::A[s],
+                    y,
+                    w.k,
+                    s,
+                    w.ytmp,
+                );
             }
-            let b = dopri5::A[6];
-            for i in 0..n {
-                let mut acc = 0.0;
-                for (j, &bj) in b.iter().enumerate() {
-                    acc += bj * w.k[j * n + i];
-                }
-                w.ynew[i] = y[i] + h * acc;
-            }
+            combine(y, h, dopri5::A[6], w.k, w.ynew);
             let (_, rest) = w.k.split_at_mut(6 * n);
             sys.vector_field(mode, t + h, w.ynew, &mut rest[..n]);
+            weighted(&dopri5::E, w.k, w.incr);
             let mut sum = 0.0;
             for i in 0..n {
-                let mut e = 0.0;
-                for (j, &ej) in dopri5::E.iter().enumerate() {
-                    e += ej * w.k[j * n + i];
-                }
                 let sk = atol + rtol * y[i].abs().max(w.ynew[i].abs());
-                let r = h * e / sk;
+                let r = h * w.incr[i] / sk;
                 sum += r * r;
             }
             ((sum / n as f64).sqrt(), 6)
         }
         Method::Dop853 => {
             for s in 1..12 {
-                stage(sys, mode, t, h, dop853::C[s], dop853::A[s], y, w.k, s, w.ytmp);
+                stage(
+                    sys,
+                    mode,
+                    t,
+                    h,
+                    dop853::C[s],
+                    dop853::A[s],
+                    y,
+                    w.k,
+                    s,
+                    w.ytmp,
+                );
             }
-            let b = dop853::A[12];
+            // The 8th-order increment, kept for the 3rd-order error estimate.
+            weighted(dop853::A[12], w.k, w.incr);
             for i in 0..n {
-                let mut acc = 0.0;
-                for (j, &bj) in b.iter().enumerate() {
-                    acc += bj * w.k[j * n + i];
-                }
-                w.incr[i] = acc;
-                w.ynew[i] = y[i] + h * acc;
+                w.ynew[i] = y[i] + h * w.incr[i];
             }
             let (_, rest) = w.k.split_at_mut(12 * n);
             sys.vector_field(mode, t + h, w.ynew, &mut rest[..n]);
+            weighted(&dop853::E5, w.k, w.acc);
             let (mut e5sum, mut e3sum) = (0.0, 0.0);
             for i in 0..n {
-                let mut e5 = 0.0;
-                for (j, &ej) in dop853::E5.iter().enumerate() {
-                    e5 += ej * w.k[j * n + i];
-                }
                 let e3 = w.incr[i]
                     - dop853::BHH0 * w.k[i]
                     - dop853::BHH8 * w.k[8 * n + i]
                     - dop853::BHH11 * w.k[11 * n + i];
                 let sk = atol + rtol * y[i].abs().max(w.ynew[i].abs());
-                e5sum += (e5 / sk) * (e5 / sk);
-                e3sum += (e3 / sk) * (e3 / sk);
+                let e5 = w.acc[i] / sk;
+                let e3 = e3 / sk;
+                e5sum += e5 * e5;
+                e3sum += e3 * e3;
             }
             // Hairer's combination: the 5th-order estimate, damped by the 3rd-order one where
             // the two disagree, which keeps the controller honest at crude tolerances.
@@ -147,11 +182,10 @@ pub(crate) fn trial_step<S: HybridSystem>(
             (h.abs() * e5sum / (n as f64 * deno).sqrt(), 12)
         }
     };
+    let fsal = fsal_row(method) * n;
     let finite = err.is_finite()
         && w.ynew.iter().all(|v| v.is_finite())
-        && w.k[fsal_row(method) * n..(fsal_row(method) + 1) * n]
-            .iter()
-            .all(|v| v.is_finite());
+        && w.k[fsal..fsal + n].iter().all(|v| v.is_finite());
     (if finite { err } else { f64::INFINITY }, evals)
 }
 
@@ -167,47 +201,47 @@ pub(crate) fn build_dense<S: HybridSystem>(
     ynew: &[f64],
     k: &mut [f64],
     ytmp: &mut [f64],
+    acc: &mut [f64],
     cont: &mut [f64],
 ) -> u64 {
     let n = y.len();
-    match method {
-        Method::Dopri5 => {
-            for i in 0..n {
-                let dy = ynew[i] - y[i];
-                let bspl = h * k[i] - dy;
-                let mut d = 0.0;
-                for (j, &dj) in dopri5::D.iter().enumerate() {
-                    d += dj * k[j * n + i];
-                }
-                cont[i] = y[i];
-                cont[n + i] = dy;
-                cont[2 * n + i] = bspl;
-                cont[3 * n + i] = dy - h * k[6 * n + i] - bspl;
-                cont[4 * n + i] = h * d;
-            }
-            0
-        }
+    let (extra, evals) = match method {
+        Method::Dopri5 => (&dopri5::D[..], 0),
         Method::Dop853 => {
             for s in 13..16 {
                 stage(sys, mode, t, h, dop853::C[s], dop853::A[s], y, k, s, ytmp);
             }
+            (&[][..], 3)
+        }
+    };
+    let fsal = fsal_row(method) * n;
+    let (c_low, c_high) = cont.split_at_mut(4 * n);
+    for i in 0..n {
+        let dy = ynew[i] - y[i];
+        let bspl = h * k[i] - dy;
+        c_low[i] = y[i];
+        c_low[n + i] = dy;
+        c_low[2 * n + i] = bspl;
+        // Equals `2 dy - h (f_new + f_old)`: the cubic Hermite term.
+        c_low[3 * n + i] = dy - h * k[fsal + i] - bspl;
+    }
+    match method {
+        Method::Dopri5 => {
+            weighted(extra, k, acc);
             for i in 0..n {
-                let dy = ynew[i] - y[i];
-                cont[i] = y[i];
-                cont[n + i] = dy;
-                cont[2 * n + i] = h * k[i] - dy;
-                cont[3 * n + i] = 2.0 * dy - h * (k[12 * n + i] + k[i]);
-                for (r, row) in dop853::D.iter().enumerate() {
-                    let mut d = 0.0;
-                    for (j, &dj) in row.iter().enumerate() {
-                        d += dj * k[j * n + i];
-                    }
-                    cont[(4 + r) * n + i] = h * d;
+                c_high[i] = h * acc[i];
+            }
+        }
+        Method::Dop853 => {
+            for (row, out) in dop853::D.iter().zip(c_high.chunks_exact_mut(n)) {
+                weighted(row, k, acc);
+                for i in 0..n {
+                    out[i] = h * acc[i];
                 }
             }
-            3
         }
     }
+    evals
 }
 
 /// Evaluates the interpolant at `theta = (t - t_old) / h` into `out`.
@@ -216,18 +250,20 @@ pub(crate) fn eval_dense(method: Method, cont: &[f64], theta: f64, out: &mut [f6
     let n = out.len();
     let s = theta;
     let s1 = 1.0 - theta;
+    let r = |row: usize| &cont[row * n..(row + 1) * n];
     match method {
         Method::Dopri5 => {
+            let (c0, c1, c2, c3, c4) = (r(0), r(1), r(2), r(3), r(4));
             for i in 0..n {
-                let c = |r: usize| cont[r * n + i];
-                out[i] = c(0) + s * (c(1) + s1 * (c(2) + s * (c(3) + s1 * c(4))));
+                out[i] = c0[i] + s * (c1[i] + s1 * (c2[i] + s * (c3[i] + s1 * c4[i])));
             }
         }
         Method::Dop853 => {
+            let (c0, c1, c2, c3) = (r(0), r(1), r(2), r(3));
+            let (c4, c5, c6, c7) = (r(4), r(5), r(6), r(7));
             for i in 0..n {
-                let c = |r: usize| cont[r * n + i];
-                let inner = c(4) + s * (c(5) + s1 * (c(6) + s * c(7)));
-                out[i] = c(0) + s * (c(1) + s1 * (c(2) + s * (c(3) + s1 * inner)));
+                let inner = c4[i] + s * (c5[i] + s1 * (c6[i] + s * c7[i]));
+                out[i] = c0[i] + s * (c1[i] + s1 * (c2[i] + s * (c3[i] + s1 * inner)));
             }
         }
     }

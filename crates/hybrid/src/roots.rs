@@ -218,13 +218,22 @@ mod tests {
         let r = locate_root(&mut g, 1.0, -1.0, 2.0, 6.0, 1e-13).unwrap();
         assert_abs_diff_eq!(r, 2f64.cbrt(), epsilon = 1e-13);
         assert!(r * r * r - 2.0 >= 0.0);
-        assert!(evals < 20, "Illinois should converge superlinearly, took {evals}");
+        assert!(
+            evals < 20,
+            "Illinois should converge superlinearly, took {evals}"
+        );
     }
 
     #[test]
     fn illinois_survives_a_flat_step_function_by_bisection() {
         // Regula falsi stalls on a guard that is flat on one side; bisection must take over.
-        let mut g = |x: f64| Ok(if x < 0.3 { -1.0 } else { 1e-9 * (x - 0.3) + 1e-300 });
+        let mut g = |x: f64| {
+            Ok(if x < 0.3 {
+                -1.0
+            } else {
+                1e-9 * (x - 0.3) + 1e-300
+            })
+        };
         let r = locate_root(&mut g, 0.0, -1.0, 1.0, 1.0, 1e-12).unwrap();
         assert_abs_diff_eq!(r, 0.3, epsilon = 1e-12);
     }

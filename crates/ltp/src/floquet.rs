@@ -32,7 +32,16 @@ const PADE_LOW: [(&[f64], f64); 4] = [
         2.539_398_330_063_23e-1,
     ),
     (
-        &[17_297_280.0, 8_648_640.0, 1_995_840.0, 277_200.0, 25_200.0, 1_512.0, 56.0, 1.0],
+        &[
+            17_297_280.0,
+            8_648_640.0,
+            1_995_840.0,
+            277_200.0,
+            25_200.0,
+            1_512.0,
+            56.0,
+            1.0,
+        ],
         9.504_178_996_162_932e-1,
     ),
     (
@@ -124,7 +133,10 @@ pub fn expm<T: ComplexField<RealField = f64>>(a: &DMatrix<T>) -> DMatrix<T> {
 }
 
 /// `(V - U)^{-1} (V + U)`.
-fn pade_solve<T: ComplexField<RealField = f64>>(u: &DMatrix<T>, v: &DMatrix<T>) -> Option<DMatrix<T>> {
+fn pade_solve<T: ComplexField<RealField = f64>>(
+    u: &DMatrix<T>,
+    v: &DMatrix<T>,
+) -> Option<DMatrix<T>> {
     (v - u).lu().solve(&(v + u))
 }
 
@@ -258,6 +270,9 @@ impl Floquet {
     /// Largest multiplier modulus; the periodic system is asymptotically
     /// stable when this is below 1.
     pub fn spectral_radius(&self) -> f64 {
-        self.multipliers.iter().map(|m| m.norm()).fold(0.0, f64::max)
+        self.multipliers
+            .iter()
+            .map(|m| m.norm())
+            .fold(0.0, f64::max)
     }
 }

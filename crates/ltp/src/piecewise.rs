@@ -69,7 +69,9 @@ pub enum LtpError {
     #[error("the state dimension must be at least 1")]
     EmptyState,
     /// Sampled Fourier analysis needs samples of equal shape.
-    #[error("sample {index} is {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}")]
+    #[error(
+        "sample {index} is {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}"
+    )]
     SampleShapeMismatch {
         /// Index of the offending sample.
         index: usize,
@@ -148,7 +150,13 @@ impl Piece {
     }
 
     /// A single-input single-output piece: `B` is a column, `C` a row, `D` a scalar.
-    pub fn siso(duration: f64, a: DMatrix<f64>, b: DVector<f64>, c: RowDVector<f64>, d: f64) -> Self {
+    pub fn siso(
+        duration: f64,
+        a: DMatrix<f64>,
+        b: DVector<f64>,
+        c: RowDVector<f64>,
+        d: f64,
+    ) -> Self {
         let n_b = b.len();
         let n_c = c.len();
         Self::new(
@@ -239,7 +247,10 @@ pub enum SystemMatrix {
 /// at `t = 0`).
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(try_from = "raw::PiecewiseLtiRaw", into = "raw::PiecewiseLtiRaw"))]
+#[cfg_attr(
+    feature = "serde",
+    serde(try_from = "raw::PiecewiseLtiRaw", into = "raw::PiecewiseLtiRaw")
+)]
 pub struct PiecewiseLti {
     period: f64,
     start: f64,

@@ -136,7 +136,10 @@ impl Hopper {
         // X = A / (k - m w^2 + j w c_eff); x = x_eq + Re(X e^{j w t}).
         let (re, im) = (p.k - p.m * w * w, w * c_eff);
         let den = re * re + im * im;
-        let (xr, xi) = (p.forcing_amplitude * re / den, -p.forcing_amplitude * im / den);
+        let (xr, xi) = (
+            p.forcing_amplitude * re / den,
+            -p.forcing_amplitude * im / den,
+        );
         let mut state = vec![p.equilibrium() + xr, -w * xi];
         if self.effects.has_lag() {
             state.push(self.commanded_force(0.0));

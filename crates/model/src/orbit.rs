@@ -61,7 +61,15 @@ impl Hopper {
             ([on], [off]) => (*on, *off, (off - on).rem_euclid(period) / period),
             ([], []) => {
                 // One chart only (damper always on): the damper is on all the time.
-                (0.0, 0.0, if cycle.mode0 == HopperMode::Damped { 1.0 } else { 0.0 })
+                (
+                    0.0,
+                    0.0,
+                    if cycle.mode0 == HopperMode::Damped {
+                        1.0
+                    } else {
+                        0.0
+                    },
+                )
             }
             _ => {
                 return Err(ModelError::UnexpectedSwitching {

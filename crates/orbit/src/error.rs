@@ -25,12 +25,14 @@ pub enum OrbitError {
         tolerance: f64,
     },
     /// `DP - I` is singular: a Floquet multiplier equals 1, the orbit is not isolated.
-    #[error("the period-map Jacobian has a Floquet multiplier at 1; the periodic orbit is not isolated")]
+    #[error(
+        "the period-map Jacobian has a Floquet multiplier at 1; the periodic orbit is not isolated"
+    )]
     SingularJacobian,
     /// The periodic orbit exists but is not asymptotically stable.
     #[error(
         "no stable period-{period} orbit: the largest Floquet multiplier has modulus {max_modulus:.9} \
-         (needs < 1 - {margin:.0e}); multipliers: {multipliers:?}"
+         (needs < 1 - {margin:.0e}); multipliers: {}", format_multipliers(multipliers)
     )]
     NotStable {
         /// The period.
@@ -50,4 +52,11 @@ pub enum OrbitError {
         /// What was expected.
         reason: String,
     },
+}
+
+fn format_multipliers(m: &[Complex64]) -> String {
+    m.iter()
+        .map(|z| format!("{:.6}{:+.6}j", z.re, z.im))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

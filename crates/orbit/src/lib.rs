@@ -49,4 +49,6 @@ mod variational;
 
 pub use error::OrbitError;
 pub use shooting::{find_limit_cycle, period_map, LimitCycle, PeriodMap, ShootingOptions};
-pub use variational::{guard_gradient, reset_jacobian, saltation, vector_field_jacobian, Variational};
+pub use variational::{
+    guard_gradient, reset_jacobian, saltation, vector_field_jacobian, Variational,
+};

@@ -186,7 +186,9 @@ pub fn find_limit_cycle<S: HybridSystem>(
         map = period_map(sys, mode, t0, &x, period, opts)?;
         // Newton on a piecewise-smooth map stalls at round-off level; accept once the
         // correction no longer reduces the residual and it is already tiny.
-        let new_res = (0..n).map(|i| (map.state[i] - x[i]).abs()).fold(0.0, f64::max);
+        let new_res = (0..n)
+            .map(|i| (map.state[i] - x[i]).abs())
+            .fold(0.0, f64::max);
         if new_res >= previous && new_res <= 1e3 * shooting.newton_tol * scale {
             residual = new_res;
             break;

@@ -40,7 +40,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         panels.push(magnitude_panel(
             &format!("G_{k}"),
             &[
-                BodeSeries { label: "theory", omega: &w_th, response: &g_th, style: Style::Line },
+                BodeSeries {
+                    label: "theory",
+                    omega: &w_th,
+                    response: &g_th,
+                    style: Style::Line,
+                },
                 BodeSeries {
                     label: "estimate",
                     omega: &w_est,
@@ -58,7 +63,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|&t| (2.0 * PI * 0.5 * t).sin() + 0.2 * (2.0 * PI * 7.0 * t).sin())
         .collect();
-    let mut v: Vec<f64> = t.iter().map(|&t| 2.0 * PI * 0.5 * (2.0 * PI * 0.5 * t).cos()).collect();
+    let mut v: Vec<f64> = t
+        .iter()
+        .map(|&t| 2.0 * PI * 0.5 * (2.0 * PI * 0.5 * t).cos())
+        .collect();
     // A dropout and a diverging stretch: skipped and clipped, not drawn as garbage.
     for (i, vi) in v.iter_mut().enumerate() {
         if (5000..5600).contains(&i) {
@@ -68,7 +76,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             *vi = f64::INFINITY;
         }
     }
-    let u: Vec<f64> = t.iter().map(|&t| if t % 4.0 < 2.0 { 1.0 } else { -1.0 }).collect();
+    let u: Vec<f64> = t
+        .iter()
+        .map(|&t| if t % 4.0 < 2.0 { 1.0 } else { -1.0 })
+        .collect();
     let fig = stacked_figure(
         "Simulated response",
         vec![
@@ -80,13 +91,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     print_paths(save(&fig, &out.join("time"))?);
 
     let w = log_grid(0.01, 1000.0, 2000);
-    let a: Vec<f64> = w.iter().map(|&w| 1.0 / (1.0 + (w / 3.0).powi(2)).sqrt() + 1e-4).collect();
+    let a: Vec<f64> = w
+        .iter()
+        .map(|&w| 1.0 / (1.0 + (w / 3.0).powi(2)).sqrt() + 1e-4)
+        .collect();
     let b: Vec<f64> = w.iter().map(|&w| harmonic(0, w).norm()).collect();
     let fig = stacked_figure(
         "Spectra",
         vec![
-            spectrum_panel("log-log", &w, [("low-pass", &a), ("resonance", &b)], SpectrumScale::LogLog),
-            spectrum_panel("decibel", &w, [("low-pass", &a), ("resonance", &b)], SpectrumScale::Decibel),
+            spectrum_panel(
+                "log-log",
+                &w,
+                [("low-pass", &a), ("resonance", &b)],
+                SpectrumScale::LogLog,
+            ),
+            spectrum_panel(
+                "decibel",
+                &w,
+                [("low-pass", &a), ("resonance", &b)],
+                SpectrumScale::Decibel,
+            ),
         ],
     );
     print_paths(save(&fig, &out.join("spectra"))?);

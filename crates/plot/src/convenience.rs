@@ -270,7 +270,9 @@ where
         .map(|(l, v)| {
             let y = match scale {
                 SpectrumScale::LogLog => v.as_ref().iter().map(|a| a.abs()).collect(),
-                SpectrumScale::Decibel => v.as_ref().iter().map(|a| 20.0 * a.abs().log10()).collect(),
+                SpectrumScale::Decibel => {
+                    v.as_ref().iter().map(|a| 20.0 * a.abs().log10()).collect()
+                }
             };
             Series::new(l.as_ref(), omega.to_vec(), y, Style::Line)
         })
@@ -313,15 +315,31 @@ mod tests {
     fn estimate_is_put_on_the_branch_of_the_theory() {
         // Theory: pure delay exp(-i w) on a dense grid, unwrapped from 0 to -1146 deg.
         let w_th: Vec<f64> = (1..=200).map(|i| 0.1 * f64::from(i)).collect();
-        let g_th: Vec<Complex64> = w_th.iter().map(|&w| Complex64::from_polar(1.0, -w)).collect();
+        let g_th: Vec<Complex64> = w_th
+            .iter()
+            .map(|&w| Complex64::from_polar(1.0, -w))
+            .collect();
         // Estimate starts at w = 15 rad/s, where the principal value differs by whole turns.
         let w_est = [15.0, 17.0, 19.0];
-        let g_est: Vec<Complex64> = w_est.iter().map(|&w| Complex64::from_polar(1.0, -w)).collect();
+        let g_est: Vec<Complex64> = w_est
+            .iter()
+            .map(|&w| Complex64::from_polar(1.0, -w))
+            .collect();
         let panel = phase_panel(
             "delay",
             &[
-                BodeSeries { label: "theory", omega: &w_th, response: &g_th, style: Style::Line },
-                BodeSeries { label: "estimate", omega: &w_est, response: &g_est, style: Style::Markers },
+                BodeSeries {
+                    label: "theory",
+                    omega: &w_th,
+                    response: &g_th,
+                    style: Style::Line,
+                },
+                BodeSeries {
+                    label: "estimate",
+                    omega: &w_est,
+                    response: &g_est,
+                    style: Style::Markers,
+                },
             ],
         );
         for (p, w) in panel.series[1].y.iter().zip(w_est) {
@@ -346,6 +364,9 @@ mod tests {
     fn grid_size_follows_rows_and_columns() {
         let panels = vec![Panel::default(); 7];
         let fig = grid_figure("harmonics", panels, 3);
-        assert_eq!((fig.width, fig.height), (3 * CELL_WIDTH, 3 * CELL_HEIGHT + TITLE_HEIGHT));
+        assert_eq!(
+            (fig.width, fig.height),
+            (3 * CELL_WIDTH, 3 * CELL_HEIGHT + TITLE_HEIGHT)
+        );
     }
 }

@@ -20,9 +20,7 @@ pub enum PlotError {
         path: PathBuf,
     },
     /// The figure size is outside the supported pixel range.
-    #[error(
-        "figure {path:?} is {width}x{height} px; each side must lie in {min}..={max} px"
-    )]
+    #[error("figure {path:?} is {width}x{height} px; each side must lie in {min}..={max} px")]
     InvalidSize {
         /// Output path without extension.
         path: PathBuf,

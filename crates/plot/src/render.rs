@@ -125,9 +125,17 @@ pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotE
                 if !(lo.is_finite() && hi.is_finite()) {
                     Err(range_err(axis, (lo, hi), "bounds must be finite"))
                 } else if lo >= hi {
-                    Err(range_err(axis, (lo, hi), "lower bound must be below upper bound"))
+                    Err(range_err(
+                        axis,
+                        (lo, hi),
+                        "lower bound must be below upper bound",
+                    ))
                 } else if scale == Scale::Log10 && lo <= 0.0 {
-                    Err(range_err(axis, (lo, hi), "a logarithmic axis needs positive bounds"))
+                    Err(range_err(
+                        axis,
+                        (lo, hi),
+                        "a logarithmic axis needs positive bounds",
+                    ))
                 } else {
                     Ok((to_plot(lo, scale), to_plot(hi, scale)))
                 }
@@ -149,19 +157,18 @@ pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotE
                     y_len: s.y.len(),
                 });
             }
-            let points = s
-                .x
-                .iter()
-                .zip(&s.y)
-                .map(|(&x, &y)| {
-                    let (px, py) = (to_plot(x, panel.x_scale), to_plot(y, panel.y_scale));
-                    if px.is_nan() || py.is_nan() {
-                        (f64::NAN, f64::NAN)
-                    } else {
-                        (px, py)
-                    }
-                })
-                .collect();
+            let points =
+                s.x.iter()
+                    .zip(&s.y)
+                    .map(|(&x, &y)| {
+                        let (px, py) = (to_plot(x, panel.x_scale), to_plot(y, panel.y_scale));
+                        if px.is_nan() || py.is_nan() {
+                            (f64::NAN, f64::NAN)
+                        } else {
+                            (px, py)
+                        }
+                    })
+                    .collect();
             series.push(PlotSeries {
                 label: s.label.clone(),
                 style: s.style,
@@ -174,7 +181,8 @@ pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotE
         let x = match x_fixed {
             Some((lo, hi)) => (lo, hi),
             None => {
-                let (lo, hi) = data_extent(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+                let (lo, hi) =
+                    data_extent(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
                 // Markers at the very edge would be cut in half.
                 let pad = if has_markers { 0.03 } else { 0.0 };
                 pad_extent(lo, hi, pad, panel.x_scale)
@@ -349,7 +357,7 @@ fn draw_panel<DB: DrawingBackend>(
         .iter()
         .map(|s| {
             if s.style.has_line() {
-                line_pieces(&s.points, &p.x, &p.y, plot_w as usize)
+                line_pieces(&s.points, &p.x, &p.y)
             } else {
                 Vec::new()
             }
@@ -368,19 +376,32 @@ fn draw_panel<DB: DrawingBackend>(
         .collect();
 
     let plot = chart.plotting_area().strip_coord_spec();
-    let (bx, by) = chart.plotting_area().get_base_pixel();
-    let to_px = |pt: &(f64, f64)| {
-        let (x, y) = chart.backend_coord(pt);
-        (x - bx, y - by)
-    };
+    let (pw, ph) = plot.dim_in_pixel();
+    // The same affine map plotters applies to the mesh (pixel centres 0 ..= size - 1), kept in
+    // floating point so lines can be simplified before rounding.
+    let (sx, sy) = (
+        f64::from(pw.saturating_sub(1)) / (p.x.hi - p.x.lo),
+        f64::from(ph.saturating_sub(1)) / (p.y.hi - p.y.lo),
+    );
+    let y_bottom = f64::from(ph.saturating_sub(1));
+    let to_fpx = |pt: &(f64, f64)| ((pt.0 - p.x.lo) * sx, y_bottom - (pt.1 - p.y.lo) * sy);
+    let round = |pt: (f64, f64)| (pt.0.round() as i32, pt.1.round() as i32);
     let px_lines: Vec<Vec<Vec<(i32, i32)>>> = pieces
         .iter()
-        .map(|lines| lines.iter().map(|l| dedup(l.iter().map(to_px))).collect())
+        .map(|lines| {
+            lines
+                .iter()
+                .map(|l| {
+                    let fpx = thin(l.iter().map(to_fpx).collect(), pw as usize);
+                    dedup(simplify(&fpx, SIMPLIFY_PX).into_iter().map(round))
+                })
+                .collect()
+        })
         .collect();
     // Markers landing on the same pixel add nothing but file size.
     let px_markers: Vec<Vec<(i32, i32)>> = markers
         .iter()
-        .map(|pts| dedup(pts.iter().map(to_px)))
+        .map(|pts| dedup(pts.iter().map(|pt| round(to_fpx(pt)))))
         .collect();
 
     for (s, lines) in p.series.iter().zip(&px_lines) {
@@ -401,7 +422,6 @@ fn draw_panel<DB: DrawingBackend>(
         }
     }
 
-    let (pw, ph) = plot.dim_in_pixel();
     let (pw, ph) = (pw as i32, ph as i32);
     // Close the frame: plotters draws only the left and bottom axes.
     plot.draw(&PathElement::new(
@@ -484,7 +504,10 @@ fn stroke<DB: DrawingBackend>(
         }
         Ok(())
     } else {
-        area.draw(&PathElement::new(line.to_vec(), color.stroke_width(LINE_WIDTH)))
+        area.draw(&PathElement::new(
+            line.to_vec(),
+            color.stroke_width(LINE_WIDTH),
+        ))
     }
 }
 
@@ -513,7 +536,8 @@ impl Ranged for TickedAxis {
         let frac = (value - self.lo) / (self.hi - self.lo);
         let px = f64::from(limit.0) + frac * f64::from(limit.1 - limit.0);
         // Values are clipped to the axis before drawing; the clamp only guards the cast.
-        px.round().clamp(f64::from(i32::MIN / 2), f64::from(i32::MAX / 2)) as i32
+        px.round()
+            .clamp(f64::from(i32::MIN / 2), f64::from(i32::MAX / 2)) as i32
     }
 
     fn key_points<H: KeyPointHint>(&self, hint: H) -> Vec<f64> {
@@ -543,18 +567,31 @@ fn axis_ticks(axis: &AxisRange, fits: crate::ticks::Fits<'_>) -> Ticks {
     }
 }
 
-/// Clips the segment `a`-`b` to the rectangle (Liang-Barsky). Returns the clipped end points
-/// and whether the start and the end were moved.
+/// The visible part of a segment, and whether its start and end were moved by clipping.
+#[derive(Debug, Clone, Copy)]
+struct Clipped {
+    start: (f64, f64),
+    end: (f64, f64),
+    start_moved: bool,
+    end_moved: bool,
+}
+
+/// Clips the segment `a`-`b` to the rectangle (Liang-Barsky).
 fn clip_segment(
     a: (f64, f64),
     b: (f64, f64),
     (x0, x1): (f64, f64),
     (y0, y1): (f64, f64),
-) -> Option<((f64, f64), (f64, f64), bool, bool)> {
+) -> Option<Clipped> {
     let (dx, dy) = (b.0 - a.0, b.1 - a.1);
     let mut t0 = 0.0_f64;
     let mut t1 = 1.0_f64;
-    for (p, q) in [(-dx, a.0 - x0), (dx, x1 - a.0), (-dy, a.1 - y0), (dy, y1 - a.1)] {
+    for (p, q) in [
+        (-dx, a.0 - x0),
+        (dx, x1 - a.0),
+        (-dy, a.1 - y0),
+        (dy, y1 - a.1),
+    ] {
         if p == 0.0 {
             if q < 0.0 {
                 return None;
@@ -572,23 +609,22 @@ fn clip_segment(
         return None;
     }
     let at = |t: f64| (a.0 + t * dx, a.1 + t * dy);
-    Some((at(t0), at(t1), t0 > 0.0, t1 < 1.0))
+    Some(Clipped {
+        start: at(t0),
+        end: at(t1),
+        start_moved: t0 > 0.0,
+        end_moved: t1 < 1.0,
+    })
 }
 
-/// Splits a plot-space polyline at gaps (NaN) and at the axis box into visible pieces, each
-/// thinned to at most four points per pixel column.
-fn line_pieces(
-    points: &[(f64, f64)],
-    x: &AxisRange,
-    y: &AxisRange,
-    plot_w: usize,
-) -> Vec<Vec<(f64, f64)>> {
+/// Splits a plot-space polyline at gaps (NaN) and at the axis box into visible pieces.
+fn line_pieces(points: &[(f64, f64)], x: &AxisRange, y: &AxisRange) -> Vec<Vec<(f64, f64)>> {
     let mut pieces = Vec::new();
     let mut cur: Vec<(f64, f64)> = Vec::new();
     let mut open = false;
     let flush = |cur: &mut Vec<(f64, f64)>, pieces: &mut Vec<Vec<(f64, f64)>>| {
         if cur.len() >= 2 {
-            pieces.push(thin(std::mem::take(cur), x, plot_w));
+            pieces.push(std::mem::take(cur));
         } else {
             cur.clear();
         }
@@ -601,13 +637,14 @@ fn line_pieces(
             continue;
         }
         match clip_segment(a, b, (x.lo, x.hi), (y.lo, y.hi)) {
-            Some((p, q, start_moved, end_moved)) => {
-                if !(open && !start_moved) {
+            Some(c) => {
+                // Continue the current piece only if this segment starts where the last ended.
+                if !open || c.start_moved {
                     flush(&mut cur, &mut pieces);
-                    cur.push(p);
+                    cur.push(c.start);
                 }
-                cur.push(q);
-                open = !end_moved;
+                cur.push(c.end);
+                open = !c.end_moved;
             }
             None => {
                 flush(&mut cur, &mut pieces);
@@ -619,15 +656,15 @@ fn line_pieces(
     pieces
 }
 
-/// Keeps the first, lowest, highest and last point of each run of points falling in one
-/// pixel column, which draws the same picture as the full line.
-fn thin(line: Vec<(f64, f64)>, x: &AxisRange, plot_w: usize) -> Vec<(f64, f64)> {
-    if line.len() <= 4 * plot_w.max(1) {
+/// Keeps the first, lowest, highest and last point of each run of pixel-space points falling in
+/// one pixel column, which draws the same picture as the full line.
+fn thin(line: Vec<(f64, f64)>, width: usize) -> Vec<(f64, f64)> {
+    // Below one point per column thinning saves little.
+    if line.len() <= width.max(1) {
         return line;
     }
-    let scale = plot_w as f64 / (x.hi - x.lo);
-    let column = |p: &(f64, f64)| ((p.0 - x.lo) * scale).floor() as i64;
-    let mut out = Vec::with_capacity(4 * plot_w + 4);
+    let column = |p: &(f64, f64)| p.0.floor() as i64;
+    let mut out = Vec::with_capacity(4 * width + 4);
     let mut start = 0;
     while start < line.len() {
         let col = column(&line[start]);
@@ -654,6 +691,51 @@ fn thin(line: Vec<(f64, f64)>, x: &AxisRange, plot_w: usize) -> Vec<(f64, f64)> 
         start = end;
     }
     out
+}
+
+/// Largest distance, in pixels, a simplified line may stray from the data. Long segments let the
+/// anti-aliased rasteriser render slopes smoothly instead of as one-pixel stairs.
+const SIMPLIFY_PX: f64 = 0.3;
+
+/// Ramer-Douglas-Peucker simplification of a pixel-space polyline: the result keeps the end
+/// points and stays within `eps` of every dropped point.
+fn simplify(line: &[(f64, f64)], eps: f64) -> Vec<(f64, f64)> {
+    if line.len() <= 2 {
+        return line.to_vec();
+    }
+    let mut keep = vec![false; line.len()];
+    keep[0] = true;
+    keep[line.len() - 1] = true;
+    let mut stack = vec![(0, line.len() - 1)];
+    while let Some((i, j)) = stack.pop() {
+        let mut worst = (0.0, i);
+        for k in i + 1..j {
+            let d = segment_distance(line[k], line[i], line[j]);
+            if d > worst.0 {
+                worst = (d, k);
+            }
+        }
+        if worst.0 > eps {
+            keep[worst.1] = true;
+            stack.push((i, worst.1));
+            stack.push((worst.1, j));
+        }
+    }
+    line.iter()
+        .zip(keep)
+        .filter_map(|(p, k)| k.then_some(*p))
+        .collect()
+}
+
+fn segment_distance(p: (f64, f64), a: (f64, f64), b: (f64, f64)) -> f64 {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p.0 - a.0 - t * dx).hypot(p.1 - a.1 - t * dy)
 }
 
 fn visible_markers(points: &[(f64, f64)], x: &AxisRange, y: &AxisRange) -> Vec<(f64, f64)> {
@@ -774,8 +856,9 @@ mod tests {
     #[test]
     fn clipping_matches_the_line_equation() {
         // y = x from (-1,-1) to (2,2) in the unit box enters at (0,0) and leaves at (1,1).
-        let (p, q, s, e) = clip_segment((-1.0, -1.0), (2.0, 2.0), (0.0, 1.0), (0.0, 1.0))
+        let c = clip_segment((-1.0, -1.0), (2.0, 2.0), (0.0, 1.0), (0.0, 1.0))
             .expect("the diagonal crosses the box");
+        let (p, q, s, e) = (c.start, c.end, c.start_moved, c.end_moved);
         // Exact up to one rounding of t * d.
         assert_abs_diff_eq!(p.0, 0.0, epsilon = 1e-15);
         assert_abs_diff_eq!(p.1, 0.0, epsilon = 1e-15);
@@ -789,8 +872,17 @@ mod tests {
     fn gaps_and_excursions_split_lines() {
         let nan = (f64::NAN, f64::NAN);
         // A spike through the top of the box splits the line into two pieces; the NaN a third.
-        let pts = [(0.0, 0.5), (1.0, 0.5), (2.0, 5.0), (3.0, 0.5), (4.0, 0.5), nan, (5.0, 0.5), (6.0, 0.5)];
-        let pieces = line_pieces(&pts, &axis(0.0, 6.0), &axis(0.0, 1.0), 500);
+        let pts = [
+            (0.0, 0.5),
+            (1.0, 0.5),
+            (2.0, 5.0),
+            (3.0, 0.5),
+            (4.0, 0.5),
+            nan,
+            (5.0, 0.5),
+            (6.0, 0.5),
+        ];
+        let pieces = line_pieces(&pts, &axis(0.0, 6.0), &axis(0.0, 1.0));
         assert_eq!(pieces.len(), 3);
         // First piece: (0,.5), (1,.5), then the exit on y = 1 at x = 1 + 0.5/4.5.
         assert_eq!(pieces[0].len(), 3);
@@ -809,11 +901,11 @@ mod tests {
         let n = 100_000;
         let line: Vec<(f64, f64)> = (0..n)
             .map(|i| {
-                let t = i as f64 / (n - 1) as f64;
-                (t, (200.0 * t).sin())
+                let x = 100.0 * i as f64 / (n - 1) as f64;
+                (x, 50.0 * (2.0 * x).sin())
             })
             .collect();
-        let out = thin(line.clone(), &axis(0.0, 1.0), 100);
+        let out = thin(line.clone(), 100);
         assert!(out.len() <= 4 * 101, "{} points kept", out.len());
         let max_in = line.iter().fold(f64::MIN, |m, p| m.max(p.1));
         let max_out = out.iter().fold(f64::MIN, |m, p| m.max(p.1));
@@ -821,6 +913,48 @@ mod tests {
         assert_abs_diff_eq!(max_in, max_out, epsilon = 0.0);
         // Thinning never reorders points.
         assert!(out.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+
+    #[test]
+    fn simplification_stays_within_tolerance() {
+        // A straight line collapses to its end points.
+        let straight: Vec<(f64, f64)> = (0..1000)
+            .map(|i| (f64::from(i), 0.5 * f64::from(i)))
+            .collect();
+        assert_eq!(simplify(&straight, 0.3).len(), 2);
+        // A sine of 40 px amplitude over 800 px: every dropped point lies within 0.3 px of the
+        // simplified polyline (checked by brute force against all its segments).
+        let wave: Vec<(f64, f64)> = (0..8000)
+            .map(|i| {
+                let x = 0.1 * f64::from(i);
+                (x, 40.0 * (x / 50.0).sin())
+            })
+            .collect();
+        let simple = simplify(&wave, 0.3);
+        assert!(
+            simple.len() < wave.len() / 10,
+            "{} points kept",
+            simple.len()
+        );
+        for p in &wave {
+            let d = simple
+                .windows(2)
+                .map(|w| segment_distance(*p, w[0], w[1]))
+                .fold(f64::INFINITY, f64::min);
+            assert!(d <= 0.3 + 1e-9, "point {p:?} is {d} px away");
+        }
+    }
+
+    #[test]
+    fn dashes_follow_the_pattern_across_vertices() {
+        // An L-shaped path of 60 + 80 px: 140 px at 9 px on, 5 px off gives dashes starting
+        // every 14 px, ten in all.
+        let path = [(0, 0), (60, 0), (60, 80)];
+        let d = dashes(&path);
+        assert_eq!(d.len(), 10);
+        // The fifth dash (56 .. 65 px along the path) bends round the corner at 60 px.
+        assert_eq!(d[4], vec![(56, 0), (60, 0), (60, 5)]);
+        assert_eq!(d[9], vec![(60, 66), (60, 75)]);
     }
 
     #[test]

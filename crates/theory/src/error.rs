@@ -11,7 +11,9 @@ pub enum TheoryError {
     Ltp(#[from] LtpError),
     /// HTFs here are single-input single-output; select a channel first
     /// (`PiecewiseLti::channel`).
-    #[error("expected a single-input single-output system, got {inputs} inputs and {outputs} outputs")]
+    #[error(
+        "expected a single-input single-output system, got {inputs} inputs and {outputs} outputs"
+    )]
     NotSiso {
         /// Number of inputs of the given system.
         inputs: usize,

@@ -305,8 +305,8 @@ impl ExactHtf {
     fn modal_step(&self, i: usize, p: &PieceData, mp: &ModalPiece, scratch: &mut Scratch) {
         let n = self.n;
         for j in 0..n {
-            scratch.u[j] = scratch.e[i * n + j] * scratch.v[j]
-                + scratch.phi[i * n + j] * mp.beta[j] * p.h;
+            scratch.u[j] =
+                scratch.e[i * n + j] * scratch.v[j] + scratch.phi[i * n + j] * mp.beta[j] * p.h;
         }
         for r in 0..n {
             let mut acc = ZERO;
@@ -334,10 +334,7 @@ impl ExactHtf {
             let mut acc = f.phi1_b * (p.d * p.h);
             for j in 0..n {
                 // c_j = (lambda_j - s) h + b = (lambda_j - j (w_in + k wp)) h.
-                let cj = Complex64::new(
-                    mp.lambda[j].re * p.h,
-                    (mp.lambda[j].im - w_in) * p.h,
-                ) + b;
+                let cj = Complex64::new(mp.lambda[j].re * p.h, (mp.lambda[j].im - w_in) * p.h) + b;
                 let ec = scratch.e[i * n + j] * f.e_b;
                 let homogeneous = scratch.zeta[i * n + j] * phi1(cj, ec);
                 let forced = mp.beta[j] * dd2(zero, ONE, b, f.e_b, cj, ec) * p.h;
@@ -490,13 +487,12 @@ impl HarmonicTransferFunction for ExactHtf {
 fn build_modal(pieces: &[PieceData], n: usize) -> Result<Modal, TheoryError> {
     let mut decomps = Vec::with_capacity(pieces.len());
     for (i, p) in pieces.iter().enumerate() {
-        let d = diagonalise(&p.a).map_err(|(condition, residual)| {
-            TheoryError::NotDiagonalisable {
+        let d =
+            diagonalise(&p.a).map_err(|(condition, residual)| TheoryError::NotDiagonalisable {
                 piece: i,
                 condition,
                 residual,
-            }
-        })?;
+            })?;
         decomps.push(d);
     }
     let n_pieces = pieces.len();
@@ -572,10 +568,14 @@ fn diagonalise(a: &DMatrix<f64>) -> Result<Decomposition, (f64, f64)> {
         }
     }
     let sv = v.singular_values();
-    let (smax, smin) = sv
-        .iter()
-        .fold((0.0_f64, f64::INFINITY), |(hi, lo), &x| (hi.max(x), lo.min(x)));
-    let condition = if smin > 0.0 { smax / smin } else { f64::INFINITY };
+    let (smax, smin) = sv.iter().fold((0.0_f64, f64::INFINITY), |(hi, lo), &x| {
+        (hi.max(x), lo.min(x))
+    });
+    let condition = if smin > 0.0 {
+        smax / smin
+    } else {
+        f64::INFINITY
+    };
     let lambda_diag = DMatrix::from_diagonal(&DVector::from_column_slice(&lambda));
     let residual = (&ac * &v - &v * lambda_diag).norm() / a.norm().max(f64::MIN_POSITIVE);
     if !(condition <= MAX_MODAL_CONDITION && residual <= MAX_MODAL_RESIDUAL) {

@@ -34,10 +34,16 @@ pub struct Simulated {
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
     let settings = Settings::from_file(config)?;
     let dir = resolve_dir(out, &settings.name);
-    let mut outdir = open(&dir, force, &["timeseries.csv", "limit_cycle.csv", "summary.json"])?;
+    let mut outdir = open(
+        &dir,
+        force,
+        &["timeseries.csv", "limit_cycle.csv", "summary.json"],
+    )?;
     let mut stages = Stages::new(false);
     let sim = simulate_experiment(&settings, &mut stages)?;
-    stages.run("write outputs", || write_simulation(&settings, &sim, &mut outdir))?;
+    stages.run("write outputs", || {
+        write_simulation(&settings, &sim, &mut outdir)
+    })?;
     let mut summary = base_summary(&settings, &sim);
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
@@ -55,7 +61,9 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
         ..ShootingOptions::default()
     };
     let orbit = stages
-        .run("limit cycle", || hopper.limit_cycle(&shooting, &settings.integrator))
+        .run("limit cycle", || {
+            hopper.limit_cycle(&shooting, &settings.integrator)
+        })
         .with_context(|| {
             format!(
                 "{}: no limit cycle for these parameters",

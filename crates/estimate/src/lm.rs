@@ -1,0 +1,504 @@
+//! Levenberg-Marquardt least squares with a finite-difference Jacobian.
+
+use std::fmt::Display;
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+
+/// Finite-difference scheme for the Jacobian.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum FdScheme {
+    /// `(r(p + h e_j) - r(p - h e_j)) / 2h`: error `O(h^2)`, two evaluations per parameter.
+    Central,
+    /// `(r(p + h e_j) - r(p)) / h`: error `O(h)`, one evaluation per parameter.
+    Forward,
+}
+
+/// Why the iteration stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[non_exhaustive]
+pub enum LmStop {
+    /// Every column of `J` is nearly orthogonal to the residual:
+    /// `max_j |J_j . r| / (|J_j| |r|) <= gtol` (or the residual vanished).
+    GradientTolerance,
+    /// An accepted step reduced the cost by at most `ftol * cost`.
+    CostTolerance,
+    /// The step shrank below `xtol * (|p| + xtol)`.
+    StepTolerance,
+    /// `max_iter` Jacobians were formed without meeting a tolerance.
+    MaxIterations,
+    /// No step reduced the cost even with a damping of `1e16`: a local minimum to the
+    /// resolution of the finite differences, or a residual function that fails nearby.
+    Stalled,
+}
+
+/// Options of [`levenberg_marquardt`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LmOptions {
+    /// Most Jacobian evaluations (outer iterations).
+    pub max_iter: usize,
+    /// Relative cost reduction below which an accepted step ends the iteration.
+    pub ftol: f64,
+    /// Relative step length below which the iteration ends.
+    pub xtol: f64,
+    /// Gradient cosine below which the iteration ends.
+    pub gtol: f64,
+    /// Finite-difference scheme.
+    pub fd_scheme: FdScheme,
+    /// Relative finite-difference step; `None` uses `eps^(1/3)` (central) or `eps^(1/2)`
+    /// (forward), which balance truncation and rounding error.
+    pub fd_step: Option<f64>,
+    /// Typical magnitude of each parameter (positive); the difference step for parameter `j` is
+    /// `fd_step * max(|p_j|, scale_j)`. `None` uses `|p0_j|`, or 1 where `p0_j = 0`.
+    pub scales: Option<Vec<f64>>,
+    /// Box bounds `(lower, upper)` per parameter; trial points are projected onto the box and
+    /// differences taken one-sided at a bound. Standard errors of a parameter at a bound are not
+    /// meaningful.
+    pub bounds: Option<Vec<(f64, f64)>>,
+    /// Initial damping `lambda` (relative to the Marquardt diagonal).
+    pub lambda0: f64,
+}
+
+impl Default for LmOptions {
+    fn default() -> Self {
+        Self {
+            max_iter: 200,
+            ftol: 1e-12,
+            xtol: 1e-12,
+            gtol: 1e-10,
+            fd_scheme: FdScheme::Central,
+            fd_step: None,
+            scales: None,
+            bounds: None,
+            lambda0: 1e-3,
+        }
+    }
+}
+
+/// Result of [`levenberg_marquardt`].
+#[derive(Debug, Clone, Serialize)]
+pub struct LmFit {
+    /// Best parameters found.
+    pub params: Vec<f64>,
+    /// `sqrt(diag(covariance))`, when the covariance exists.
+    pub stderr: Option<Vec<f64>>,
+    /// `s^2 (J^T J)^{-1}` with `s^2 = cost / (m - p)` and `J` at `params`; `None` when `m <= p`
+    /// or `J` is rank deficient.
+    pub covariance: Option<Vec<Vec<f64>>>,
+    /// Sum of squared residuals `sum_i r_i^2` at `params`.
+    pub cost: f64,
+    /// Residuals at `params`.
+    pub residuals: Vec<f64>,
+    /// Jacobians formed.
+    pub iterations: usize,
+    /// Calls of the residual function.
+    pub evaluations: usize,
+    /// Why the iteration stopped.
+    pub stop: LmStop,
+}
+
+/// Damping beyond which no step is attempted.
+const LAMBDA_MAX: f64 = 1e16;
+
+struct Problem<F> {
+    f: F,
+    evaluations: usize,
+}
+
+impl<F, E> Problem<F>
+where
+    F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
+    E: Display,
+{
+    /// Evaluates; a failure of the function or a non-finite residual is an error.
+    fn eval(&mut self, x: &[f64], r: &mut [f64]) -> Result<()> {
+        self.evaluations += 1;
+        (self.f)(x, r).map_err(|e| Error::ResidualFailed {
+            message: e.to_string(),
+        })?;
+        match r.iter().position(|v| !v.is_finite()) {
+            Some(index) => Err(Error::NonFiniteResidual {
+                index,
+                value: r[index],
+            }),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Minimises `sum_i r_i(p)^2` over `p` from `p0`, where `residuals(p, r)` fills the `m`
+/// residuals (an error or a non-finite value at a trial point rejects that point; at `p0` it is
+/// an error).
+///
+/// Classic Levenberg-Marquardt: solve `(J^T J + lambda D) d = -J^T r` with Marquardt's scaling
+/// `D = diag(J^T J)`, accept a step if the cost falls (then divide `lambda` by 3 when the gain
+/// ratio exceeds 0.75, double it below 0.25), otherwise multiply `lambda` by 10 and retry. The
+/// Jacobian is a finite difference (see [`FdScheme`]). Never panics on user input.
+pub fn levenberg_marquardt<F, E>(
+    residuals: F,
+    p0: &[f64],
+    m: usize,
+    options: &LmOptions,
+) -> Result<LmFit>
+where
+    F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
+    E: Display,
+{
+    let np = p0.len();
+    if np == 0 || m == 0 {
+        return Err(Error::LmDimensions {
+            parameters: np,
+            residuals: m,
+        });
+    }
+    let bounds = validate(options, p0)?;
+    let step = match options.fd_step {
+        Some(s) => s,
+        None => match options.fd_scheme {
+            FdScheme::Central => f64::EPSILON.cbrt(),
+            FdScheme::Forward => f64::EPSILON.sqrt(),
+        },
+    };
+    let typical: Vec<f64> = match &options.scales {
+        Some(s) => s.clone(),
+        None => p0
+            .iter()
+            .map(|&v| if v != 0.0 { v.abs() } else { 1.0 })
+            .collect(),
+    };
+    let mut prob = Problem {
+        f: residuals,
+        evaluations: 0,
+    };
+    let mut x = p0.to_vec();
+    let mut r = vec![0.0; m];
+    prob.eval(&x, &mut r)?;
+    let mut cost = sum_sq(&r);
+    let mut lambda = options.lambda0;
+    let mut jac = DMatrix::<f64>::zeros(m, np);
+    let mut scratch = (vec![0.0; m], vec![0.0; m]);
+    let mut r_trial = vec![0.0; m];
+    let mut x_trial = vec![0.0; np];
+    let mut iterations = 0;
+    let mut jac_current = false;
+    let mut stop = LmStop::MaxIterations;
+    while iterations < options.max_iter {
+        jacobian(
+            &mut prob,
+            &x,
+            &r,
+            &mut jac,
+            options.fd_scheme,
+            step,
+            &typical,
+            &bounds,
+            &mut scratch,
+        )?;
+        jac_current = true;
+        iterations += 1;
+        let rv = DVector::from_column_slice(&r);
+        let g = jac.tr_mul(&rv);
+        let rnorm = cost.sqrt();
+        let cosine = (0..np)
+            .map(|j| {
+                let cn = jac.column(j).norm();
+                if cn > 0.0 && rnorm > 0.0 {
+                    g[j].abs() / (cn * rnorm)
+                } else {
+                    0.0
+                }
+            })
+            .fold(0.0, f64::max);
+        if cost == 0.0 || cosine <= options.gtol {
+            stop = LmStop::GradientTolerance;
+            break;
+        }
+        let a = jac.tr_mul(&jac);
+        let dmax = (0..np).map(|j| a[(j, j)]).fold(0.0, f64::max);
+        // A parameter with no influence still needs some damping to keep the system regular.
+        let diag: Vec<f64> = (0..np)
+            .map(|j| a[(j, j)].max(1e-15 * dmax).max(f64::MIN_POSITIVE))
+            .collect();
+        let mut accepted = false;
+        loop {
+            if lambda > LAMBDA_MAX {
+                stop = LmStop::Stalled;
+                break;
+            }
+            let mut mat = a.clone();
+            for j in 0..np {
+                mat[(j, j)] += lambda * diag[j];
+            }
+            let Some(chol) = mat.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let delta = -chol.solve(&g);
+            for j in 0..np {
+                let (lo, hi) = bounds[j];
+                x_trial[j] = (x[j] + delta[j]).clamp(lo, hi);
+            }
+            let dnorm = x_trial
+                .iter()
+                .zip(&x)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt();
+            let xnorm = sum_sq(&x).sqrt();
+            if !dnorm.is_finite() {
+                lambda *= 10.0;
+                continue;
+            }
+            if dnorm <= options.xtol * (xnorm + options.xtol) {
+                stop = LmStop::StepTolerance;
+                break;
+            }
+            if prob.eval(&x_trial, &mut r_trial).is_err() {
+                lambda *= 10.0;
+                continue;
+            }
+            let cost_trial = sum_sq(&r_trial);
+            if cost_trial < cost {
+                // Predicted cost |r + J d|^2 with the realised (projected) step.
+                let d = DVector::from_iterator(np, x_trial.iter().zip(&x).map(|(a, b)| a - b));
+                let lin = &rv + &jac * &d;
+                let predicted = cost - lin.norm_squared();
+                let rho = if predicted > 0.0 {
+                    (cost - cost_trial) / predicted
+                } else {
+                    0.0
+                };
+                if rho > 0.75 {
+                    lambda /= 3.0;
+                } else if rho < 0.25 {
+                    lambda *= 2.0;
+                }
+                let reduction = cost - cost_trial;
+                std::mem::swap(&mut x, &mut x_trial);
+                std::mem::swap(&mut r, &mut r_trial);
+                let old = cost;
+                cost = cost_trial;
+                jac_current = false;
+                accepted = true;
+                if reduction <= options.ftol * old {
+                    stop = LmStop::CostTolerance;
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !accepted || stop == LmStop::CostTolerance {
+            break;
+        }
+    }
+    if !jac_current {
+        jacobian(
+            &mut prob,
+            &x,
+            &r,
+            &mut jac,
+            options.fd_scheme,
+            step,
+            &typical,
+            &bounds,
+            &mut scratch,
+        )?;
+    }
+    let covariance = covariance(&jac, cost, m);
+    let stderr = covariance
+        .as_ref()
+        .map(|c| (0..np).map(|j| c[j][j].sqrt()).collect());
+    Ok(LmFit {
+        params: x,
+        stderr,
+        covariance,
+        cost,
+        residuals: r,
+        iterations,
+        evaluations: prob.evaluations,
+        stop,
+    })
+}
+
+fn sum_sq(v: &[f64]) -> f64 {
+    v.iter().map(|a| a * a).sum()
+}
+
+fn validate(options: &LmOptions, p0: &[f64]) -> Result<Vec<(f64, f64)>> {
+    let np = p0.len();
+    for (name, value) in [
+        ("ftol", options.ftol),
+        ("xtol", options.xtol),
+        ("gtol", options.gtol),
+    ] {
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(Error::InvalidOption {
+                name,
+                value,
+                reason: "must be finite and >= 0",
+            });
+        }
+    }
+    if !(options.lambda0.is_finite() && options.lambda0 > 0.0) {
+        return Err(Error::InvalidOption {
+            name: "lambda0",
+            value: options.lambda0,
+            reason: "must be finite and > 0",
+        });
+    }
+    if let Some(s) = options.fd_step {
+        if !(s.is_finite() && s > 0.0 && s < 1.0) {
+            return Err(Error::InvalidOption {
+                name: "fd_step",
+                value: s,
+                reason: "must lie in (0, 1)",
+            });
+        }
+    }
+    if let Some(scales) = &options.scales {
+        if scales.len() != np {
+            return Err(Error::WrongLength {
+                what: "scales",
+                found: scales.len(),
+                expected: np,
+            });
+        }
+        if let Some(&bad) = scales.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+            return Err(Error::InvalidOption {
+                name: "scales",
+                value: bad,
+                reason: "every scale must be finite and > 0",
+            });
+        }
+    }
+    let bounds = match &options.bounds {
+        Some(b) => {
+            if b.len() != np {
+                return Err(Error::WrongLength {
+                    what: "bounds",
+                    found: b.len(),
+                    expected: np,
+                });
+            }
+            for (index, &(lower, upper)) in b.iter().enumerate() {
+                if lower.is_nan() || upper.is_nan() || lower > upper {
+                    return Err(Error::InvalidBounds {
+                        index,
+                        lower,
+                        upper,
+                    });
+                }
+            }
+            b.clone()
+        }
+        None => vec![(f64::NEG_INFINITY, f64::INFINITY); np],
+    };
+    for (index, (&value, &(lower, upper))) in p0.iter().zip(&bounds).enumerate() {
+        if !value.is_finite() || value < lower || value > upper {
+            return Err(Error::InvalidStart {
+                index,
+                value,
+                lower,
+                upper,
+            });
+        }
+    }
+    Ok(bounds)
+}
+
+/// Fills `jac` (m x p) by finite differences at `x`, where the residuals are `r`. A side that
+/// leaves the bounds or fails falls back to a one-sided difference on the other side.
+fn jacobian<F, E>(
+    prob: &mut Problem<F>,
+    x: &[f64],
+    r: &[f64],
+    jac: &mut DMatrix<f64>,
+    scheme: FdScheme,
+    step: f64,
+    typical: &[f64],
+    bounds: &[(f64, f64)],
+    scratch: &mut (Vec<f64>, Vec<f64>),
+) -> Result<()>
+where
+    F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
+    E: Display,
+{
+    let mut xp = x.to_vec();
+    let (rp, rm) = scratch;
+    for j in 0..x.len() {
+        let h = step * x[j].abs().max(typical[j]);
+        let (lo, hi) = bounds[j];
+        let up = x[j] + h;
+        let down = x[j] - h;
+        let mut eval_at = |v: f64, out: &mut Vec<f64>| -> Option<f64> {
+            xp[j] = v;
+            let ok = prob.eval(&xp, out).is_ok();
+            xp[j] = x[j];
+            // The realised step, exact in floating point.
+            ok.then_some(v - x[j])
+        };
+        let plus = if up <= hi { eval_at(up, rp) } else { None };
+        let minus = match (scheme, plus) {
+            (FdScheme::Forward, Some(_)) => None,
+            _ if down >= lo => eval_at(down, rm),
+            _ => None,
+        };
+        let col = jac.column_mut(j);
+        match (plus, minus) {
+            (Some(hp), Some(hm)) => {
+                for (i, c) in col.into_iter().enumerate() {
+                    *c = (rp[i] - rm[i]) / (hp - hm);
+                }
+            }
+            (Some(hp), None) => {
+                for (i, c) in col.into_iter().enumerate() {
+                    *c = (rp[i] - r[i]) / hp;
+                }
+            }
+            (None, Some(hm)) => {
+                for (i, c) in col.into_iter().enumerate() {
+                    *c = (rm[i] - r[i]) / hm;
+                }
+            }
+            (None, None) => {
+                return Err(Error::JacobianFailed {
+                    index: j,
+                    value: x[j],
+                })
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `s^2 (J^T J)^{-1}` through the SVD of `J`, or `None` if `m <= p` or `J` is rank deficient.
+fn covariance(jac: &DMatrix<f64>, cost: f64, m: usize) -> Option<Vec<Vec<f64>>> {
+    let np = jac.ncols();
+    if m <= np {
+        return None;
+    }
+    let s2 = cost / (m - np) as f64;
+    let svd = jac.clone().svd(false, true);
+    let v_t = svd.v_t?;
+    let sv = &svd.singular_values;
+    let smax = sv.max();
+    if !(smax > 0.0)
+        || sv
+            .iter()
+            .any(|&s| s <= smax * f64::EPSILON * m.max(np) as f64)
+    {
+        return None;
+    }
+    let mut cov = vec![vec![0.0; np]; np];
+    for (i, row) in cov.iter_mut().enumerate() {
+        for (j, c) in row.iter_mut().enumerate() {
+            *c = s2
+                * (0..np)
+                    .map(|k| v_t[(k, i)] * v_t[(k, j)] / (sv[k] * sv[k]))
+                    .sum::<f64>();
+        }
+    }
+    Some(cov)
+}
