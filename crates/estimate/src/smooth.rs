@@ -395,3 +395,13 @@ mod tests {
         }
     }
 }
+pub(crate) fn debug_curve(sys: &BinSystem) {
+    let scale = sys.gram_scale();
+    let nd = sys.data_count();
+    for i in 0..25 {
+        let la = -8.0 + 0.5 * i as f64;
+        if let Ok(f) = fit(sys, 10f64.powf(la) * scale, 0.0, false) {
+            println!("log a {la:5.1} rss/n {:.4e} tr/n {:.6} gcv {:.4e}", f.rss / nd, f.trace / nd, gcv_score(&f, nd));
+        }
+    }
+}

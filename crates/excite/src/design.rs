@@ -2,13 +2,13 @@
 
 use std::collections::HashMap;
 use std::f64::consts::TAU;
-use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
 use crate::error::{finite, non_negative, positive, ExciteError};
 use crate::multisine::phase_values;
-use crate::{Amplitude, Line, Multisine, PhaseRule, Signal};
+use crate::report::HarmonicCoverage;
+use crate::{Amplitude, DesignInput, DesignReport, Line, Multisine, PhaseRule};
 
 /// How even-order nonlinear distortion is kept off the estimation bins.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -236,6 +236,10 @@ pub struct Design {
 ///    spacing allows (coprime to P), and a grid is accepted only after its
 ///    kept residues are checked to be non-zero and distinct (step 2; with
 ///    dropped lines, residues of j beyond `P - 2` may still be distinct).
+///    The result is the smallest P this search finds, not a proven optimum
+///    over all residue sets: for narrow bands far from DC, sums of kept bins
+///    must avoid multiples of P (aliasing through large |n| is excluded
+///    too), which can push P well above the line count.
 ///    The record is `blocks * (settle + P T)`.
 /// 7. **Even orders.** Around a stable orbit the response is a Volterra
 ///    series with T-periodic kernels; the order-k term is homogeneous,
@@ -275,6 +279,15 @@ pub fn design_htf_multisine(spec: DesignSpec) -> Result<Design, ExciteError> {
         });
     }
     let spacing = positive("spacing", spec.spacing)?;
+    // The search visits every harmonic for every line; beyond a few hundred
+    // harmonics an HTF model is meaningless anyway.
+    if spec.max_harmonic > MAX_HARMONIC {
+        return Err(ExciteError::InvalidParameter {
+            name: "max_harmonic",
+            requirement: "<= 1000",
+            value: f64::from(spec.max_harmonic),
+        });
+    }
     let settle_req = non_negative("settle", spec.settle)?;
     let max_record = positive("max_record", spec.max_record)?;
     let start = finite("start", spec.start)?;
@@ -296,24 +309,36 @@ pub fn design_htf_multisine(spec: DesignSpec) -> Result<Design, ExciteError> {
         max_harmonic: spec.max_harmonic,
         guard: spec.even_order == EvenOrder::QuadraticGuard,
     };
+    let settle = (settle_req / t - 1e-9).ceil().max(0.0) * t;
+    let n_blocks = spec.even_order.blocks() as f64;
+    let too_long = |p: u64| {
+        let tm = p as f64 * t;
+        let record = n_blocks * (settle + tm);
+        (record > max_record).then_some(ExciteError::RecordTooLong {
+            needed_p: p,
+            multisine_period: tm,
+            record,
+            max_record,
+        })
+    };
+    // Over budget, a large lower bound is reported as is rather than
+    // searched up to the exact P, which could take long for absurd targets.
+    let bound = p_lower_bound(&targets);
+    if bound > 1 << 20 {
+        if let Some(err) = too_long(bound) {
+            return Err(err);
+        }
+    }
     let Grid {
         p,
         h,
         top_odd,
         bins,
-    } = find_grid(&targets)?;
-    let tm = p as f64 * t;
-    let settle = (settle_req / t - 1e-9).ceil().max(0.0) * t;
-    let n_blocks = spec.even_order.blocks();
-    let record = n_blocks as f64 * (settle + tm);
-    if record > max_record {
-        return Err(ExciteError::RecordTooLong {
-            needed_p: p,
-            multisine_period: tm,
-            record,
-            max_record,
-        });
+    } = find_grid(&targets, bound)?;
+    if let Some(err) = too_long(p) {
+        return Err(err);
     }
+    let tm = p as f64 * t;
 
     let dw = wp / p as f64;
     let phases = phase_values(spec.phases, &vec![1.0; bins.len()]);
@@ -392,6 +417,8 @@ pub fn design_htf_multisine(spec: DesignSpec) -> Result<Design, ExciteError> {
     Ok(design)
 }
 
+const MAX_HARMONIC: u32 = 1000;
+
 fn spec_h(d: &Design) -> i32 {
     i32::try_from(d.spec.max_harmonic).unwrap_or(i32::MAX)
 }
@@ -422,15 +449,15 @@ struct Grid {
 /// P/5 lines, the largest sum-free symmetric set in Z_P for odd P). For each
 /// P, h runs down from the largest value the spacing allows, skipping h not
 /// coprime to P, until the kept lines exceed that capacity.
-fn find_grid(t: &Targets) -> Result<Grid, ExciteError> {
-    let min_lines = min_line_count(t);
-    let bound = if t.guard {
-        min_lines.saturating_mul(5)
-    } else {
-        min_lines.saturating_mul(2).saturating_add(1)
-    };
+fn find_grid(t: &Targets, bound: u64) -> Result<Grid, ExciteError> {
+    const MAX_START: u64 = 1 << 32;
     let start = bound.max(3) | 1;
-    let limit = start.saturating_add(start.max(100_000));
+    if start > MAX_START {
+        return Err(ExciteError::NoDesign {
+            searched_up_to: start,
+        });
+    }
+    let limit = start + start.max(100_000);
     let mut p = start;
     while p <= limit {
         let capacity = if t.guard { p / 5 } else { (p - 1) / 2 };
@@ -462,6 +489,17 @@ fn find_grid(t: &Targets) -> Result<Grid, ExciteError> {
     Err(ExciteError::NoDesign {
         searched_up_to: limit,
     })
+}
+
+/// Odd lower bound on P from the line count (see [`find_grid`]).
+fn p_lower_bound(t: &Targets) -> u64 {
+    let min_lines = min_line_count(t);
+    let bound = if t.guard {
+        min_lines.saturating_mul(5)
+    } else {
+        min_lines.saturating_mul(2).saturating_add(1)
+    };
+    bound.max(3) | 1
 }
 
 /// Lower bound on the number of lines: for every harmonic the band maps to
@@ -631,10 +669,7 @@ impl Design {
 
     /// The whole input as a signal of absolute time (zero outside the record).
     pub fn input(&self) -> DesignInput {
-        DesignInput {
-            multisine: self.multisine.clone(),
-            blocks: self.blocks.clone(),
-        }
+        DesignInput::new(self.multisine.clone(), self.blocks.clone())
     }
 
     /// Every observation of `G_n`: two per line (direct and mirror), sorted
@@ -799,242 +834,4 @@ impl Design {
             limitations,
         }
     }
-}
-
-/// How well one harmonic is observed over the band.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct HarmonicCoverage {
-    /// Harmonic n.
-    pub harmonic: i32,
-    /// Estimate points inside `[omega_lo, omega_hi]`.
-    pub points_in_band: usize,
-    /// Lowest in-band estimate frequency, rad/s.
-    pub first_omega: f64,
-    /// Highest in-band estimate frequency, rad/s.
-    pub last_omega: f64,
-    /// Largest gap between consecutive points bracketing the band, rad/s
-    /// (infinite if the band is not bracketed).
-    pub max_gap: f64,
-    /// `max_gap <= spacing`.
-    pub meets_target: bool,
-}
-
-/// Machine-readable summary of a [`Design`]; `Display` prints it for people.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct DesignReport {
-    /// Forcing period T, s.
-    pub period: f64,
-    /// Pumping frequency `2 pi / T`, rad/s.
-    pub omega_p: f64,
-    /// P.
-    pub periods_per_multisine: u64,
-    /// Tm = P T, s.
-    pub multisine_period: f64,
-    /// dw = 2 pi / Tm, rad/s.
-    pub bin_width: f64,
-    /// Number of input lines.
-    pub line_count: usize,
-    /// Line step in bins (2h).
-    pub line_step_bins: u64,
-    /// Lowest line bin.
-    pub first_line_bin: u64,
-    /// Highest line bin.
-    pub last_line_bin: u64,
-    /// Lowest line frequency, rad/s.
-    pub lowest_line_omega: f64,
-    /// Highest line frequency, rad/s.
-    pub highest_line_omega: f64,
-    /// Estimate-grid spacing of every harmonic, rad/s.
-    pub achieved_spacing: f64,
-    /// Requested spacing, rad/s.
-    pub target_spacing: f64,
-    /// Output band `[omega_lo, omega_hi]`, rad/s.
-    pub band: [f64; 2],
-    /// Amplitude of each line.
-    pub line_amplitude: f64,
-    /// RMS of the multisine.
-    pub rms: f64,
-    /// Peak of the multisine.
-    pub peak: f64,
-    /// Peak / RMS.
-    pub crest_factor: f64,
-    /// Coverage of each estimated harmonic.
-    pub harmonics: Vec<HarmonicCoverage>,
-    /// Even-order handling.
-    pub even_order: EvenOrder,
-    /// Lines whose bins receive second-order products.
-    pub second_order_exposed_lines: usize,
-    /// Residue pairs `{r, P - r}` without a line.
-    pub free_residue_pairs: u64,
-    /// Record layout.
-    pub blocks: Vec<Block>,
-    /// Settling per block, s.
-    pub settle: f64,
-    /// Record length, s.
-    pub total_duration: f64,
-    /// Allowed record length, s.
-    pub max_record: f64,
-    /// What the design does not resolve, in words.
-    pub limitations: Vec<String>,
-}
-
-impl fmt::Display for DesignReport {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(f, "HTF multisine design")?;
-        writeln!(
-            f,
-            "  forcing: T = {} s, wp = {:.4} rad/s",
-            self.period, self.omega_p
-        )?;
-        writeln!(
-            f,
-            "  multisine: P = {}, Tm = {} s, dw = {:.6} rad/s",
-            self.periods_per_multisine, self.multisine_period, self.bin_width
-        )?;
-        writeln!(
-            f,
-            "  lines: {} (bins {}..={} step {}), {:.4}..{:.4} rad/s, amplitude {:.3e} each",
-            self.line_count,
-            self.first_line_bin,
-            self.last_line_bin,
-            self.line_step_bins,
-            self.lowest_line_omega,
-            self.highest_line_omega,
-            self.line_amplitude
-        )?;
-        writeln!(
-            f,
-            "  level: peak {:.4e}, rms {:.4e}, crest factor {:.3}",
-            self.peak, self.rms, self.crest_factor
-        )?;
-        writeln!(
-            f,
-            "  resolves: G_n for n = {}..={} over {}..{} rad/s at spacing {:.4} rad/s (target {})",
-            self.harmonics.first().map_or(0, |c| c.harmonic),
-            self.harmonics.last().map_or(0, |c| c.harmonic),
-            self.band[0],
-            self.band[1],
-            self.achieved_spacing,
-            self.target_spacing
-        )?;
-        for c in &self.harmonics {
-            writeln!(
-                f,
-                "    n = {:>3}: {:>4} points in band, {:.4}..{:.4} rad/s, max gap {:.4}{}",
-                c.harmonic,
-                c.points_in_band,
-                c.first_omega,
-                c.last_omega,
-                c.max_gap,
-                if c.meets_target {
-                    ""
-                } else {
-                    "  MISSES TARGET"
-                }
-            )?;
-        }
-        writeln!(
-            f,
-            "  aliasing: none between any (line, harmonic) pairs, for every n"
-        )?;
-        let even = match self.even_order {
-            EvenOrder::SignReversal => "sign reversal: all even orders cancel in (y(+u) - y(-u))/2",
-            EvenOrder::QuadraticGuard => "quadratic guard: second-order products miss every line",
-            EvenOrder::Unprotected => "unprotected",
-        };
-        writeln!(f, "  even orders: {even}")?;
-        writeln!(
-            f,
-            "    lines sharing residues with second-order products: {} of {}; free residue pairs: {}",
-            self.second_order_exposed_lines, self.line_count, self.free_residue_pairs
-        )?;
-        writeln!(
-            f,
-            "  record: {} block(s), settle {} s each, total {} s (max {} s)",
-            self.blocks.len(),
-            self.settle,
-            self.total_duration,
-            self.max_record
-        )?;
-        for b in &self.blocks {
-            writeln!(
-                f,
-                "    block {} {:?}: settle {}..{} s, measure {}..{} s",
-                b.index, b.polarity, b.start, b.measure_start, b.measure_start, b.end
-            )?;
-        }
-        writeln!(f, "  does not resolve:")?;
-        for l in &self.limitations {
-            writeln!(f, "    - {l}")?;
-        }
-        Ok(())
-    }
-}
-
-/// The designed record as a [`Signal`] of absolute time.
-///
-/// In block k, `u(t) = s_k m(t - measure_start_k)` on `[start_k, end_k)` with
-/// `m` the multisine and `s_k` the block's sign; the settling segment is the
-/// periodic continuation of the same window. Zero outside every block.
-#[derive(Debug, Clone)]
-pub struct DesignInput {
-    multisine: Multisine,
-    blocks: Vec<Block>,
-}
-
-impl DesignInput {
-    /// The blocks this input plays.
-    pub fn blocks(&self) -> &[Block] {
-        &self.blocks
-    }
-}
-
-impl Signal for DesignInput {
-    fn value(&self, t: f64) -> f64 {
-        self.blocks
-            .iter()
-            .find(|b| (b.start..b.end).contains(&t))
-            .map_or(0.0, |b| {
-                b.polarity.sign() * self.multisine.value(t - b.measure_start)
-            })
-    }
-
-    fn fill_uniform(&self, t0: f64, dt: f64, out: &mut [f64]) {
-        if dt.is_nan() || dt <= 0.0 {
-            for (i, o) in out.iter_mut().enumerate() {
-                *o = self.value(t0 + i as f64 * dt);
-            }
-            return;
-        }
-        out.fill(0.0);
-        let n = out.len();
-        for b in &self.blocks {
-            let i0 = first_index_at_or_after(t0, dt, b.start, n);
-            let i1 = first_index_at_or_after(t0, dt, b.end, n);
-            if i0 >= i1 {
-                continue;
-            }
-            let seg = &mut out[i0..i1];
-            self.multisine
-                .fill_uniform(t0 + i0 as f64 * dt - b.measure_start, dt, seg);
-            if b.polarity == Polarity::Negative {
-                for v in seg.iter_mut() {
-                    *v = -*v;
-                }
-            }
-        }
-    }
-}
-
-/// Smallest i in `0..=n` with `t0 + i dt >= x` (dt > 0), using the same time
-/// expression as the samples so block edges are assigned consistently.
-fn first_index_at_or_after(t0: f64, dt: f64, x: f64, n: usize) -> usize {
-    let mut i = ((x - t0) / dt).ceil().clamp(0.0, n as f64) as usize;
-    while i > 0 && t0 + (i - 1) as f64 * dt >= x {
-        i -= 1;
-    }
-    while i < n && t0 + i as f64 * dt < x {
-        i += 1;
-    }
-    i
 }

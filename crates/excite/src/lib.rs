@@ -79,16 +79,20 @@
 mod chirp;
 mod design;
 mod error;
+mod input;
 mod multisine;
+mod report;
 mod signal;
 mod train;
 
 pub use chirp::{LinearChirp, LogChirp, PaperChirp};
 pub use design::{
-    design_htf_multisine, BinOwner, Block, Branch, Design, DesignInput, DesignLine, DesignReport,
-    DesignSpec, EvenOrder, HarmonicCoverage, HtfPoint, Polarity,
+    design_htf_multisine, BinOwner, Block, Branch, Design, DesignLine, DesignSpec, EvenOrder,
+    HtfPoint, Polarity,
 };
 pub use error::ExciteError;
+pub use input::DesignInput;
 pub use multisine::{Amplitude, BinSelection, Line, Multisine, Parity, PhaseRule};
+pub use report::{DesignReport, HarmonicCoverage};
 pub use signal::Signal;
 pub use train::{alias_map, AliasEntry, PhaseShiftedTrain, Segment, TrainLayout};

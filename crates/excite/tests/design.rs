@@ -306,6 +306,29 @@ fn infeasible_spec_reports_the_needed_p() {
 }
 
 #[test]
+fn absurd_targets_fail_fast() {
+    let spec = DesignSpec {
+        spacing: 1e-9,
+        ..headline()
+    };
+    // P >= 2 * 58.85 / 1e-9: far over budget, reported from the bound.
+    match design_htf_multisine(spec.clone()).unwrap_err() {
+        ExciteError::RecordTooLong { needed_p, .. } => {
+            assert!(needed_p as f64 >= 2.0 * (40.0 + 3.0 * TAU) / 1e-9 * 0.999)
+        }
+        other => panic!("unexpected {other:?}"),
+    }
+    let unlimited = DesignSpec {
+        max_record: 1e300,
+        ..spec
+    };
+    assert!(matches!(
+        design_htf_multisine(unlimited),
+        Err(ExciteError::NoDesign { .. })
+    ));
+}
+
+#[test]
 fn invalid_specs_are_rejected_with_their_numbers() {
     let bad = |f: fn(&mut DesignSpec)| {
         let mut s = headline();

@@ -194,3 +194,160 @@ where
     let samples: Vec<_> = (0..count).map(|k| k as f64 * dt).map(f).collect();
     fft_fourier(period, &samples)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::piecewise::Piece;
+    use nalgebra::dmatrix;
+
+    /// The textbook closed form, written independently of `interval_fourier`.
+    fn textbook(t_on: f64, t_off: f64, period: f64, n: i32) -> Complex64 {
+        if n == 0 {
+            return Complex64::new((t_off - t_on) / period, 0.0);
+        }
+        let wn = f64::from(n) * TAU / period;
+        let e = |t: f64| Complex64::from_polar(1.0, -wn * t);
+        (e(t_off) - e(t_on)) / Complex64::new(0.0, -wn * period)
+    }
+
+    #[test]
+    fn square_wave_matches_textbook_formula() {
+        for n in -12..=12 {
+            let got = square_wave_fourier(0.23, 0.71, 1.0, n);
+            let want = textbook(0.23, 0.71, 1.0, n);
+            assert!((got - want).norm() < 1e-15, "n={n}");
+            // Wrapping on-interval [0.9, 1.2) mod 2 = [0.9, 1.2).
+            let got = square_wave_fourier(1.7, 0.3, 2.0, n);
+            let want = textbook(1.7, 2.3, 2.0, n);
+            assert!((got - want).norm() < 1e-15, "n={n}");
+            // Bound |s_n| <= 1 / (pi |n|).
+            if n != 0 {
+                assert!(got.norm() <= 1.0 / (std::f64::consts::PI * f64::from(n.abs())) + 1e-15);
+            }
+        }
+        // Full period is the constant 1; empty interval is 0.
+        assert!((square_wave_fourier(0.0, 1.0, 1.0, 0) - 1.0).norm() < 1e-15);
+        assert!(square_wave_fourier(0.0, 1.0, 1.0, 3).norm() < 1e-15);
+        assert!(square_wave_fourier(0.4, 0.4, 1.0, 0).norm() < 1e-15);
+        assert!(square_wave_fourier(0.0, 1.0, -1.0, 1).re.is_nan());
+    }
+
+    #[test]
+    fn piecewise_coefficients_are_weighted_square_waves() {
+        // A(t) = A_off + (A_on - A_off) s(t) with s the damper indicator.
+        let on = dmatrix![0.0, 1.0; -200.0, -2.0];
+        let off = dmatrix![0.0, 1.0; -200.0, 0.0];
+        let b = dmatrix![0.0; 1.0];
+        let c = dmatrix![1.0, 0.0];
+        let d = dmatrix![0.0];
+        let lti = PiecewiseLti::new(
+            1.0,
+            0.23,
+            vec![
+                Piece::new(0.48, on.clone(), b.clone(), c.clone(), d.clone()),
+                Piece::new(0.52, off.clone(), b.clone(), c.clone(), d.clone()),
+            ],
+        )
+        .unwrap();
+        for n in -8..=8 {
+            let s = textbook(0.23, 0.71, 1.0, n);
+            let delta = if n == 0 { 1.0 } else { 0.0 };
+            let want = off.map(|x| Complex64::new(x * delta, 0.0)) + (&on - &off).map(|x| s * x);
+            let got = lti.fourier_coefficient(SystemMatrix::A, n);
+            assert!((got - want).norm() < 1e-13, "n={n}");
+            let gb = lti.fourier_coefficient(SystemMatrix::B, n);
+            assert!((gb[(1, 0)] - delta).norm() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn fft_of_square_wave_shows_first_order_error() {
+        // Sampling a discontinuous function aliases the 1/n tail and misplaces
+        // each switch by up to one sample: the coefficient error is O(1/K),
+        // and must shrink by ~4x when K grows 4x (not faster, not slower).
+        let (t_on, t_off) = (0.23, 0.71);
+        let err = |k: usize| {
+            let series = fft_fourier_fn(1.0, k, |t| {
+                let on = (t_on..t_off).contains(&t);
+                dmatrix![if on { 1.0 } else { 0.0 }]
+            })
+            .unwrap();
+            (-10..=10)
+                .map(|n| (series.coefficient(n).unwrap()[(0, 0)] - textbook(t_on, t_off, 1.0, n)).norm())
+                .fold(0.0, f64::max)
+        };
+        let errs: Vec<f64> = [100, 400, 1600, 6400].iter().map(|&k| err(k)).collect();
+        for (i, &k) in [100.0, 400.0, 1600.0, 6400.0].iter().enumerate() {
+            // Two switches, each misplaced by < 1/K: |error| <= 2/K.
+            assert!(errs[i] <= 2.0 / k, "K={k}: {:e}", errs[i]);
+            assert!(errs[i] > 0.01 / k, "K={k}: suspiciously exact {:e}", errs[i]);
+        }
+        for w in errs.windows(2) {
+            let ratio = w[0] / w[1];
+            assert!((2.0..8.0).contains(&ratio), "ratio {ratio}");
+        }
+    }
+
+    #[test]
+    fn fft_of_smooth_function_is_spectrally_accurate() {
+        // exp(cos(wp t)) has coefficients I_n(1) (modified Bessel),
+        // sum_m (1/2)^(2m+|n|) / (m! (m+|n|)!); 32 samples alias only terms
+        // below I_32(1) ~ 1e-45, so agreement is to rounding.
+        let bessel_i = |n: i32| {
+            let n = n.unsigned_abs() as i32;
+            let mut term = 0.5_f64.powi(n) / (1..=n).map(f64::from).product::<f64>();
+            let mut sum = 0.0;
+            for m in 0..30 {
+                sum += term;
+                term *= 0.25 / (f64::from(m + 1) * f64::from(m + 1 + n));
+            }
+            sum
+        };
+        let period = 2.5;
+        let series = fft_fourier_fn(period, 32, |t| {
+            dmatrix![(TAU * t / period).cos().exp(), 0.0; 1.0, (TAU * t / period).sin()]
+        })
+        .unwrap();
+        assert_eq!(series.max_harmonic(), 15);
+        for n in -15..=15 {
+            let c = series.coefficient(n).unwrap();
+            assert!((c[(0, 0)] - bessel_i(n)).norm() < 1e-15, "n={n}");
+            let want_const = if n == 0 { 1.0 } else { 0.0 };
+            assert!((c[(1, 0)] - want_const).norm() < 1e-15);
+            // sin = (e^{j} - e^{-j}) / 2j: coefficient -j/2 at n = 1.
+            let want_sin = match n {
+                1 => Complex64::new(0.0, -0.5),
+                -1 => Complex64::new(0.0, 0.5),
+                _ => Complex64::new(0.0, 0.0),
+            };
+            assert!((c[(1, 1)] - want_sin).norm() < 1e-15);
+        }
+        assert!(series.coefficient(16).is_none());
+        // The series reproduces the function between samples.
+        let t = 0.377;
+        let v = series.evaluate(t);
+        assert!((v[(0, 0)].re - (TAU * t / period).cos().exp()).abs() < 1e-14);
+    }
+
+    #[test]
+    fn fft_rejects_bad_input() {
+        assert_eq!(
+            fft_fourier(1.0, &[]),
+            Err(LtpError::TooFewSamples { count: 0 })
+        );
+        let mixed = [dmatrix![1.0], dmatrix![1.0, 2.0]];
+        assert!(matches!(
+            fft_fourier(1.0, &mixed),
+            Err(LtpError::SampleShapeMismatch { index: 1, .. })
+        ));
+        assert!(matches!(
+            fft_fourier(1.0, &[dmatrix![f64::INFINITY]]),
+            Err(LtpError::NonFiniteSample { index: 0, row: 0, col: 0 })
+        ));
+        assert!(matches!(
+            fft_fourier(0.0, &[dmatrix![1.0]]),
+            Err(LtpError::InvalidPeriod { .. })
+        ));
+    }
+}

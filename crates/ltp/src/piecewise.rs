@@ -554,3 +554,154 @@ mod raw {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::dmatrix;
+
+    fn piece(duration: f64) -> Piece {
+        Piece::new(
+            duration,
+            dmatrix![0.0, 1.0; -4.0, -0.1],
+            dmatrix![0.0; 1.0],
+            dmatrix![1.0, 0.0],
+            dmatrix![0.0],
+        )
+    }
+
+    #[test]
+    fn constructor_validates() {
+        assert_eq!(
+            PiecewiseLti::new(0.0, 0.0, vec![piece(1.0)]),
+            Err(LtpError::InvalidPeriod { period: 0.0 })
+        );
+        assert_eq!(PiecewiseLti::new(1.0, 0.0, vec![]), Err(LtpError::NoPieces));
+        assert!(matches!(
+            PiecewiseLti::new(1.0, f64::NAN, vec![piece(1.0)]),
+            Err(LtpError::InvalidStart { .. })
+        ));
+        assert_eq!(
+            PiecewiseLti::new(1.0, 0.0, vec![piece(1.2), piece(-0.2)]),
+            Err(LtpError::InvalidDuration {
+                piece: 1,
+                duration: -0.2
+            })
+        );
+        assert!(matches!(
+            PiecewiseLti::new(1.0, 0.0, vec![piece(0.5), piece(0.4)]),
+            Err(LtpError::DurationsDoNotSumToPeriod { .. })
+        ));
+        let bad_b = Piece::new(1.0, dmatrix![0.0, 1.0; -4.0, -0.1], dmatrix![0.0; 1.0; 2.0], dmatrix![1.0, 0.0], dmatrix![0.0]);
+        assert_eq!(
+            PiecewiseLti::new(1.0, 0.0, vec![bad_b]),
+            Err(LtpError::WrongShape {
+                piece: 0,
+                matrix: "B",
+                expected_rows: 2,
+                expected_cols: 1,
+                found_rows: 3,
+                found_cols: 1
+            })
+        );
+        let nan_a = Piece::new(1.0, dmatrix![0.0, 1.0; f64::NAN, -0.1], dmatrix![0.0; 1.0], dmatrix![1.0, 0.0], dmatrix![0.0]);
+        assert_eq!(
+            PiecewiseLti::new(1.0, 0.0, vec![nan_a]),
+            Err(LtpError::NonFinite {
+                piece: 0,
+                matrix: "A",
+                row: 1,
+                col: 0
+            })
+        );
+        let bad_jump = piece(1.0).with_jump(dmatrix![1.0]);
+        assert!(matches!(
+            PiecewiseLti::new(1.0, 0.0, vec![bad_jump]),
+            Err(LtpError::WrongShape { matrix: "J", .. })
+        ));
+        // Rounding in the durations is tolerated.
+        assert!(PiecewiseLti::new(1.0, 0.0, vec![piece(0.1 + 0.2), piece(0.7)]).is_ok());
+    }
+
+    #[test]
+    fn pieces_wrap_modulo_the_period() {
+        let lti = PiecewiseLti::new(2.0, -0.5, vec![piece(1.0), piece(0.6), piece(0.4)]).unwrap();
+        // start -0.5 -> 1.5: pieces [1.5, 2.5), [2.5, 3.1), [3.1, 3.5).
+        assert!((lti.start() - 1.5).abs() < 1e-15);
+        assert!((lti.boundaries()[3] - 3.5).abs() < 1e-15);
+        let cases = [
+            (1.5, 0),
+            (1.99, 0),
+            (0.0, 0),
+            (0.49, 0),
+            (0.5, 1),
+            (1.09, 1),
+            (1.1, 2),
+            (1.49, 2),
+            (-0.6, 2),
+            (7.5, 0),
+        ];
+        for (t, want) in cases {
+            assert_eq!(lti.piece_index_at(t), Some(want), "t = {t}");
+        }
+        assert_eq!(lti.piece_index_at(f64::INFINITY), None);
+    }
+
+    #[test]
+    fn jumps_and_channels() {
+        let lti = PiecewiseLti::new(
+            1.0,
+            0.0,
+            vec![piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.0, 1.0]), piece(0.5)],
+        )
+        .unwrap();
+        assert!(!lti.has_jumps());
+        let lti = PiecewiseLti::new(
+            1.0,
+            0.0,
+            vec![piece(0.5), piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.3, 1.0])],
+        )
+        .unwrap();
+        assert_eq!(lti.first_jump(), Some(1));
+        let mimo = PiecewiseLti::lti(
+            1.0,
+            dmatrix![-1.0],
+            dmatrix![1.0, 2.0],
+            dmatrix![3.0; 4.0],
+            dmatrix![5.0, 6.0; 7.0, 8.0],
+        )
+        .unwrap();
+        let ch = mimo.channel(1, 0).unwrap();
+        assert_eq!((ch.n_inputs(), ch.n_outputs()), (1, 1));
+        let p = &ch.pieces()[0];
+        assert!((p.b()[(0, 0)] - 1.0).abs() < 1e-15);
+        assert!((p.c()[(0, 0)] - 4.0).abs() < 1e-15);
+        assert!((p.d()[(0, 0)] - 7.0).abs() < 1e-15);
+        assert_eq!(
+            mimo.channel(2, 0),
+            Err(LtpError::ChannelOutOfRange {
+                output: 2,
+                input: 0,
+                n_outputs: 2,
+                n_inputs: 2
+            })
+        );
+    }
+
+    #[cfg(feature = "serde")]
+    #[test]
+    fn serde_round_trip_revalidates() {
+        let lti = PiecewiseLti::new(
+            1.0,
+            0.3,
+            vec![piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.3, 1.0]), piece(0.5)],
+        )
+        .unwrap();
+        let json = serde_json::to_string(&lti).unwrap();
+        let back: PiecewiseLti = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, lti);
+        let broken = json.replace("\"period\":1.0", "\"period\":2.0");
+        let err = serde_json::from_str::<PiecewiseLti>(&broken).unwrap_err();
+        assert!(err.to_string().contains("piece durations sum to"), "{err}");
+    }
+}

@@ -9,9 +9,10 @@
 //! # Conventions
 //! - Frequencies are angular, in rad/s; magnitudes in dB are `20 log10 |G|`; phases are in
 //!   degrees, unwrapped along each series (see [`phase_panel`]).
-//! - On a [`Scale::Log10`] axis, values that are not positive are skipped. NaN and infinite
-//!   values are skipped on every axis. A skipped point breaks a line into separate pieces; it
-//!   never panics and never draws a line to the edge of the image.
+//! - On a [`Scale::Log10`] axis, values that are not positive are skipped. NaN, infinite
+//!   values and values beyond 1e300 in magnitude are skipped on every axis. A skipped point
+//!   breaks a line into separate pieces; it never panics and never draws a line to the edge of
+//!   the image. Lines leaving an explicit range are clipped at the axes.
 //! - Automatic ranges fit the finite data exactly along x (with a small margin when markers are
 //!   drawn) and with a 5 % margin along y, counting only points inside the x range.
 //! - Series take their colour from a fixed ten-colour palette by their index in the panel, so

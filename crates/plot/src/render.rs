@@ -77,9 +77,12 @@ pub(crate) struct PlotPanel {
     pub series: Vec<PlotSeries>,
 }
 
+/// Largest magnitude drawn on a linear axis; beyond it spans and paddings could overflow.
+pub(crate) const MAX_MAGNITUDE: f64 = 1e300;
+
 fn to_plot(v: f64, scale: Scale) -> f64 {
     match scale {
-        Scale::Linear | Scale::Degrees if v.is_finite() => v,
+        Scale::Linear | Scale::Degrees if v.abs() <= MAX_MAGNITUDE => v,
         Scale::Log10 if v.is_finite() && v > 0.0 => v.log10(),
         _ => f64::NAN,
     }
@@ -122,8 +125,12 @@ pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotE
         };
         let explicit = |axis: &'static str, r: Option<(f64, f64)>, scale: Scale| {
             r.map(|(lo, hi)| {
-                if !(lo.is_finite() && hi.is_finite()) {
-                    Err(range_err(axis, (lo, hi), "bounds must be finite"))
+                if !(lo.abs() <= MAX_MAGNITUDE && hi.abs() <= MAX_MAGNITUDE) {
+                    Err(range_err(
+                        axis,
+                        (lo, hi),
+                        "bounds must be finite and at most 1e300 in magnitude",
+                    ))
                 } else if lo >= hi {
                     Err(range_err(
                         axis,

@@ -11,11 +11,19 @@ pub(crate) struct Ticks {
 impl Ticks {
     /// The label of the major tick at plot-space position `v`, or an empty string.
     pub fn label_at(&self, v: f64) -> String {
-        let tol = 1e-9 * (1.0 + v.abs());
+        let spacing = match (self.major.first(), self.major.last()) {
+            (Some(a), Some(b)) if self.major.len() > 1 => (b - a) / (self.major.len() - 1) as f64,
+            _ => 1.0,
+        };
+        // plotters asks for labels at exactly the tick values; the tolerance only absorbs
+        // rounding, far below the tick spacing at any magnitude.
+        let tol = 1e-6 * spacing.abs().max(f64::MIN_POSITIVE);
         self.major
             .iter()
             .zip(&self.labels)
-            .find(|(m, _)| (*m - v).abs() <= tol)
+            .map(|(m, l)| ((m - v).abs(), l))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .filter(|(d, _)| *d <= tol)
             .map(|(_, l)| l.clone())
             .unwrap_or_default()
     }
@@ -437,5 +445,16 @@ mod tests {
         let t = linear_ticks(0.0, 1.0, &at_most(3));
         assert_eq!(t.label_at(0.5), "0.5");
         assert_eq!(t.label_at(0.25), "");
+        // Ticks 1e-301 apart stay distinct.
+        let t = linear_ticks(0.0, 2e-300, &at_most(3));
+        assert_eq!(
+            t.labels,
+            [
+                "0",
+                "1\u{d7}10\u{207b}\u{b3}\u{2070}\u{2070}",
+                "2\u{d7}10\u{207b}\u{b3}\u{2070}\u{2070}"
+            ]
+        );
+        assert_eq!(t.label_at(t.major[1]), t.labels[1]);
     }
 }

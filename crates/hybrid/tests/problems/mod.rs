@@ -78,7 +78,7 @@ impl HybridSystem for Ball {
         Crossing::Falling
     }
     fn transition(&self, _: (), _: usize, _t: f64, x: &mut [f64]) {
-        x[1] = -self.e * x[1];
+        x[1] *= -self.e;
     }
 }
 
@@ -200,5 +200,43 @@ impl HybridSystem for Decay {
     }
     fn vector_field(&self, _: (), t: f64, x: &[f64], dxdt: &mut [f64]) {
         dxdt[0] = -2.0 * t * x[0] * x[0];
+    }
+}
+
+/// `x'' = -1` as `[x, v]` from `[0, 1]`: `x = t - t^2 / 2`, peaking at `x = 1/2` at `t = 1`.
+/// One guard `x - level` in direction `dir`, identity reset in the same chart. Both pairs
+/// reproduce the parabola (and their interpolants it) to rounding with any step, so event
+/// times can be checked to the location tolerance even when one step spans both crossings,
+/// at `1 -+ sqrt(1 - 2 level)`.
+#[derive(Debug)]
+pub struct Projectile {
+    pub level: f64,
+    pub dir: Crossing,
+}
+
+impl Projectile {
+    pub fn crossings(&self) -> (f64, f64) {
+        let d = (1.0 - 2.0 * self.level).sqrt();
+        (1.0 - d, 1.0 + d)
+    }
+}
+
+impl HybridSystem for Projectile {
+    type Mode = ();
+    fn dim(&self) -> usize {
+        2
+    }
+    fn vector_field(&self, _: (), _t: f64, x: &[f64], dxdt: &mut [f64]) {
+        dxdt[0] = x[1];
+        dxdt[1] = -1.0;
+    }
+    fn num_guards(&self, _: ()) -> usize {
+        1
+    }
+    fn guard(&self, _: (), _: usize, _t: f64, x: &[f64]) -> f64 {
+        x[0] - self.level
+    }
+    fn guard_direction(&self, _: (), _: usize) -> Crossing {
+        self.dir
     }
 }

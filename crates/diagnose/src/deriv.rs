@@ -1,0 +1,124 @@
+//! Local polynomial (Savitzky-Golay) smoothing and differentiation of the measured position.
+
+use nalgebra::{DMatrix, DVector};
+
+/// Position, velocity and acceleration of a local polynomial fit at one sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Kinematics {
+    pub x: f64,
+    pub v: f64,
+    pub a: f64,
+}
+
+/// A least-squares polynomial of degree `degree` through the samples `x[lo..hi]` (step `dt`),
+/// evaluated with its first two derivatives at sample `at`. `None` when the window has no more
+/// samples than coefficients.
+pub(crate) fn local_fit(x: &[f64], lo: usize, hi: usize, at: usize, dt: f64, degree: usize) -> Option<Kinematics> {
+    let hi = hi.min(x.len());
+    let m = hi.checked_sub(lo)?;
+    let p = degree + 1;
+    if m <= p {
+        return None;
+    }
+    // Abscissae in samples relative to `at`, scaled to [-1, 1] for conditioning.
+    let half = ((m as f64) / 2.0).max(1.0);
+    let vander = DMatrix::from_fn(m, p, |i, j| {
+        let s = ((lo + i) as f64 - at as f64) / half;
+        s.powi(j as i32)
+    });
+    let y = DVector::from_iterator(m, x[lo..hi].iter().copied());
+    let coef = vander.svd(true, true).solve(&y, 1e-12).ok()?;
+    let c1 = if p > 1 { coef[1] } else { 0.0 };
+    let c2 = if p > 2 { coef[2] } else { 0.0 };
+    let scale = half * dt;
+    Some(Kinematics {
+        x: coef[0],
+        v: c1 / scale,
+        a: 2.0 * c2 / (scale * scale),
+    })
+}
+
+/// Savitzky-Golay filter of half-width `half` and degree `degree`: smoothed value, first and
+/// second derivative at every sample of `x[lo..hi]` whose full window lies inside `x`; other
+/// samples are left out. Returns the sample indices with their kinematics.
+pub(crate) fn savitzky_golay(
+    x: &[f64],
+    lo: usize,
+    hi: usize,
+    dt: f64,
+    half: usize,
+    degree: usize,
+) -> Vec<(usize, Kinematics)> {
+    let w = 2 * half + 1;
+    let p = degree + 1;
+    if w <= p {
+        return Vec::new();
+    }
+    let vander = DMatrix::from_fn(w, p, |i, j| (i as f64 - half as f64).powi(j as i32));
+    // Rows 0, 1, 2 of the pseudo-inverse give the smoothed value and the derivatives at the
+    // centre, in sample units.
+    let Ok(pinv) = vander.pseudo_inverse(1e-12) else {
+        return Vec::new();
+    };
+    let c0: Vec<f64> = (0..w).map(|i| pinv[(0, i)]).collect();
+    let c1: Vec<f64> = (0..w).map(|i| pinv[(1, i)] / dt).collect();
+    let c2: Vec<f64> = (0..w)
+        .map(|i| if p > 2 { 2.0 * pinv[(2, i)] / (dt * dt) } else { 0.0 })
+        .collect();
+    let start = lo.max(half);
+    let end = hi.min(x.len().saturating_sub(half));
+    (start..end)
+        .map(|k| {
+            let win = &x[k - half..=k + half];
+            let dot = |c: &[f64]| c.iter().zip(win).map(|(a, b)| a * b).sum::<f64>();
+            (
+                k,
+                Kinematics {
+                    x: dot(&c0),
+                    v: dot(&c1),
+                    a: dot(&c2),
+                },
+            )
+        })
+        .collect()
+}
+
+/// Half-width of a degree-4 Savitzky-Golay window whose pass band reaches about twice the
+/// natural frequency `f_n` (Hz) at sample step `dt` (Schafer's cut-off rule
+/// `f_c ~ (d + 1) / (3.2 w - 4.6)` cycles per sample for window length `w`).
+pub(crate) fn window_half_width(f_n: f64, dt: f64) -> usize {
+    let fc = (2.0 * f_n * dt).clamp(1e-4, 0.45);
+    let w = (5.0 / fc + 4.6) / 3.2;
+    ((w - 1.0) / 2.0).round().clamp(3.0, 200.0) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+
+    #[test]
+    fn savitzky_golay_is_exact_for_polynomials_of_its_degree() {
+        // x = 1 + 2 t - 3 t^2 + 0.5 t^3: a cubic lies in the span of a degree-4 fit, so
+        // value and derivatives are exact up to rounding (1e-9 relative to the acceleration).
+        let dt = 0.01;
+        let x: Vec<f64> = (0..200)
+            .map(|k| {
+                let t = k as f64 * dt;
+                1.0 + 2.0 * t - 3.0 * t * t + 0.5 * t * t * t
+            })
+            .collect();
+        let out = savitzky_golay(&x, 0, 200, dt, 7, 4);
+        assert_eq!(out.len(), 200 - 14);
+        for (k, kin) in out {
+            let t = k as f64 * dt;
+            assert_abs_diff_eq!(kin.x, x[k], epsilon = 1e-10);
+            assert_abs_diff_eq!(kin.v, 2.0 - 6.0 * t + 1.5 * t * t, epsilon = 1e-8);
+            assert_abs_diff_eq!(kin.a, -6.0 + 3.0 * t, epsilon = 1e-6);
+        }
+        let k = local_fit(&x, 0, 12, 0, dt, 3).unwrap();
+        assert_abs_diff_eq!(k.x, 1.0, epsilon = 1e-10);
+        assert_abs_diff_eq!(k.v, 2.0, epsilon = 1e-8);
+        assert_abs_diff_eq!(k.a, -6.0, epsilon = 1e-6);
+    }
+}

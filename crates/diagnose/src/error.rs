@@ -1,0 +1,136 @@
+use htfid_model::ModelError;
+
+/// Errors of the diagnosis. Every variant carries the numbers that explain it.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// Two columns of a record differ in length.
+    #[error("record column {column} has {found} samples, but t has {expected}")]
+    LengthMismatch {
+        /// The offending column (`f` or `x`).
+        column: &'static str,
+        /// Length of `t`.
+        expected: usize,
+        /// Length of the column.
+        found: usize,
+    },
+    /// The record is too short to diagnose.
+    #[error("a record needs at least {min} samples (got {found})")]
+    TooShort {
+        /// Smallest accepted length.
+        min: usize,
+        /// Length given.
+        found: usize,
+    },
+    /// A sample is NaN or infinite.
+    #[error("record column {column} is not finite at sample {index} (value {value})")]
+    NonFinite {
+        /// `t`, `f` or `x`.
+        column: &'static str,
+        /// 0-based sample index.
+        index: usize,
+        /// The value found.
+        value: f64,
+    },
+    /// The sample times are not uniform (or not increasing).
+    #[error(
+        "record time step {index} -> {next} is {step} s, but the mean step is {dt} s \
+         (relative tolerance {tolerance})",
+        next = index + 1
+    )]
+    NonUniformTime {
+        /// Index of the first sample of the offending step.
+        index: usize,
+        /// The step found (s).
+        step: f64,
+        /// The mean step (s).
+        dt: f64,
+        /// Relative tolerance applied.
+        tolerance: f64,
+    },
+    /// An option is out of range.
+    #[error("{name} must be {expected} (got {value})")]
+    InvalidOption {
+        /// Option name as in [`DiagnoseOptions`](crate::DiagnoseOptions).
+        name: &'static str,
+        /// What was expected.
+        expected: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A fit or validation range is empty or leaves the record.
+    #[error("{which} range {start}..{end} is empty or leaves the record of {len} samples")]
+    InvalidRange {
+        /// `fit` or `validation`.
+        which: &'static str,
+        /// First sample (inclusive).
+        start: usize,
+        /// Last sample (exclusive).
+        end: usize,
+        /// Record length.
+        len: usize,
+    },
+    /// A validation range shares samples with a fit range: it would not be held out.
+    #[error(
+        "validation range {val_start}..{val_end} overlaps fit range {fit_start}..{fit_end}; \
+         held-out data must not be fitted"
+    )]
+    OverlappingRanges {
+        /// Fit range start.
+        fit_start: usize,
+        /// Fit range end (exclusive).
+        fit_end: usize,
+        /// Validation range start.
+        val_start: usize,
+        /// Validation range end (exclusive).
+        val_end: usize,
+    },
+    /// After removing the burn-in, a range keeps too few samples.
+    #[error(
+        "{which} range {start}..{end} keeps {kept} samples after the {burn_in_s} s burn-in; \
+         at least {min} are needed"
+    )]
+    RangeTooShort {
+        /// `fit` or `validation`.
+        which: &'static str,
+        /// First sample.
+        start: usize,
+        /// Last sample (exclusive).
+        end: usize,
+        /// Samples left after the burn-in.
+        kept: usize,
+        /// Burn-in used (s).
+        burn_in_s: f64,
+        /// Smallest accepted number.
+        min: usize,
+    },
+    /// The same nominal parameter is listed twice as free.
+    #[error("nominal parameter {name} is listed twice in `free`")]
+    DuplicateFree {
+        /// Parameter name.
+        name: &'static str,
+    },
+    /// The same candidate effect is listed twice.
+    #[error("candidate effect {name} is listed twice")]
+    DuplicateCandidate {
+        /// Effect name.
+        name: &'static str,
+    },
+    /// The nominal model is invalid.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The nominal model cannot be simulated on the data.
+    #[error("simulating the nominal model failed at t = {time} s: {reason}")]
+    NominalSimulation {
+        /// Time of the failure (s).
+        time: f64,
+        /// What went wrong.
+        reason: String,
+    },
+    /// The fit of the nominal model failed.
+    #[error("fitting the nominal model failed: {reason}")]
+    NominalFit {
+        /// What went wrong.
+        reason: String,
+    },
+}
