@@ -13,7 +13,14 @@ pub(crate) struct Kinematics {
 /// A least-squares polynomial of degree `degree` through the samples `x[lo..hi]` (step `dt`),
 /// evaluated with its first two derivatives at sample `at`. `None` when the window has no more
 /// samples than coefficients.
-pub(crate) fn local_fit(x: &[f64], lo: usize, hi: usize, at: usize, dt: f64, degree: usize) -> Option<Kinematics> {
+pub(crate) fn local_fit(
+    x: &[f64],
+    lo: usize,
+    hi: usize,
+    at: usize,
+    dt: f64,
+    degree: usize,
+) -> Option<Kinematics> {
     let hi = hi.min(x.len());
     let m = hi.checked_sub(lo)?;
     let p = degree + 1;
@@ -63,7 +70,13 @@ pub(crate) fn savitzky_golay(
     let c0: Vec<f64> = (0..w).map(|i| pinv[(0, i)]).collect();
     let c1: Vec<f64> = (0..w).map(|i| pinv[(1, i)] / dt).collect();
     let c2: Vec<f64> = (0..w)
-        .map(|i| if p > 2 { 2.0 * pinv[(2, i)] / (dt * dt) } else { 0.0 })
+        .map(|i| {
+            if p > 2 {
+                2.0 * pinv[(2, i)] / (dt * dt)
+            } else {
+                0.0
+            }
+        })
         .collect();
     let start = lo.max(half);
     let end = hi.min(x.len().saturating_sub(half));

@@ -6,9 +6,7 @@ use serde::{Deserialize, Serialize};
 
 /// A candidate physical effect. Its [`name`](Effect::name) and
 /// [`parameter_names`](Effect::parameter_names) are the keys of the JSON results.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {
     /// `k3`: extra spring force `-k3 (x - x0)^3` (N/m^3).
@@ -145,9 +143,7 @@ impl FromStr for Effect {
 
 /// A parameter of the nominal model that is refitted alongside every candidate (and in the
 /// nominal fit itself).
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum NominalParam {
     /// Mass `m` (kg).
@@ -198,6 +194,13 @@ pub(crate) enum Slot {
     KStop,
 }
 
+fn stop(e: &mut Effects) -> &mut HardStop {
+    e.hard_stop.get_or_insert(HardStop {
+        x_stop: 0.0,
+        k_stop: 0.0,
+    })
+}
+
 impl Slot {
     pub(crate) fn name(self) -> &'static str {
         match self {
@@ -238,12 +241,6 @@ impl Slot {
     }
 
     pub(crate) fn set(self, p: &mut HopperParams, e: &mut Effects, value: f64) {
-        let stop = |e: &mut Effects| -> &mut HardStop {
-            e.hard_stop.get_or_insert(HardStop {
-                x_stop: 0.0,
-                k_stop: 0.0,
-            })
-        };
         match self {
             Slot::M => p.m = value,
             Slot::K => p.k = value,

@@ -127,6 +127,14 @@ pub enum DiagnoseError {
         /// What went wrong.
         reason: String,
     },
+    /// A model cannot be simulated on the record.
+    #[error("simulation failed at t = {time} s: {reason}")]
+    Simulation {
+        /// Time of the failure (s).
+        time: f64,
+        /// What went wrong.
+        reason: String,
+    },
     /// The fit of the nominal model failed.
     #[error("fitting the nominal model failed: {reason}")]
     NominalFit {

@@ -6,7 +6,7 @@ use htfid_hybrid::{HybridSystem, Method, Options};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams, InputFn, ModelError};
 use serde::{Deserialize, Serialize};
 
-use crate::interp::SampledSignal;
+use crate::interp::{first_order_lag, Interpolation, SampledSignal};
 
 /// Largest state dimension the fixed-step integrator handles (position, velocity, lag state).
 const MAX_DIM: usize = 4;
@@ -20,9 +20,10 @@ const MAX_SUBSTEPS: usize = 256;
 #[serde(rename_all = "snake_case")]
 pub enum SimMethod {
     /// Classical fourth-order Runge-Kutta on the sample grid with `s` equal sub-steps per
-    /// sample, `s` the smallest integer with `rate * dt / s <= max_rate_step`, where `rate` is
-    /// the fastest rate of the model linearised over the data (natural frequency including
-    /// cubic and contact stiffness, damping rate, inverse lag). Damper switches are located on
+    /// sample, `s` the smallest integer with `omega * dt / s <= max_rate_step` and
+    /// `decay * dt / s <= 10 max_rate_step`, where `omega` is the fastest natural frequency of
+    /// the model linearised over the data (including cubic and contact stiffness) and `decay`
+    /// the fastest damping rate (damping over mass). Damper switches are located on
     /// the cubic Hermite interpolant of the sub-step and the step is split there, so the
     /// simulated output is a smooth function of the parameters. Fast; its error against the
     /// adaptive integrator is checked in the tests.
@@ -76,8 +77,12 @@ impl Stepping {
     ) -> Stepping {
         match method {
             SimMethod::FixedStep { max_rate_step } => {
-                let rate = fastest_rate(p, e, extent);
-                let s = (rate * dt / max_rate_step).ceil();
+                let (omega, decay) = rates(p, e, extent);
+                // Oscillation needs `omega h <= max_rate_step`; a pure decay (damping, lag) is
+                // resolved well enough at ten times that.
+                let s = (omega * dt / max_rate_step)
+                    .max(decay * dt / (10.0 * max_rate_step))
+                    .ceil();
                 let substeps = if s.is_finite() {
                     (s as usize).clamp(1, MAX_SUBSTEPS)
                 } else {
@@ -103,30 +108,65 @@ impl Stepping {
     }
 }
 
-/// The fastest rate (1/s) of the model linearised anywhere over the data's extent.
-fn fastest_rate(p: &HopperParams, e: &Effects, extent: &Extent) -> f64 {
+/// The fastest oscillation (rad/s) and decay (1/s) rates of the model linearised anywhere over
+/// the data's extent.
+fn rates(p: &HopperParams, e: &Effects, extent: &Extent) -> (f64, f64) {
     let dx = (extent.x_max - p.x0).abs().max((extent.x_min - p.x0).abs()) * 1.2;
     let k_stop = e.hard_stop.map_or(0.0, |h| h.k_stop.max(0.0));
     let k_eff = p.k + 3.0 * e.k3.abs() * dx * dx + k_stop;
     let c_eff = p.c + e.c_f.abs() + 2.0 * e.c2.abs() * extent.v_max * 1.2;
-    let mut rate = (k_eff / p.m).sqrt().max(c_eff / p.m);
-    if e.tau > 0.0 {
-        rate = rate.max(1.0 / e.tau);
-    }
-    rate
+    // A lag is applied to the input exactly (see `MeasuredForce::drive`) and sets no rate.
+    ((k_eff / p.m).sqrt(), c_eff / p.m)
 }
 
-/// The model driven by the sampled force.
-pub(crate) fn driven_hopper(
-    params: HopperParams,
-    damper: DamperLaw,
-    effects: Effects,
-    input: &Arc<SampledSignal>,
-) -> Result<Hopper, ModelError> {
-    let hopper = Hopper::with_effects(params, damper, effects)?;
-    let signal = Arc::clone(input);
-    let f: InputFn = Arc::new(move |t| signal.eval(t));
-    Ok(hopper.with_input(Some(f)))
+/// The measured force, read between samples, with what is needed to lag it.
+#[derive(Debug, Clone)]
+pub(crate) struct MeasuredForce {
+    t0: f64,
+    dt: f64,
+    samples: Vec<f64>,
+    kind: Interpolation,
+    signal: Arc<SampledSignal>,
+}
+
+impl MeasuredForce {
+    pub(crate) fn new(t0: f64, dt: f64, samples: &[f64], kind: Interpolation) -> Self {
+        MeasuredForce {
+            t0,
+            dt,
+            samples: samples.to_vec(),
+            kind,
+            signal: Arc::new(SampledSignal::new(t0, dt, samples, kind)),
+        }
+    }
+
+    /// The model driven by the measured force.
+    ///
+    /// An actuator lag acts on the input alone, so it is applied to the force samples exactly
+    /// (first-order hold, from the first sample with `F = f`) and the model is simulated with
+    /// `tau = 0` and the lagged force: the same dynamics as the model's lag state, but stable
+    /// for every `tau` without sub-steps shorter than `tau`. A delay then shifts the lagged
+    /// force, which equals lagging the delayed one.
+    pub(crate) fn drive(
+        &self,
+        params: HopperParams,
+        damper: DamperLaw,
+        effects: Effects,
+    ) -> Result<Hopper, ModelError> {
+        let signal = if effects.tau > 0.0 {
+            let lagged = first_order_lag(&self.samples, self.dt, effects.tau);
+            Arc::new(SampledSignal::new(self.t0, self.dt, &lagged, self.kind))
+        } else {
+            Arc::clone(&self.signal)
+        };
+        let effects = Effects {
+            tau: 0.0,
+            ..effects
+        };
+        let hopper = Hopper::with_effects(params, damper, effects)?;
+        let f: InputFn = Arc::new(move |t| signal.eval(t));
+        Ok(hopper.with_input(Some(f)))
+    }
 }
 
 /// Simulates `out.len()` samples from `t0` (step `dt`) starting at position and velocity

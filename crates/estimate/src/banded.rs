@@ -1,5 +1,5 @@
-//! Banded Hermitian positive definite matrices: Cholesky factorisation, solves, and the diagonal
-//! blocks of the inverse by selected inversion.
+//! Banded Hermitian positive definite matrices: Cholesky factorisation, solves, and the band of
+//! the inverse by selected inversion.
 //!
 //! Storage and work are `O(n b)` and `O(n b^2)` for order `n` and half-bandwidth `b`; nothing is
 //! ever dense in `n`. The selected inversion keeps only `b + 1` rows of the inverse at a time.
@@ -50,17 +50,26 @@ impl BandedHermitian {
     pub(crate) fn factor(mut self) -> Result<BandedCholesky> {
         let (n, b) = (self.n, self.b);
         let w = b + 1;
-        let l = &mut self.data;
         let mut madds = 0u64;
         for i in 0..n {
             let j0 = i.saturating_sub(b);
+            // Rows above i are final; row i is being formed.
+            let (done, rest) = self.data.split_at_mut(i * w);
+            let row_i = &mut rest[..w];
             for j in j0..=i {
                 let len = j - j0;
-                let mut s = l[i * w + j + b - i];
-                let ri = i * w + j0 + b - i;
-                let rj = j * w + j0 + b - j;
-                for t in 0..len {
-                    s -= l[ri + t] * l[rj + t].conj();
+                let oi = j0 + b - i;
+                let mut s = row_i[j + b - i];
+                if j < i {
+                    let rj = &done[j * w + j0 + b - j..j * w + b];
+                    for (a, c) in row_i[oi..oi + len].iter().zip(rj) {
+                        s -= a * c.conj();
+                    }
+                } else {
+                    s -= row_i[oi..oi + len]
+                        .iter()
+                        .map(|a| a.norm_sqr())
+                        .sum::<f64>();
                 }
                 madds += len as u64;
                 if j == i {
@@ -68,9 +77,9 @@ impl BandedHermitian {
                     if !(d > 0.0 && d.is_finite()) {
                         return Err(Error::NotPositiveDefinite { index: i, pivot: d });
                     }
-                    l[i * w + b] = Complex64::new(d.sqrt(), 0.0);
+                    row_i[b] = Complex64::new(d.sqrt(), 0.0);
                 } else {
-                    l[i * w + j + b - i] = s / l[j * w + b].re;
+                    row_i[j + b - i] = s / done[j * w + b].re;
                 }
             }
         }
@@ -130,33 +139,21 @@ impl BandedCholesky {
         }
     }
 
-    /// Visits the diagonal `h x h` blocks of `A^{-1}`, last block first, as row-major full
-    /// Hermitian blocks. Returns the number of complex multiply-adds.
+    /// Visits every row of `A^{-1}` within the band, last row first: `visit(i, z)` receives
+    /// `z[d] = (A^{-1})_{i, i + d}` for `d = 0..=b` (zero beyond the matrix). Returns the number of
+    /// complex multiply-adds.
     ///
     /// Uses the Takahashi recursion `Z_ij = (delta_ij / L_ii - sum_{l > i} conj(L_li) Z_lj) / L_ii`
-    /// for `i <= j` within the band, which needs only rows `i + 1 ..= i + b` of `Z`.
-    ///
-    /// # Panics
-    /// If `h` does not divide the order or exceeds `b + 1` (internal contract).
-    pub(crate) fn inverse_diagonal_blocks(
-        &mut self,
-        h: usize,
-        mut visit: impl FnMut(usize, &[Complex64]),
-    ) -> u64 {
+    /// for `i <= j` within the band, which needs only rows `i + 1 ..= i + b` of `Z`: those are
+    /// kept in a ring of `b + 1` rows, so the extra memory is `O(b^2)`.
+    pub(crate) fn inverse_rows(&mut self, mut visit: impl FnMut(usize, &[Complex64])) -> u64 {
         let (n, b) = (self.n, self.b);
-        assert!(h >= 1 && n % h == 0 && h <= b + 1);
         let w = b + 1;
         // Row slot i % w holds Z[i][i + d] for d = 0..=b.
         let mut ring = vec![Complex64::new(0.0, 0.0); w * w];
         let mut col = vec![Complex64::new(0.0, 0.0); b];
-        let mut block = vec![Complex64::new(0.0, 0.0); h * h];
-        let z = |ring: &[Complex64], r: usize, c: usize| -> Complex64 {
-            if r <= c {
-                ring[(r % w) * w + c - r]
-            } else {
-                ring[(c % w) * w + r - c].conj()
-            }
-        };
+        // slots[t] is the ring slot of row i + 1 + t.
+        let mut slots = vec![0usize; b];
         let mut madds = 0u64;
         for i in (0..n).rev() {
             let lii = self.at(i, i).re;
@@ -164,35 +161,36 @@ impl BandedCholesky {
             let nl = lmax - i;
             for t in 0..nl {
                 col[t] = self.at(i + 1 + t, i).conj();
+                slots[t] = (i + 1 + t) % w;
             }
+            let si = i % w;
             for d in (1..=b).rev() {
                 let j = i + d;
                 let v = if j < n {
+                    // Z[l][j] for l = i + 1 + t: stored in row l when l <= j (t < d), else in
+                    // row j, contiguously.
+                    let row_j = &ring[slots[d - 1] * w..slots[d - 1] * w + w];
                     let mut s = Complex64::new(0.0, 0.0);
-                    for t in 0..nl {
-                        s += col[t] * z(&ring, i + 1 + t, j);
+                    for t in 0..d {
+                        s += col[t] * ring[slots[t] * w + d - 1 - t];
+                    }
+                    for (c, z) in col[d..nl].iter().zip(&row_j[1..]) {
+                        s += c * z.conj();
                     }
                     madds += nl as u64;
                     -s / lii
                 } else {
                     Complex64::new(0.0, 0.0)
                 };
-                ring[(i % w) * w + d] = v;
+                ring[si * w + d] = v;
             }
             let mut s = Complex64::new(0.0, 0.0);
             for t in 0..nl {
-                s += col[t] * ring[(i % w) * w + 1 + t].conj();
+                s += col[t] * ring[si * w + 1 + t].conj();
             }
             madds += nl as u64;
-            ring[(i % w) * w] = Complex64::new((1.0 / lii - s.re) / lii, 0.0);
-            if i % h == 0 {
-                for r in 0..h {
-                    for c in 0..h {
-                        block[r * h + c] = z(&ring, i + r, i + c);
-                    }
-                }
-                visit(i / h, &block);
-            }
+            ring[si * w] = Complex64::new((1.0 / lii - s.re) / lii, 0.0);
+            visit(i, &ring[si * w..(si + 1) * w]);
         }
         self.work.inverse += madds;
         self.work.stored = n * w + w * w;
@@ -234,7 +232,7 @@ mod tests {
 
     #[test]
     fn solve_and_inverse_blocks_match_dense_linear_algebra() {
-        for (n, b, h) in [(12usize, 4usize, 2usize), (21, 6, 3), (30, 0, 1), (8, 7, 4)] {
+        for (n, b) in [(12usize, 4usize), (21, 6), (30, 0), (8, 7)] {
             let (band, dense) = random_banded(n, b, 7 + n as u64);
             let mut chol = band.factor().unwrap();
             let rhs: Vec<Complex64> = (0..n)
@@ -249,16 +247,18 @@ mod tests {
                 assert!((x[i] - x_dense[(i, 0)]).norm() < 1e-12);
             }
             let mut seen = 0;
-            chol.inverse_diagonal_blocks(h, |k, blk| {
+            chol.inverse_rows(|i, row| {
                 seen += 1;
-                for r in 0..h {
-                    for c in 0..h {
-                        let d = inv[(k * h + r, k * h + c)];
-                        assert!((blk[r * h + c] - d).norm() < 1e-12, "block {k} ({r},{c})");
-                    }
+                for (d, v) in row.iter().enumerate() {
+                    let want = if i + d < n {
+                        inv[(i, i + d)]
+                    } else {
+                        Complex64::new(0.0, 0.0)
+                    };
+                    assert!((v - want).norm() < 1e-12, "row {i}, offset {d}");
                 }
             });
-            assert_eq!(seen, n / h);
+            assert_eq!(seen, n);
         }
     }
 
@@ -285,7 +285,7 @@ mod tests {
             .map(|&n| {
                 let band = banded_fixture(n, b);
                 let mut c = band.factor().unwrap();
-                c.inverse_diagonal_blocks(7, |_, _| {});
+                c.inverse_rows(|_, _| {});
                 c.work()
             })
             .collect();

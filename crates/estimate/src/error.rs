@@ -270,13 +270,13 @@ pub enum Error {
         n_b: i32,
     },
     /// A line carries no input power.
-    #[error("line {line} carries no input power (|U| = {magnitude}, largest line {largest})")]
+    #[error("line {line} carries no input power (|U| = {magnitude}, largest input bin {largest})")]
     LineNotExcited {
         /// The line.
         line: usize,
         /// Its input magnitude.
         magnitude: f64,
-        /// The largest line magnitude.
+        /// The largest input bin magnitude.
         largest: f64,
     },
     /// Two records that must pair do not match.

@@ -12,7 +12,7 @@ use crate::record::{validate_harmonics, validate_period, Record, Spectrum};
 
 /// Tolerance on "whole number" of periods and samples, as for records.
 const WHOLE_TOL: f64 = 1e-6;
-/// A line whose mean input is below this fraction of the largest line is treated as unexcited.
+/// A line whose mean input is below this fraction of the largest input bin is unexcited.
 const UNEXCITED: f64 = 1e-10;
 
 /// The excited lines of a periodic multisine.
@@ -192,6 +192,8 @@ fn estimate(
     // Per period: U at the lines, Y at the targets.
     let mut u_lines = vec![Complex64::new(0.0, 0.0); periods * nl];
     let mut y_bins = vec![Complex64::new(0.0, 0.0); periods * nt];
+    // Largest input bin anywhere, the reference for "this line is not excited".
+    let mut largest = 0.0f64;
     for m in 0..periods {
         let range = m * nm..(m + 1) * nm;
         let t0 = plus.t_start() + (m * nm) as f64 * dt;
@@ -207,6 +209,9 @@ fn estimate(
         for (li, &b) in spec.lines.iter().enumerate() {
             u_lines[m * nl + li] = su.at(b as i64);
         }
+        largest = (1..=(nm as i64 - 1) / 2)
+            .map(|k| su.at(k).norm())
+            .fold(largest, f64::max);
         for (ti, t) in targets.iter().enumerate() {
             y_bins[m * nt + ti] = sy.at(t.3);
         }
@@ -215,9 +220,8 @@ fn estimate(
         (0..periods).map(|m| v[m * stride + i]).sum::<Complex64>() / periods as f64
     };
     let u_mean: Vec<Complex64> = (0..nl).map(|li| mean(&u_lines, nl, li)).collect();
-    let largest = u_mean.iter().map(|c| c.norm()).fold(0.0, f64::max);
     for (li, u) in u_mean.iter().enumerate() {
-        if !(u.norm() > UNEXCITED * largest) {
+        if u.norm() <= UNEXCITED * largest {
             return Err(Error::LineNotExcited {
                 line: spec.lines[li],
                 magnitude: u.norm(),

@@ -484,7 +484,8 @@ fn covariance(jac: &DMatrix<f64>, cost: f64, m: usize) -> Option<Vec<Vec<f64>>> 
     let v_t = svd.v_t?;
     let sv = &svd.singular_values;
     let smax = sv.max();
-    if !(smax > 0.0)
+    if smax.is_nan()
+        || smax <= 0.0
         || sv
             .iter()
             .any(|&s| s <= smax * f64::EPSILON * m.max(np) as f64)

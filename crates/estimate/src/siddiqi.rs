@@ -40,7 +40,6 @@ pub fn siddiqi(
         MIN_BINS,
     )?;
     let sys = BinSystem::new(&prep);
-    if std::env::var("DBG_GCV").is_ok() { smooth::debug_curve(&sys); }
     let res = smooth::estimate(&sys, alpha, 0.0)?;
     let omegas = prep.omegas();
     Ok(HtfEstimate::new(

@@ -104,12 +104,38 @@ pub(crate) struct SmoothFit {
     pub work: Work,
 }
 
+/// Entries of `D2^T D2` for `m` bins: `(diagonal, first off-diagonal, second off-diagonal)`,
+/// entry `c` of an off-diagonal coupling bins `c` and `c + 1` (or `c + 2`).
+fn penalty_bands(m: usize) -> [Vec<f64>; 3] {
+    const STENCIL: [f64; 3] = [1.0, -2.0, 1.0];
+    let mut bands = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
+    for centre in 1..m.saturating_sub(1) {
+        for (di, si) in STENCIL.iter().enumerate() {
+            for (dj, sj) in STENCIL.iter().enumerate().skip(di) {
+                bands[dj - di][centre - 1 + di] += si * sj;
+            }
+        }
+    }
+    bands
+}
+
 /// Solves `(sum_k B_k + ridge I + alpha D2^T D2 (x) I) x = A^H y` and the GCV ingredients.
+///
+/// The trace of the influence matrix is formed as
+/// `tr S = M H - alpha tr(Z (D2^T D2 (x) I)) - ridge tr(Z)` (`Z` the inverse normal matrix),
+/// which follows from `Z N = I`. The direct sum `tr(Z_kk B_k)` would cancel catastrophically
+/// for small `alpha`, where `Z ~ 1/alpha` along the directions the data leave free while
+/// `n - tr S` is tiny; `alpha Z` stays of order one.
 pub(crate) fn fit(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> Result<SmoothFit> {
     let (h, m) = (sys.h, sys.m);
     let n = m * h;
     let smooth = alpha > 0.0 && m >= 3;
     let b = if smooth { 2 * h } else { h - 1 };
+    let pen = if smooth {
+        penalty_bands(m)
+    } else {
+        [Vec::new(), Vec::new(), Vec::new()]
+    };
     let mut mat = BandedHermitian::zeros(n, b);
     let mut g = vec![Complex64::new(0.0, 0.0); h * h];
     let mut x = vec![Complex64::new(0.0, 0.0); n];
@@ -128,16 +154,12 @@ pub(crate) fn fit(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> 
                 x[base + hh] += a.conj() * yr;
             }
         }
-    }
-    if smooth {
-        const STENCIL: [f64; 3] = [1.0, -2.0, 1.0];
-        for c in 1..m - 1 {
-            for (di, si) in STENCIL.iter().enumerate() {
-                for (dj, sj) in STENCIL.iter().enumerate().take(di + 1) {
-                    let v = Complex64::new(alpha * si * sj, 0.0);
-                    let (bi, bj) = (c - 1 + di, c - 1 + dj);
+        if smooth {
+            for (d, band) in pen.iter().enumerate() {
+                if kb >= d && band[kb - d] != 0.0 {
+                    let v = Complex64::new(alpha * band[kb - d], 0.0);
                     for hh in 0..h {
-                        mat.add_lower(bi * h + hh, bj * h + hh, v);
+                        mat.add_lower(base + hh, (kb - d) * h + hh, v);
                     }
                 }
             }
@@ -153,22 +175,27 @@ pub(crate) fn fit(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> 
             rss += (sys.y[kb * sys.k + r] - fit).norm_sqr();
         }
     }
-    let mut trace = 0.0;
+    let mut pen_trace = 0.0;
+    let mut z_trace = 0.0;
     let mut zdiag = if want_zdiag { vec![0.0; n] } else { Vec::new() };
-    chol.inverse_diagonal_blocks(h, |kb, z| {
-        sys.gram(kb, &mut g);
-        // trace(Z_kk B_k) is the influence of bin k's data on its own fit.
-        for h1 in 0..h {
-            for h2 in 0..h {
-                trace += (z[h1 * h + h2] * g[h2 * h + h1]).re;
+    chol.inverse_rows(|i, z| {
+        let zii = z[0].re;
+        z_trace += zii;
+        if smooth {
+            let kb = i / h;
+            pen_trace += zii * pen[0][kb];
+            for d in 1..=2 {
+                if kb + d < m {
+                    // Z and D2^T D2 are symmetric in the pair, hence twice the real part.
+                    pen_trace += 2.0 * z[d * h].re * pen[d][kb];
+                }
             }
         }
         if want_zdiag {
-            for hh in 0..h {
-                zdiag[kb * h + hh] = z[hh * h + hh].re;
-            }
+            zdiag[i] = zii;
         }
     });
+    let trace = n as f64 - alpha * pen_trace - ridge * z_trace;
     Ok(SmoothFit {
         x,
         rss,
@@ -178,9 +205,14 @@ pub(crate) fn fit(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> 
     })
 }
 
+/// GCV ignores weights that leave fewer residual degrees of freedom than this fraction of the
+/// data: there the score is a ratio of two vanishing quantities, and for small weights the
+/// normal matrix (condition ~ 1 / (alpha (pi / M)^4)) is too ill-conditioned to resolve it.
+const GCV_MIN_DOF_FRACTION: f64 = 1e-3;
+
 fn gcv_score(fit: &SmoothFit, nd: f64) -> f64 {
     let denom = 1.0 - fit.trace / nd;
-    if denom <= 1e-12 {
+    if denom < GCV_MIN_DOF_FRACTION {
         f64::INFINITY
     } else {
         fit.rss / nd / (denom * denom)
@@ -361,7 +393,7 @@ mod tests {
         let zinv = normal.clone().try_inverse().unwrap();
         let x = &zinv * big.adjoint() * &rhs;
         let fitted = &a_data * &x;
-        let rss = (&rhs.rows(0, m * k) - &fitted).norm_squared();
+        let rss = (rhs.rows(0, m * k) - &fitted).norm_squared();
         let trace = (&a_data * &zinv * a_data.adjoint()).trace().re;
         let f = fit(&sys, alpha, ridge, true).unwrap();
         // Random data, cond(normal) ~ 1e3: 1e-10 relative is rounding with margin.
@@ -392,16 +424,6 @@ mod tests {
             (work[0].stored as f64, work[1].stored as f64),
         ] {
             assert!((b / a - 4.0).abs() < 0.04, "ratio {}", b / a);
-        }
-    }
-}
-pub(crate) fn debug_curve(sys: &BinSystem) {
-    let scale = sys.gram_scale();
-    let nd = sys.data_count();
-    for i in 0..25 {
-        let la = -8.0 + 0.5 * i as f64;
-        if let Ok(f) = fit(sys, 10f64.powf(la) * scale, 0.0, false) {
-            println!("log a {la:5.1} rss/n {:.4e} tr/n {:.6} gcv {:.4e}", f.rss / nd, f.trace / nd, gcv_score(&f, nd));
         }
     }
 }

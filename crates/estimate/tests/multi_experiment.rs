@@ -5,7 +5,9 @@ mod common;
 use std::f64::consts::PI;
 
 use common::{c_at, max_rel_err, random_spectrum, synth_record, with_noise, Grid, Rational, Truth};
-use htfid_estimate::{multi_experiment, Alpha, Error, Leakage, MultiOptions, Record, Regularisation};
+use htfid_estimate::{
+    multi_experiment, Alpha, Error, Leakage, MultiOptions, Record, Regularisation,
+};
 use num_complex::Complex64;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -23,7 +25,11 @@ const KMAX: i64 = 62;
 
 /// `K` records of the periodic input delayed by `r T / K`, each starting at an absolute time
 /// that is not a whole number of periods.
-fn phase_shifted(k: usize, truth: &dyn Truth, seed: u64) -> (Vec<Record>, Vec<Complex64>, Vec<f64>) {
+fn phase_shifted(
+    k: usize,
+    truth: &dyn Truth,
+    seed: u64,
+) -> (Vec<Record>, Vec<Complex64>, Vec<f64>) {
     let c = random_spectrum(KMAX, seed);
     let taus: Vec<f64> = (0..k).map(|r| r as f64 * PERIOD / k as f64).collect();
     let records = taus
@@ -65,7 +71,11 @@ fn recovers_rational_htfs_noise_free() {
             .collect();
         let expect = mags.iter().copied().fold(0.0, f64::max)
             / mags.iter().copied().fold(f64::INFINITY, f64::min);
-        assert!((cond[kb] - expect).abs() < 1e-8 * expect, "bin {kb}: {} vs {expect}", cond[kb]);
+        assert!(
+            (cond[kb] - expect).abs() < 1e-8 * expect,
+            "bin {kb}: {} vs {expect}",
+            cond[kb]
+        );
     }
 }
 
@@ -85,7 +95,10 @@ fn standard_errors_match_monte_carlo_scatter() {
     let mut sum_sq = vec![0.0; h * m];
     let mut reported_var = vec![0.0; h * m];
     for _ in 0..trials {
-        let noisy: Vec<Record> = clean.iter().map(|r| with_noise(r, sigma, &mut rng)).collect();
+        let noisy: Vec<Record> = clean
+            .iter()
+            .map(|r| with_noise(r, sigma, &mut rng))
+            .collect();
         let est = multi_experiment(&noisy, PERIOD, &hs, BAND, &opts).unwrap();
         for (i, &n) in hs.iter().enumerate() {
             let s = est.harmonic(n).unwrap();
@@ -110,7 +123,10 @@ fn standard_errors_match_monte_carlo_scatter() {
             rep += reported_var[i * m + kb] / trials as f64;
         }
         let ratio = (obs / rep).sqrt();
-        assert!((0.8..1.25).contains(&ratio), "G_{n}: observed/reported = {ratio}");
+        assert!(
+            (0.8..1.25).contains(&ratio),
+            "G_{n}: observed/reported = {ratio}"
+        );
     }
     // Pooling over 11 bins with K - H = 2 each; the band edges pool 6 bins.
     assert!((first.dof().unwrap() - 12.0).abs() < 1e-12);
@@ -273,8 +289,14 @@ fn records_must_be_whole_periods_and_share_a_grid() {
     .unwrap_err();
     assert!(matches!(e, Error::RecordsDiffer { index: 1, .. }));
     // A band whose shifted input bins reach Nyquist (50 Hz = 314 rad/s).
-    let e = multi_experiment(&records, PERIOD, &[-2, 0], (1.0, 305.0), &MultiOptions::default())
-        .unwrap_err();
+    let e = multi_experiment(
+        &records,
+        PERIOD,
+        &[-2, 0],
+        (1.0, 305.0),
+        &MultiOptions::default(),
+    )
+    .unwrap_err();
     assert!(matches!(e, Error::BeyondNyquist { n: -2, .. }), "{e}");
 }
 
@@ -357,7 +379,10 @@ fn local_polynomial_method_removes_segment_transients() {
     assert!((6.0..11.0).contains(&rate), "convergence ratio {rate}");
     // Measured 3.4e-4 at 64 s segments; 1e-3 leaves a factor 3.
     assert!(lpm2 < 1e-3, "LPM error {lpm2:e}");
-    assert!(plain1 > 100.0 * lpm1 && plain2 > 100.0 * lpm2, "{plain1:e} {plain2:e}");
+    assert!(
+        plain1 > 100.0 * lpm1 && plain2 > 100.0 * lpm2,
+        "{plain1:e} {plain2:e}"
+    );
 }
 
 #[test]

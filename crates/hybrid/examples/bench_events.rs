@@ -1,8 +1,14 @@
 //! Timing of the event-heavy workload the integrator is built for: a forced oscillator whose
 //! damper switches on while the mass moves up (2 states, 2 guards per chart), integrated with
-//! DOP853 at the default tolerances.
+//! DOP853 at the default tolerances; and, for comparison, the same pair on a guard-free
+//! oscillator.
 //!
 //! Run with `cargo run --release -p htfid-hybrid --example bench_events`.
+//!
+//! Recorded on the development VM (2 shared cores of an AMD EPYC, where one libm `cos` costs
+//! about 9 ns): switched damper 13 847 steps and 553 events in about 7.1 ms (about 510 ns per
+//! step, of which some 150 ns are the 15 `cos` calls of the forcing per step); guard-free
+//! oscillator about 200 ns per DOP853 step and 100 ns per Dopri5 step.
 
 use std::time::Instant;
 
@@ -61,6 +67,33 @@ impl HybridSystem for SwitchedDamper {
     }
 }
 
+/// `x'' = -x`, no guards.
+#[derive(Debug)]
+struct Plain;
+
+impl HybridSystem for Plain {
+    type Mode = ();
+    fn dim(&self) -> usize {
+        2
+    }
+    fn vector_field(&self, _: (), _t: f64, x: &[f64], dxdt: &mut [f64]) {
+        dxdt[0] = x[1];
+        dxdt[1] = -x[0];
+    }
+}
+
+fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..runs {
+        let start = Instant::now();
+        let out = f();
+        best = best.min(start.elapsed().as_secs_f64());
+        last = Some(out);
+    }
+    (best, last.expect("at least one run"))
+}
+
 fn main() {
     let sys = SwitchedDamper {
         c: 0.5,
@@ -74,24 +107,34 @@ fn main() {
     };
     let t_end = 850.0;
     let runs = 20;
-    let mut best = f64::INFINITY;
-    let mut last = None;
-    for _ in 0..runs {
-        let start = Instant::now();
-        let tr = simulate(&sys, Damper::Off, 0.0, &[0.0, 0.0], t_end, &[], &opts)
-            .expect("the switched oscillator integrates");
-        best = best.min(start.elapsed().as_secs_f64());
-        last = Some(tr);
-    }
-    let tr = last.expect("at least one run");
+    let (best, tr) = best_of(runs, || {
+        simulate(&sys, Damper::Off, 0.0, &[0.0, 0.0], t_end, &[], &opts)
+            .expect("the switched oscillator integrates")
+    });
     let s = tr.stats;
     println!(
-        "DOP853, rtol {:e}: {} steps, {} rejected, {} events, {} rhs evals, {} guard evals",
+        "switched damper, DOP853, rtol {:e}: {} steps, {} rejected, {} events, {} rhs evals, \
+         {} guard evals",
         opts.rtol, s.steps, s.rejected, s.events, s.rhs_evals, s.guard_evals
     );
     println!(
-        "best of {runs}: {:.3} ms ({:.0} ns per step)",
+        "  best of {runs}: {:.3} ms ({:.0} ns per step)",
         best * 1e3,
         best * 1e9 / s.steps as f64
     );
+    for method in [Method::Dop853, Method::Dopri5] {
+        let opts = Options {
+            method,
+            ..Options::default()
+        };
+        let (best, tr) = best_of(runs, || {
+            simulate(&Plain, (), 0.0, &[1.0, 0.0], 10_000.0, &[], &opts)
+                .expect("the oscillator integrates")
+        });
+        println!(
+            "plain oscillator, {method:?}: {} steps, {:.0} ns per step",
+            tr.stats.steps,
+            best * 1e9 / tr.stats.steps as f64
+        );
+    }
 }

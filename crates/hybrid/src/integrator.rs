@@ -71,7 +71,7 @@ impl Controller {
 ///
 /// All buffers are allocated in [`Integrator::new`]; a step allocates only when it reports an
 /// event (the event's state vector) or when a chart has more guards than any chart before it.
-pub struct Integrator<'a, S: HybridSystem> {
+pub struct Integrator<'a, S: HybridSystem + ?Sized> {
     sys: &'a S,
     opts: Options,
     method: Method,
@@ -109,7 +109,7 @@ pub struct Integrator<'a, S: HybridSystem> {
     stats: Stats,
 }
 
-impl<S: HybridSystem> fmt::Debug for Integrator<'_, S> {
+impl<S: HybridSystem + ?Sized> fmt::Debug for Integrator<'_, S> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("Integrator")
             .field("method", &self.method)
@@ -138,7 +138,7 @@ fn before_side(dir: Crossing, g: f64) -> Option<f64> {
     }
 }
 
-impl<'a, S: HybridSystem> Integrator<'a, S> {
+impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
     /// Starts at `(t0, x0)` in chart `mode0`. Validates the options, the dimension and
     /// finiteness, evaluates `f(t0, x0)` and the guards, and picks the first step.
     pub fn new(
@@ -514,8 +514,10 @@ impl<'a, S: HybridSystem> Integrator<'a, S> {
         if self.gv.len() < ng * ns {
             self.gv.resize(ng * ns, 0.0);
         }
-        self.d_end.clear();
-        self.d_end.resize(ng, f64::NAN);
+        if self.d_end.len() != ng {
+            self.d_end.resize(ng, f64::NAN);
+        }
+        self.d_end.fill(f64::NAN);
         for i in 0..ng {
             self.gv[i * ns] = self.g_start[i];
         }
@@ -571,6 +573,7 @@ impl<'a, S: HybridSystem> Integrator<'a, S> {
     ) -> Result<Option<f64>, HybridError> {
         let dir = self.sys.guard_direction(self.mode, i);
         let base = i * ns;
+        let graze_tol = self.opts.graze_tol;
         let tau = |j: usize| {
             if j == ns - 1 {
                 t1
@@ -619,12 +622,22 @@ impl<'a, S: HybridSystem> Integrator<'a, S> {
 
         for j in 0..ns - 1 {
             let (a, b) = (self.gv[base + j], self.gv[base + j + 1]);
+            // The three extremum tests below refine only dips that could reach within
+            // graze_tol of zero: with `u = s g` and the quadratic through the two samples and the
+            // slope (or the three samples), the dip below the closest sample is at most its
+            // quadratic coefficient, so a closest sample farther from zero than that coefficient
+            // (plus graze_tol) marks a shallow turn far from the guard surface.
             // Extremum near the start: approaching zero at t0 but farther away at the first
             // sample, so the closest approach lies inside the first interval.
             if j == 0 {
                 let d0 = self.d_start[i];
                 if let Some(s) = before_side(dir, a) {
-                    if d0.is_finite() && s * d0 < 0.0 && s * b > s * a {
+                    let slope = -s * d0 * (tau(1) - tau(0));
+                    if d0.is_finite()
+                        && slope > 0.0
+                        && s * b > s * a
+                        && s * a <= (s * b - s * a) + slope + graze_tol
+                    {
                         if let Some(te) = self.refine_outcome(i, tau(0), a, tau(1), None, s)? {
                             return Ok(Some(te));
                         }
@@ -635,7 +648,8 @@ impl<'a, S: HybridSystem> Integrator<'a, S> {
             if j >= 1 {
                 if let Some(s) = before_side(dir, a) {
                     let prev = self.gv[base + j - 1];
-                    if s * prev > s * a && s * b >= s * a {
+                    let curvature = s * prev - 2.0 * s * a + s * b;
+                    if s * prev > s * a && s * b >= s * a && s * a <= curvature + graze_tol {
                         let centre = Some(s * a);
                         if let Some(te) =
                             self.refine_outcome(i, tau(j - 1), prev, tau(j + 1), centre, s)?
@@ -652,7 +666,8 @@ impl<'a, S: HybridSystem> Integrator<'a, S> {
                     if s * a > s * b {
                         let d1 = self.end_derivative(i, t1, b)?;
                         self.d_end[i] = d1;
-                        if s * d1 >= 0.0 {
+                        let slope = s * d1 * (t1 - tau(j));
+                        if slope >= 0.0 && s * b <= (s * a - s * b) + slope + graze_tol {
                             if let Some(te) = self.refine_outcome(i, tau(j), a, t1, None, s)? {
                                 return Ok(Some(te));
                             }
@@ -834,7 +849,7 @@ impl<'a, S: HybridSystem> Integrator<'a, S> {
 /// Integrates from `(t0, x0, mode0)` to `t_end` and samples the dense output on `grid`
 /// (non-decreasing, inside `[t0, t_end]`). Grid times equal to a transition time get the
 /// post-reset state and chart.
-pub fn simulate<S: HybridSystem>(
+pub fn simulate<S: HybridSystem + ?Sized>(
     sys: &S,
     mode0: S::Mode,
     t0: f64,

@@ -32,42 +32,56 @@ pub(crate) fn fsal_row(method: Method) -> usize {
     }
 }
 
-/// `sum_j w_j k[j n + i]`, the weighted sum of component `i` over the stage rows. Four
-/// independent partial sums: with a state of two or three components the chain of dependent
-/// additions, not the arithmetic, limits the speed of a step.
-#[inline]
-fn dot_column(w: &[f64], k: &[f64], n: usize, i: usize) -> f64 {
-    let mut acc = [0.0f64; 4];
-    let mut quads = w.chunks_exact(4);
-    let mut j = 0;
-    for q in quads.by_ref() {
-        acc[0] += q[0] * k[j * n + i];
-        acc[1] += q[1] * k[(j + 1) * n + i];
-        acc[2] += q[2] * k[(j + 2) * n + i];
-        acc[3] += q[3] * k[(j + 3) * n + i];
-        j += 4;
-    }
-    for (r, &wr) in quads.remainder().iter().enumerate() {
-        acc[r] += wr * k[(j + r) * n + i];
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3])
+// Speed: state dimensions in this workspace are small (2 to 6). With `n` unknown, index
+// arithmetic, bounds checks and loop overhead cost more than the arithmetic, so the public
+// entry points dispatch on `n` and call `#[inline(always)]` bodies with `n` a literal for
+// n <= 4: the compiler then unrolls every component loop. Larger `n` takes the same code with
+// `n` at run time.
+macro_rules! dispatch_dim {
+    ($n:expr, $f:ident($($arg:expr),* $(,)?)) => {
+        match $n {
+            1 => $f(1, $($arg),*),
+            2 => $f(2, $($arg),*),
+            3 => $f(3, $($arg),*),
+            4 => $f(4, $($arg),*),
+            n => $f(n, $($arg),*),
+        }
+    };
 }
 
-/// `out = y + h sum_j a_j k_j` over the first `a.len()` stage rows. The increment is summed
-/// before it is added to `y`, which keeps the rounding relative to the increment. Component-
-/// outer order: the state dimension is small here, so the short inner loop over the stages
-/// beats streaming over whole rows.
-#[inline]
-fn combine(y: &[f64], h: f64, a: &[f64], k: &[f64], out: &mut [f64]) {
-    let n = y.len();
+/// `out = sum_j w_j k_j` over the first `w.len()` stage rows (`k_j = k[j n..(j + 1) n]`).
+/// Zero weights (DOP853 has many) are skipped for larger states, where that saves a row of
+/// work; for small ones the test costs as much as the arithmetic.
+#[inline(always)]
+fn weighted(n: usize, w: &[f64], k: &[f64], out: &mut [f64]) {
+    let out = &mut out[..n];
+    out.fill(0.0);
+    for (j, &wj) in w.iter().enumerate() {
+        if n > 4 && wj == 0.0 {
+            continue;
+        }
+        let kj = &k[j * n..j * n + n];
+        for i in 0..n {
+            out[i] += wj * kj[i];
+        }
+    }
+}
+
+/// `out = y + h sum_j a_j k_j`; `acc` is scratch. The increment is summed before it is added
+/// to `y`, which keeps the rounding relative to the increment.
+#[inline(always)]
+fn combine(n: usize, y: &[f64], h: f64, a: &[f64], k: &[f64], acc: &mut [f64], out: &mut [f64]) {
+    weighted(n, a, k, acc);
+    let (y, acc, out) = (&y[..n], &acc[..n], &mut out[..n]);
     for i in 0..n {
-        out[i] = y[i] + h * dot_column(a, k, n, i);
+        out[i] = y[i] + h * acc[i];
     }
 }
 
 /// Evaluates stage `s`: `k_s = f(t + c h, y + h sum_j a_j k_j)`.
-#[inline]
-fn stage<S: HybridSystem>(
+#[inline(always)]
+fn stage<S: HybridSystem + ?Sized>(
+    n: usize,
     sys: &S,
     mode: S::Mode,
     t: f64,
@@ -78,20 +92,11 @@ fn stage<S: HybridSystem>(
     k: &mut [f64],
     s: usize,
     ytmp: &mut [f64],
+    acc: &mut [f64],
 ) {
-    let n = y.len();
     let (done, rest) = k.split_at_mut(s * n);
-    combine(y, h, a, done, ytmp);
+    combine(n, y, h, a, done, acc, ytmp);
     sys.vector_field(mode, t + c * h, ytmp, &mut rest[..n]);
-}
-
-/// `out = sum_j w_j k_j` over the first `w.len()` stage rows.
-#[inline]
-fn weighted(w: &[f64], k: &[f64], out: &mut [f64]) {
-    let n = out.len();
-    for (i, o) in out.iter_mut().enumerate() {
-        *o = dot_column(w, k, n, i);
-    }
 }
 
 /// Scratch vectors of a trial step.
@@ -109,7 +114,7 @@ pub(crate) struct Work<'w> {
 /// Writes `ynew` and the stages (including the FSAL row) and returns the scaled error norm
 /// (accept when `<= 1`), `INFINITY` when anything is not finite, with the number of
 /// vector-field evaluations.
-pub(crate) fn trial_step<S: HybridSystem>(
+pub(crate) fn trial_step<S: HybridSystem + ?Sized>(
     method: Method,
     sys: &S,
     mode: S::Mode,
@@ -120,67 +125,66 @@ pub(crate) fn trial_step<S: HybridSystem>(
     rtol: f64,
     atol: f64,
 ) -> (f64, u64) {
-    let n = y.len();
+    dispatch_dim!(
+        y.len(),
+        trial_step_n(method, sys, mode, t, h, y, w, rtol, atol)
+    )
+}
+
+#[inline(always)]
+fn trial_step_n<S: HybridSystem + ?Sized>(
+    n: usize,
+    method: Method,
+    sys: &S,
+    mode: S::Mode,
+    t: f64,
+    h: f64,
+    y: &[f64],
+    w: &mut Work<'_>,
+    rtol: f64,
+    atol: f64,
+) -> (f64, u64) {
+    let y = &y[..n];
     let (err, evals) = match method {
         Method::Dopri5 => {
             for s in 1..6 {
-                stage(
-                    sys,
-                    mode,
-                    t,
-                    h,
-                    dopri5::C[s],
-                    dopri5::A[s],
-                    y,
-                    w.k,
-                    s,
-                    w.ytmp,
-                );
+                let (c, a) = (dopri5::C[s], dopri5::A[s]);
+                stage(n, sys, mode, t, h, c, a, y, w.k, s, w.ytmp, w.acc);
             }
-            combine(y, h, dopri5::A[6], w.k, w.ynew);
+            combine(n, y, h, dopri5::A[6], w.k, w.acc, w.ynew);
             let (_, rest) = w.k.split_at_mut(6 * n);
             sys.vector_field(mode, t + h, w.ynew, &mut rest[..n]);
-            weighted(&dopri5::E, w.k, w.incr);
+            weighted(n, &dopri5::E, w.k, w.incr);
+            let (ynew, e) = (&w.ynew[..n], &w.incr[..n]);
             let mut sum = 0.0;
             for i in 0..n {
-                let sk = atol + rtol * y[i].abs().max(w.ynew[i].abs());
-                let r = h * w.incr[i] / sk;
+                let sk = atol + rtol * y[i].abs().max(ynew[i].abs());
+                let r = h * e[i] / sk;
                 sum += r * r;
             }
             ((sum / n as f64).sqrt(), 6)
         }
         Method::Dop853 => {
             for s in 1..12 {
-                stage(
-                    sys,
-                    mode,
-                    t,
-                    h,
-                    dop853::C[s],
-                    dop853::A[s],
-                    y,
-                    w.k,
-                    s,
-                    w.ytmp,
-                );
+                let (c, a) = (dop853::C[s], dop853::A[s]);
+                stage(n, sys, mode, t, h, c, a, y, w.k, s, w.ytmp, w.acc);
             }
             // The 8th-order increment, kept for the 3rd-order error estimate.
-            weighted(dop853::A[12], w.k, w.incr);
+            weighted(n, dop853::A[12], w.k, w.incr);
             for i in 0..n {
                 w.ynew[i] = y[i] + h * w.incr[i];
             }
             let (_, rest) = w.k.split_at_mut(12 * n);
             sys.vector_field(mode, t + h, w.ynew, &mut rest[..n]);
-            weighted(&dop853::E5, w.k, w.acc);
+            weighted(n, &dop853::E5, w.k, w.acc);
+            let (k0, k8, k11) = (&w.k[..n], &w.k[8 * n..9 * n], &w.k[11 * n..12 * n]);
+            let (ynew, incr, e5) = (&w.ynew[..n], &w.incr[..n], &w.acc[..n]);
             let (mut e5sum, mut e3sum) = (0.0, 0.0);
             for i in 0..n {
-                let e3 = w.incr[i]
-                    - dop853::BHH0 * w.k[i]
-                    - dop853::BHH8 * w.k[8 * n + i]
-                    - dop853::BHH11 * w.k[11 * n + i];
-                let sk = atol + rtol * y[i].abs().max(w.ynew[i].abs());
-                let e5 = w.acc[i] / sk;
-                let e3 = e3 / sk;
+                let e3 =
+                    incr[i] - dop853::BHH0 * k0[i] - dop853::BHH8 * k8[i] - dop853::BHH11 * k11[i];
+                let inv = 1.0 / (atol + rtol * y[i].abs().max(ynew[i].abs()));
+                let (e5, e3) = (e5[i] * inv, e3 * inv);
                 e5sum += e5 * e5;
                 e3sum += e3 * e3;
             }
@@ -195,14 +199,14 @@ pub(crate) fn trial_step<S: HybridSystem>(
     };
     let fsal = fsal_row(method) * n;
     let finite = err.is_finite()
-        && w.ynew.iter().all(|v| v.is_finite())
+        && w.ynew[..n].iter().all(|v| v.is_finite())
         && w.k[fsal..fsal + n].iter().all(|v| v.is_finite());
     (if finite { err } else { f64::INFINITY }, evals)
 }
 
 /// Fills `cont` with the interpolant of the accepted step `(t, y) -> (t + h, ynew)`. For DOP853
 /// this evaluates the three extra stages. Returns the number of vector-field evaluations.
-pub(crate) fn build_dense<S: HybridSystem>(
+pub(crate) fn build_dense<S: HybridSystem + ?Sized>(
     method: Method,
     sys: &S,
     mode: S::Mode,
@@ -215,41 +219,58 @@ pub(crate) fn build_dense<S: HybridSystem>(
     acc: &mut [f64],
     cont: &mut [f64],
 ) -> u64 {
-    let n = y.len();
-    let (extra, evals) = match method {
-        Method::Dopri5 => (&dopri5::D[..], 0),
+    dispatch_dim!(
+        y.len(),
+        build_dense_n(method, sys, mode, t, h, y, ynew, k, ytmp, acc, cont)
+    )
+}
+
+#[inline(always)]
+fn build_dense_n<S: HybridSystem + ?Sized>(
+    n: usize,
+    method: Method,
+    sys: &S,
+    mode: S::Mode,
+    t: f64,
+    h: f64,
+    y: &[f64],
+    ynew: &[f64],
+    k: &mut [f64],
+    ytmp: &mut [f64],
+    acc: &mut [f64],
+    cont: &mut [f64],
+) -> u64 {
+    let evals = match method {
+        Method::Dopri5 => 0,
         Method::Dop853 => {
             for s in 13..16 {
-                stage(sys, mode, t, h, dop853::C[s], dop853::A[s], y, k, s, ytmp);
+                let (c, a) = (dop853::C[s], dop853::A[s]);
+                stage(n, sys, mode, t, h, c, a, y, k, s, ytmp, acc);
             }
-            (&[][..], 3)
+            3
         }
     };
+    let (y, ynew) = (&y[..n], &ynew[..n]);
     let fsal = fsal_row(method) * n;
+    let (k0, kf) = (&k[..n], &k[fsal..fsal + n]);
     let (c_low, c_high) = cont.split_at_mut(4 * n);
     for i in 0..n {
         let dy = ynew[i] - y[i];
-        let bspl = h * k[i] - dy;
+        let bspl = h * k0[i] - dy;
         c_low[i] = y[i];
         c_low[n + i] = dy;
         c_low[2 * n + i] = bspl;
         // Equals `2 dy - h (f_new + f_old)`: the cubic Hermite term.
-        c_low[3 * n + i] = dy - h * k[fsal + i] - bspl;
+        c_low[3 * n + i] = dy - h * kf[i] - bspl;
     }
-    match method {
-        Method::Dopri5 => {
-            weighted(extra, k, acc);
-            for i in 0..n {
-                c_high[i] = h * acc[i];
-            }
-        }
-        Method::Dop853 => {
-            for (row, out) in dop853::D.iter().zip(c_high.chunks_exact_mut(n)) {
-                weighted(row, k, acc);
-                for i in 0..n {
-                    out[i] = h * acc[i];
-                }
-            }
+    let rows: &[&[f64]] = match method {
+        Method::Dopri5 => &[&dopri5::D],
+        Method::Dop853 => &[&dop853::D[0], &dop853::D[1], &dop853::D[2], &dop853::D[3]],
+    };
+    for (row, out) in rows.iter().zip(c_high.chunks_exact_mut(n)) {
+        weighted(n, row, k, acc);
+        for i in 0..n {
+            out[i] = h * acc[i];
         }
     }
     evals
@@ -258,10 +279,15 @@ pub(crate) fn build_dense<S: HybridSystem>(
 /// Evaluates the interpolant at `theta = (t - t_old) / h` into `out`.
 #[inline]
 pub(crate) fn eval_dense(method: Method, cont: &[f64], theta: f64, out: &mut [f64]) {
-    let n = out.len();
+    dispatch_dim!(out.len(), eval_dense_n(method, cont, theta, out))
+}
+
+#[inline(always)]
+fn eval_dense_n(n: usize, method: Method, cont: &[f64], theta: f64, out: &mut [f64]) {
     let s = theta;
     let s1 = 1.0 - theta;
     let r = |row: usize| &cont[row * n..(row + 1) * n];
+    let out = &mut out[..n];
     match method {
         Method::Dopri5 => {
             let (c0, c1, c2, c3, c4) = (r(0), r(1), r(2), r(3), r(4));
@@ -283,7 +309,7 @@ pub(crate) fn eval_dense(method: Method, cont: &[f64], theta: f64, out: &mut [f6
 /// Hairer's starting-step estimate (`hinit` in `dopri5`/`dop853`): a step whose explicit-Euler
 /// error, judged from a second derivative estimate, matches the tolerance at the method's order.
 /// `f0 = f(t, y)`; `ytmp`, `f1` are scratch. Returns the step and 1 (its vector-field evaluation).
-pub(crate) fn initial_step<S: HybridSystem>(
+pub(crate) fn initial_step<S: HybridSystem + ?Sized>(
     method: Method,
     sys: &S,
     mode: S::Mode,

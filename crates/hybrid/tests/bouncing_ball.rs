@@ -61,7 +61,11 @@ fn first_ten_impacts_match_closed_form() {
             );
             // State before the reset: on the floor, falling at e^k v1.
             let speed = E.powi(k as i32) * v1;
-            assert!(ev.state[0].abs() <= 1e-10, "{method:?} impact {k}: {:?}", ev.state);
+            assert!(
+                ev.state[0].abs() <= 1e-10,
+                "{method:?} impact {k}: {:?}",
+                ev.state
+            );
             assert!(
                 (ev.state[1] + speed).abs() <= 1e-9,
                 "{method:?} impact {k}: {:?} vs {}",

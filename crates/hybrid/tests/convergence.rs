@@ -41,7 +41,10 @@ fn errors(method: Method, steps: usize) -> (f64, f64) {
         }
     }
     let s = integ.stats();
-    assert_eq!(s.rejected, 0, "{method:?}, {steps} steps: fixed-step run rejected a step");
+    assert_eq!(
+        s.rejected, 0,
+        "{method:?}, {steps} steps: fixed-step run rejected a step"
+    );
     assert_eq!(s.steps, steps as u64, "{method:?}: step count");
     ((integ.state()[0] - Decay::exact(T_END)).abs(), dense)
 }

@@ -13,10 +13,18 @@ fn blow_up_is_step_size_too_small_near_one() {
     // 1e-11 of t = 1 (the numerical pole itself differs from 1 by the accumulated relative
     // error, ~1e-11 here). The error must name that time, not panic and not run on.
     for method in METHODS {
-        let err = simulate(&Blowup, (), 0.0, &[1.0], 2.0, &[], &Options {
-            method,
-            ..Options::default()
-        })
+        let err = simulate(
+            &Blowup,
+            (),
+            0.0,
+            &[1.0],
+            2.0,
+            &[],
+            &Options {
+                method,
+                ..Options::default()
+            },
+        )
         .unwrap_err();
         match err {
             HybridError::StepSizeTooSmall { time, step } => {
@@ -41,32 +49,100 @@ fn option_error(opts: Options) -> (&'static str, String) {
 fn invalid_options_name_field_and_value() {
     let d = Options::default;
     let cases: Vec<(Options, &str, &str)> = vec![
-        (Options { rtol: -1.0, ..d() }, "rtol", "must be > 0 and finite (got -1)"),
-        (Options { rtol: 0.0, ..d() }, "rtol", "must be > 0 and finite (got 0)"),
-        (Options { rtol: f64::NAN, ..d() }, "rtol", "must be > 0 and finite (got NaN)"),
-        (Options { atol: -1e-3, ..d() }, "atol", "must be >= 0 and finite (got -0.001)"),
-        (Options { h_init: Some(0.0), ..d() }, "h_init", "must be > 0 and finite (got 0)"),
-        (Options { h_max: 0.0, ..d() }, "h_max", "must be > 0 (got 0)"),
         (
-            Options { h_min: 1.0, h_max: 0.5, ..d() },
+            Options { rtol: -1.0, ..d() },
+            "rtol",
+            "must be > 0 and finite (got -1)",
+        ),
+        (
+            Options { rtol: 0.0, ..d() },
+            "rtol",
+            "must be > 0 and finite (got 0)",
+        ),
+        (
+            Options {
+                rtol: f64::NAN,
+                ..d()
+            },
+            "rtol",
+            "must be > 0 and finite (got NaN)",
+        ),
+        (
+            Options { atol: -1e-3, ..d() },
+            "atol",
+            "must be >= 0 and finite (got -0.001)",
+        ),
+        (
+            Options {
+                h_init: Some(0.0),
+                ..d()
+            },
+            "h_init",
+            "must be > 0 and finite (got 0)",
+        ),
+        (
+            Options { h_max: 0.0, ..d() },
+            "h_max",
+            "must be > 0 (got 0)",
+        ),
+        (
+            Options {
+                h_min: 1.0,
+                h_max: 0.5,
+                ..d()
+            },
             "h_min",
             "must be smaller than h_max = 0.5 (got 1)",
         ),
-        (Options { max_steps: 0, ..d() }, "max_steps", "must be >= 1 (got 0)"),
         (
-            Options { event_tol: f64::INFINITY, ..d() },
+            Options {
+                max_steps: 0,
+                ..d()
+            },
+            "max_steps",
+            "must be >= 1 (got 0)",
+        ),
+        (
+            Options {
+                event_tol: f64::INFINITY,
+                ..d()
+            },
             "event_tol",
             "must be > 0 and finite (got inf)",
         ),
-        (Options { graze_tol: -1.0, ..d() }, "graze_tol", "must be >= 0 and finite (got -1)"),
-        (Options { zeno_window: 0.0, ..d() }, "zeno_window", "must be > 0 and finite (got 0)"),
-        (Options { zeno_max_events: 0, ..d() }, "zeno_max_events", "must be >= 1 (got 0)"),
+        (
+            Options {
+                graze_tol: -1.0,
+                ..d()
+            },
+            "graze_tol",
+            "must be >= 0 and finite (got -1)",
+        ),
+        (
+            Options {
+                zeno_window: 0.0,
+                ..d()
+            },
+            "zeno_window",
+            "must be > 0 and finite (got 0)",
+        ),
+        (
+            Options {
+                zeno_max_events: 0,
+                ..d()
+            },
+            "zeno_max_events",
+            "must be >= 1 (got 0)",
+        ),
     ];
     for (opts, field, reason) in cases {
         assert_eq!(option_error(opts.clone()), (field, reason.to_string()));
         // The constructor and `simulate` validate too, with the same error.
         let err = Integrator::new(&Oscillator, (), 0.0, &[1.0, 0.0], &opts).unwrap_err();
-        assert_eq!(err.to_string(), format!("invalid option `{field}`: {reason}"));
+        assert_eq!(
+            err.to_string(),
+            format!("invalid option `{field}`: {reason}")
+        );
         let err = simulate(&Oscillator, (), 0.0, &[1.0, 0.0], 1.0, &[], &opts).unwrap_err();
         assert!(matches!(err, HybridError::InvalidOptions { .. }), "{err}");
     }
@@ -165,16 +241,16 @@ fn non_finite_field_and_guard() {
         };
         // A NaN field makes every step fail the error test until the step underflows; the
         // error then says why.
-        let err = simulate(&Poisoned { field: true }, (), 0.0, &[0.0], 1.0, &[], &opts)
-            .unwrap_err();
+        let err =
+            simulate(&Poisoned { field: true }, (), 0.0, &[0.0], 1.0, &[], &opts).unwrap_err();
         match err {
             HybridError::NonFiniteState { time } => {
                 assert!(time > 0.49 && time <= 0.5, "{method:?}: t = {time}")
             }
             other => panic!("{method:?}: expected NonFiniteState, got {other}"),
         }
-        let err = simulate(&Poisoned { field: false }, (), 0.0, &[0.0], 1.0, &[], &opts)
-            .unwrap_err();
+        let err =
+            simulate(&Poisoned { field: false }, (), 0.0, &[0.0], 1.0, &[], &opts).unwrap_err();
         assert!(
             matches!(err, HybridError::NonFiniteGuard { guard: 0, time, value } if time > 0.25 && value.is_nan()),
             "{method:?}: {err}"
@@ -196,4 +272,21 @@ fn step_cap() {
         }
         other => panic!("expected MaxStepsExceeded, got {other}"),
     }
+}
+
+#[test]
+fn defaults_are_the_documented_ones() {
+    let o = Options::default();
+    assert_eq!(o.method, htfid_hybrid::Method::Dop853);
+    approx::assert_relative_eq!(o.rtol, 1e-10);
+    approx::assert_relative_eq!(o.atol, 1e-12);
+    assert!(o.h_init.is_none());
+    assert!(o.h_max.is_infinite());
+    approx::assert_relative_eq!(o.h_min, 1e-14);
+    assert_eq!(o.max_steps, 10_000_000);
+    approx::assert_relative_eq!(o.event_tol, 1e-12);
+    assert_eq!(o.guard_samples, 4);
+    approx::assert_relative_eq!(o.graze_tol, 1e-8);
+    approx::assert_relative_eq!(o.zeno_window, 1e-3);
+    assert_eq!(o.zeno_max_events, 100);
 }

@@ -85,7 +85,12 @@ fn crossing_pair_between_two_samples_is_found() {
             let (first, _) = sys.crossings();
             let opts = one_step(method, 2.0, samples);
             let tr = simulate(&sys, (), 0.0, &[0.0, 1.0], 2.0, &[], &opts).unwrap();
-            assert_eq!(tr.events.len(), 1, "{method:?} samples {samples}: {:?}", tr.events);
+            assert_eq!(
+                tr.events.len(),
+                1,
+                "{method:?} samples {samples}: {:?}",
+                tr.events
+            );
             let t = tr.events[0].time;
             assert!(
                 t >= first - ROUNDING && t <= first + LOCATION_TOL,
@@ -196,8 +201,16 @@ fn grazing_touch_is_reported_without_transition() {
             // A touch is flat to second order: near the peak the guard is within rounding of
             // its extremum for |t - peak| up to ~sqrt(1e-16 / 0.5) ~ 1.5e-8, so the time is
             // only defined to ~1e-8; 1e-6 leaves room for the state error.
-            assert!((ev.time - peak).abs() <= 1e-6, "{method:?}: {} vs {peak}", ev.time);
-            assert!((ev.state[0] - 1.0).abs() <= 1e-9, "{method:?}: {:?}", ev.state);
+            assert!(
+                (ev.time - peak).abs() <= 1e-6,
+                "{method:?}: {} vs {peak}",
+                ev.time
+            );
+            assert!(
+                (ev.state[0] - 1.0).abs() <= 1e-9,
+                "{method:?}: {:?}",
+                ev.state
+            );
         }
         // No reset was applied and nothing changed: the end state is still sin/cos.
         assert!((tr.final_state[0] - t_end.sin()).abs() <= 1e-8);
@@ -220,7 +233,12 @@ fn grazing_touch_is_reported_without_transition() {
                 dir,
             };
             let tr = simulate(&trough, (), 0.0, &[0.0, 1.0], t_end, &[], &opts).unwrap();
-            assert_eq!(tr.events.len(), count, "{method:?} {dir:?}: {:?}", tr.events);
+            assert_eq!(
+                tr.events.len(),
+                count,
+                "{method:?} {dir:?}: {:?}",
+                tr.events
+            );
             for ev in &tr.events {
                 assert_eq!(ev.kind, EventKind::Grazing);
                 let k = ((ev.time - 1.5 * PI) / (2.0 * PI)).round();

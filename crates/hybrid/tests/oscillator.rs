@@ -18,8 +18,16 @@ fn run(method: Method, rtol: f64, grid: &[f64]) -> htfid_hybrid::Trajectory<()> 
         atol: rtol * 1e-2,
         ..Options::default()
     };
-    simulate(&Oscillator, (), 0.0, &[1.0, 0.0], 2.0 * PI * PERIODS, grid, &opts)
-        .expect("the oscillator integrates")
+    simulate(
+        &Oscillator,
+        (),
+        0.0,
+        &[1.0, 0.0],
+        2.0 * PI * PERIODS,
+        grid,
+        &opts,
+    )
+    .expect("the oscillator integrates")
 }
 
 /// Amplitude error, phase error (rad) and energy error of a state at time `t`.
@@ -114,7 +122,11 @@ fn work_counters_stay_in_band() {
             steps.contains(&s.steps) && rejected.contains(&s.rejected),
             "{method:?}: {s:?} outside steps {steps:?}, rejected {rejected:?}"
         );
-        assert_eq!(s.rhs_evals, expected_rhs_evals(method, &s), "{method:?}: {s:?}");
+        assert_eq!(
+            s.rhs_evals,
+            expected_rhs_evals(method, &s),
+            "{method:?}: {s:?}"
+        );
         assert_eq!(s.events, 0);
         assert_eq!(s.guard_evals, 0, "no guards, no guard evaluations");
     }

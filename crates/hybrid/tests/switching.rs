@@ -59,7 +59,11 @@ fn sawtooth_switch_times_and_states() {
             );
             // The state is interpolated to the event time, not left at the step end: it sits
             // on the switching surface within slope (<= 2) times the lateness.
-            assert!((ev.state[0] - x).abs() <= 2.0 * SWITCH_TOL, "{method:?}: {:?}", ev.state);
+            assert!(
+                (ev.state[0] - x).abs() <= 2.0 * SWITCH_TOL,
+                "{method:?}: {:?}",
+                ev.state
+            );
             // Against the closed form from t = 0 the latenesses add up: per 1.5 s period at
             // most 4.5 event_tol (the Up overshoot delays the Down leg by half of itself, the
             // Down overshoot the Up leg by twice itself).
@@ -120,6 +124,103 @@ fn time_dependent_guard_switches_at_arcsine_points() {
             assert_eq!(tr.modes[i], expected, "{method:?} at t = {t}");
             // x' = 1 in both charts and the resets are the identity: x = t throughout.
             approx::assert_abs_diff_eq!(tr.state(i)[0], t, epsilon = 1e-12);
+        }
+    }
+}
+
+/// Charts of [`SwitchedDamper`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Damper {
+    Off,
+    On,
+}
+
+/// `x'' + s c x' + k x = 0` with the damper on (`s = 1`) while the mass moves up (`x' > 0`):
+/// the hopper's switching structure, guard `x'` in both charts.
+#[derive(Debug)]
+struct SwitchedDamper {
+    c: f64,
+    k: f64,
+}
+
+impl htfid_hybrid::HybridSystem for SwitchedDamper {
+    type Mode = Damper;
+    fn dim(&self) -> usize {
+        2
+    }
+    fn vector_field(&self, mode: Damper, _t: f64, x: &[f64], dxdt: &mut [f64]) {
+        let s = if mode == Damper::On { 1.0 } else { 0.0 };
+        dxdt[0] = x[1];
+        dxdt[1] = -s * self.c * x[1] - self.k * x[0];
+    }
+    fn num_guards(&self, _: Damper) -> usize {
+        1
+    }
+    fn guard(&self, _: Damper, _: usize, _t: f64, x: &[f64]) -> f64 {
+        x[1]
+    }
+    fn guard_direction(&self, mode: Damper, _: usize) -> htfid_hybrid::Crossing {
+        match mode {
+            Damper::Off => htfid_hybrid::Crossing::Rising,
+            Damper::On => htfid_hybrid::Crossing::Falling,
+        }
+    }
+    fn transition(&self, mode: Damper, _: usize, _t: f64, _x: &mut [f64]) -> Damper {
+        match mode {
+            Damper::Off => Damper::On,
+            Damper::On => Damper::Off,
+        }
+    }
+}
+
+#[test]
+fn switched_damper_half_periods_and_decay() {
+    // From the top (x = 1, x' = 0) the mass falls undamped for half a period pi / w0 to the
+    // bottom x = -1; rising with damping ratio zeta it turns after pi / wd at the top
+    // x = exp(-zeta w0 pi / wd) times the amplitude; and so on. The run starts on the guard
+    // (x' = 0 exactly), which must not fire at t = 0.
+    let (c, k) = (0.4, 4.0);
+    let w0 = f64::sqrt(k);
+    let zeta = c / (2.0 * w0);
+    let wd = w0 * (1.0 - zeta * zeta).sqrt();
+    let decay = (-zeta * w0 * std::f64::consts::PI / wd).exp();
+    let sys = SwitchedDamper { c, k };
+    for method in METHODS {
+        let opts = Options {
+            method,
+            ..Options::default()
+        };
+        let tr = simulate(&sys, Damper::Off, 0.0, &[1.0, 0.0], 30.0, &[], &opts).unwrap();
+        let (mut t, mut amp) = (0.0, 1.0);
+        assert!(
+            tr.events.len() >= 18,
+            "{method:?}: {} events",
+            tr.events.len()
+        );
+        for (i, ev) in tr.events.iter().enumerate() {
+            let (from, to) = if i % 2 == 0 {
+                t += std::f64::consts::PI / w0;
+                (Damper::Off, Damper::On)
+            } else {
+                t += std::f64::consts::PI / wd;
+                amp *= decay;
+                (Damper::On, Damper::Off)
+            };
+            assert_eq!((ev.from, ev.to), (from, to), "{method:?} event {i}");
+            // At a turning point the guard x' moves at |x''| = k |x| = 4 amp, so a state error
+            // of ~rtol (1e-10) per half-period becomes a time error of a few 1e-11 per event;
+            // 1e-9 covers 20 events.
+            assert!(
+                (ev.time - t).abs() <= 1e-9,
+                "{method:?} event {i}: {} vs {t}",
+                ev.time
+            );
+            let x = if i % 2 == 0 { -amp } else { amp };
+            assert!(
+                (ev.state[0] - x).abs() <= 1e-9,
+                "{method:?} event {i}: {:?} vs {x}",
+                ev.state
+            );
         }
     }
 }

@@ -187,7 +187,10 @@ pub fn expm<T: ComplexField<RealField = f64>>(a: &DMatrix<T>) -> DMatrix<T> {
 }
 
 /// `(V - U)^{-1} (V + U)`.
-fn pade_solve<T: ComplexField<RealField = f64>>(u: &DMatrix<T>, v: &DMatrix<T>) -> Option<DMatrix<T>> {
+fn pade_solve<T: ComplexField<RealField = f64>>(
+    u: &DMatrix<T>,
+    v: &DMatrix<T>,
+) -> Option<DMatrix<T>> {
     (v - u).lu().solve(&(v + u))
 }
 
@@ -287,10 +290,17 @@ pub struct Floquet {
 }
 
 impl Floquet {
-    /// Computes the monodromy matrix and its eigenvalues.
+    /// Computes the monodromy matrix and its eigenvalues (NaN if the
+    /// monodromy overflows).
     pub fn new(lti: &PiecewiseLti) -> Self {
         let monodromy = lti.monodromy();
-        let multipliers = monodromy.complex_eigenvalues().iter().copied().collect();
+        // An overflowing propagator (huge `A_i h_i`) would stall the Schur
+        // iteration; report NaN multipliers instead.
+        let multipliers = if monodromy.iter().all(|x| x.is_finite()) {
+            monodromy.complex_eigenvalues().iter().copied().collect()
+        } else {
+            vec![Complex64::new(f64::NAN, f64::NAN); lti.n_states()]
+        };
         Self {
             period: lti.period(),
             monodromy,
@@ -357,7 +367,9 @@ mod tests {
 
     #[test]
     fn expm_matches_analytic_2x2() {
-        // Every Pade degree is hit (norms from 1e-3 to ~200) plus squarings.
+        // Every Pade degree is hit (norms from 1e-3 to ~400) plus squarings;
+        // the oscillators [[0, 1], [-k, -c]] h are the matrices the HTF code
+        // exponentiates.
         // 1e-14 relative: both sides are a few ulps from the truth for these
         // well-conditioned matrices.
         let cases = [
@@ -370,12 +382,32 @@ mod tests {
             dmatrix![0.0, 1.0; -200.0, 0.0] * 0.52,
             dmatrix![0.0, 1.0; -200.0, -2.0] * 0.01,
             dmatrix![2.0, 1.0; 0.0, 2.0],
+            dmatrix![0.5, 3.0; -3.0, 0.5] * 4.0,
         ];
         for a in &cases {
             let got = expm(a);
             let want = expm2_analytic(a);
-            assert!(rel_err(&got, &want) < 1e-14, "{a}: {:e}", rel_err(&got, &want));
+            assert!(
+                rel_err(&got, &want) < 1e-14,
+                "{a}: {:e}",
+                rel_err(&got, &want)
+            );
         }
+    }
+
+    #[test]
+    fn expm_of_a_stiff_oscillator_matches_high_precision() {
+        // [[0, 2], [-400, -4]]: norm 400, strongly non-normal, so even the
+        // double-precision closed form is only good to ~2e-14 here. Reference
+        // from a 40-digit evaluation (mpmath.expm); 1e-13 relative reflects
+        // the conditioning, about 400 * eps times a small factor.
+        let a = dmatrix![0.0, 2.0; -400.0, -4.0];
+        let want = dmatrix![
+            -0.134_501_179_475_439_13, 0.000_583_528_427_096_690_2;
+            -0.116_705_685_419_338_03, -0.135_668_236_329_632_5
+        ];
+        let got = expm(&a);
+        assert!(rel_err(&got, &want) < 1e-13, "{:e}", rel_err(&got, &want));
     }
 
     #[test]
@@ -394,6 +426,21 @@ mod tests {
         });
         let prod = expm(&m) * expm(&(-m.clone()));
         assert!((prod - DMatrix::<Complex64>::identity(3, 3)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn overflowing_monodromy_gives_nan_multipliers() {
+        // exp(1000) overflows f64: no panic, no endless Schur iteration.
+        let lti = PiecewiseLti::lti(
+            1.0,
+            dmatrix![1000.0, 0.0; 0.0, 1.0],
+            dmatrix![0.0; 1.0],
+            dmatrix![1.0, 0.0],
+            dmatrix![0.0],
+        )
+        .unwrap();
+        let f = Floquet::new(&lti);
+        assert!(f.multipliers().iter().all(|m| m.re.is_nan()));
     }
 
     #[test]

@@ -274,14 +274,20 @@ mod tests {
             })
             .unwrap();
             (-10..=10)
-                .map(|n| (series.coefficient(n).unwrap()[(0, 0)] - textbook(t_on, t_off, 1.0, n)).norm())
+                .map(|n| {
+                    (series.coefficient(n).unwrap()[(0, 0)] - textbook(t_on, t_off, 1.0, n)).norm()
+                })
                 .fold(0.0, f64::max)
         };
         let errs: Vec<f64> = [100, 400, 1600, 6400].iter().map(|&k| err(k)).collect();
         for (i, &k) in [100.0, 400.0, 1600.0, 6400.0].iter().enumerate() {
             // Two switches, each misplaced by < 1/K: |error| <= 2/K.
             assert!(errs[i] <= 2.0 / k, "K={k}: {:e}", errs[i]);
-            assert!(errs[i] > 0.01 / k, "K={k}: suspiciously exact {:e}", errs[i]);
+            assert!(
+                errs[i] > 0.01 / k,
+                "K={k}: suspiciously exact {:e}",
+                errs[i]
+            );
         }
         for w in errs.windows(2) {
             let ratio = w[0] / w[1];
@@ -305,9 +311,11 @@ mod tests {
             sum
         };
         let period = 2.5;
-        let series = fft_fourier_fn(period, 32, |t| {
-            dmatrix![(TAU * t / period).cos().exp(), 0.0; 1.0, (TAU * t / period).sin()]
-        })
+        let series = fft_fourier_fn(
+            period,
+            32,
+            |t| dmatrix![(TAU * t / period).cos().exp(), 0.0; 1.0, (TAU * t / period).sin()],
+        )
         .unwrap();
         assert_eq!(series.max_harmonic(), 15);
         for n in -15..=15 {
@@ -343,7 +351,11 @@ mod tests {
         ));
         assert!(matches!(
             fft_fourier(1.0, &[dmatrix![f64::INFINITY]]),
-            Err(LtpError::NonFiniteSample { index: 0, row: 0, col: 0 })
+            Err(LtpError::NonFiniteSample {
+                index: 0,
+                row: 0,
+                col: 0
+            })
         ));
         assert!(matches!(
             fft_fourier(0.0, &[dmatrix![1.0]]),

@@ -15,6 +15,14 @@
 //! - Floquet analysis: [`expm`] (Pade-13 scaling and squaring),
 //!   [`PiecewiseLti::monodromy`], [`Floquet`] multipliers and exponents,
 //!   [`PiecewiseLti::liouville_determinant`].
+//! - Linearisation of a hybrid system about its limit cycle: [`linearise`] samples
+//!   `A(t), B(t), C(t), D(t)` along the orbit of any [`InputOutput`] system built on
+//!   `htfid-hybrid`, computes the saltation matrix at every [`Switch`], and builds the
+//!   piecewise-LTI approximation (one constant matrix set per chart, averaged over the
+//!   chart's interval; the saltations become the jumps). For the hopper the damper force
+//!   `c x'` vanishes on the switching surface `x' = 0`, so every saltation is the identity
+//!   and the clock-driven LTP model is exact to first order; a damper that engages at
+//!   `x' > v_th` makes the vector field jump at the switch and `S != I`.
 //!
 //! ```
 //! use htfid_ltp::{Floquet, Piece, PiecewiseLti};
@@ -37,8 +45,10 @@
 
 mod floquet;
 mod fourier;
+mod linearise;
 mod piecewise;
 
 pub use floquet::{expm, Floquet};
 pub use fourier::{fft_fourier, fft_fourier_fn, square_wave_fourier, MatrixFourierSeries};
+pub use linearise::{linearise, InputOutput, LinearSample, Linearisation, Switch};
 pub use piecewise::{LtpError, Piece, PiecewiseLti, SystemMatrix};

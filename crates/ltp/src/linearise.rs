@@ -160,13 +160,23 @@ pub fn linearise<S: InputOutput>(
     let uniform: Vec<f64> = (0..samples)
         .map(|i| t0 + period * i as f64 / samples as f64)
         .collect();
-    let mut grid: Vec<f64> = uniform.iter().copied().chain(wrapped.iter().map(|w| w.0)).collect();
+    let mut grid: Vec<f64> = uniform
+        .iter()
+        .copied()
+        .chain(wrapped.iter().map(|w| w.0))
+        .collect();
     grid.sort_by(f64::total_cmp);
-    let traj = simulate(sys, cycle.mode0, t0, &cycle.state0, t0 + period, &grid, opts)
-        .map_err(|e: HybridError| LtpError::Integration(e.to_string()))?;
-    let lookup = |t: f64| -> usize {
-        grid.partition_point(|&g| g < t).min(grid.len() - 1)
-    };
+    let traj = simulate(
+        sys,
+        cycle.mode0,
+        t0,
+        &cycle.state0,
+        t0 + period,
+        &grid,
+        opts,
+    )
+    .map_err(|e: HybridError| LtpError::Integration(e.to_string()))?;
+    let lookup = |t: f64| -> usize { grid.partition_point(|&g| g < t).min(grid.len() - 1) };
 
     let n = sys.dim();
     let mut pieces = Vec::with_capacity(starts.len());

@@ -6,6 +6,9 @@ use nalgebra::{DMatrix, DVector, RowDVector};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum LtpError {
+    /// Integration along the orbit failed while linearising.
+    #[error("integration along the orbit failed: {0}")]
+    Integration(String),
     /// The period must be finite and strictly positive.
     #[error("period must be finite and > 0 (got {period})")]
     InvalidPeriod {
@@ -592,7 +595,13 @@ mod tests {
             PiecewiseLti::new(1.0, 0.0, vec![piece(0.5), piece(0.4)]),
             Err(LtpError::DurationsDoNotSumToPeriod { .. })
         ));
-        let bad_b = Piece::new(1.0, dmatrix![0.0, 1.0; -4.0, -0.1], dmatrix![0.0; 1.0; 2.0], dmatrix![1.0, 0.0], dmatrix![0.0]);
+        let bad_b = Piece::new(
+            1.0,
+            dmatrix![0.0, 1.0; -4.0, -0.1],
+            dmatrix![0.0; 1.0; 2.0],
+            dmatrix![1.0, 0.0],
+            dmatrix![0.0],
+        );
         assert_eq!(
             PiecewiseLti::new(1.0, 0.0, vec![bad_b]),
             Err(LtpError::WrongShape {
@@ -604,7 +613,13 @@ mod tests {
                 found_cols: 1
             })
         );
-        let nan_a = Piece::new(1.0, dmatrix![0.0, 1.0; f64::NAN, -0.1], dmatrix![0.0; 1.0], dmatrix![1.0, 0.0], dmatrix![0.0]);
+        let nan_a = Piece::new(
+            1.0,
+            dmatrix![0.0, 1.0; f64::NAN, -0.1],
+            dmatrix![0.0; 1.0],
+            dmatrix![1.0, 0.0],
+            dmatrix![0.0],
+        );
         assert_eq!(
             PiecewiseLti::new(1.0, 0.0, vec![nan_a]),
             Err(LtpError::NonFinite {
@@ -652,14 +667,20 @@ mod tests {
         let lti = PiecewiseLti::new(
             1.0,
             0.0,
-            vec![piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.0, 1.0]), piece(0.5)],
+            vec![
+                piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.0, 1.0]),
+                piece(0.5),
+            ],
         )
         .unwrap();
         assert!(!lti.has_jumps());
         let lti = PiecewiseLti::new(
             1.0,
             0.0,
-            vec![piece(0.5), piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.3, 1.0])],
+            vec![
+                piece(0.5),
+                piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.3, 1.0]),
+            ],
         )
         .unwrap();
         assert_eq!(lti.first_jump(), Some(1));
@@ -694,7 +715,10 @@ mod tests {
         let lti = PiecewiseLti::new(
             1.0,
             0.3,
-            vec![piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.3, 1.0]), piece(0.5)],
+            vec![
+                piece(0.5).with_jump(dmatrix![1.0, 0.0; 0.3, 1.0]),
+                piece(0.5),
+            ],
         )
         .unwrap();
         let json = serde_json::to_string(&lti).unwrap();

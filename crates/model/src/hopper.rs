@@ -281,3 +281,23 @@ impl HybridSystem for Hopper {
         true
     }
 }
+
+impl htfid_ltp::InputOutput for Hopper {
+    /// The input enters as a force: `B = [0, 1/m]`, or `[0, 0, 1/tau]` through the actuator lag.
+    /// An input delay is not representable in a finite-dimensional LTP model and is ignored
+    /// here.
+    fn input_gain(&self, _mode: HopperMode, _t: f64, _x: &[f64], b: &mut [f64]) {
+        b.iter_mut().for_each(|v| *v = 0.0);
+        if self.effects.has_lag() {
+            b[2] = 1.0 / self.effects.tau;
+        } else {
+            b[1] = 1.0 / self.params.m;
+        }
+    }
+
+    /// The output is the position: `C = [1, 0]`.
+    fn output_gain(&self, _mode: HopperMode, _t: f64, _x: &[f64], c: &mut [f64]) {
+        c.iter_mut().for_each(|v| *v = 0.0);
+        c[0] = 1.0;
+    }
+}

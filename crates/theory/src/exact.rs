@@ -15,9 +15,14 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
-/// Eigenvector matrices with a condition number above this send a piece to
-/// the block-exponential method: modal errors grow like `cond * eps`.
-const MAX_MODAL_CONDITION: f64 = 1e8;
+/// Eigenvector matrices with a condition number above this send the system
+/// to the block-exponential method. Near a defective matrix the eigenvalues
+/// themselves are only accurate to `~cond * eps`, and the modal sum cancels
+/// terms of size `~cond`, so the HTF error grows like `cond^2 * eps`:
+/// measured `~1e-20 cond^2` relative (1.7e-14 at cond 1e3, 9e-11 at 1e5,
+/// 7e-7 at 1e7 for a critically damped oscillator perturbed apart). 1e4
+/// keeps the modal path at ~1e-12.
+const MAX_MODAL_CONDITION: f64 = 1e4;
 /// Largest accepted relative residual `||A V - V L|| / ||A||` of a computed
 /// eigendecomposition (healthy ones sit near 1e-15; defective matrices give
 /// O(1)).
@@ -78,29 +83,61 @@ struct Modal {
     monodromy: Vec<Complex64>,
 }
 
-/// Exponentials of one piece that depend on the harmonic `k` only.
+/// Factors of one piece that depend on the harmonic `k` only.
 #[derive(Debug, Clone, Copy)]
 struct HarmonicFactors {
-    /// `exp(b)` with `b = -j k wp h`.
+    /// `b = -j k wp h`.
+    b: Complex64,
+    /// `exp(b)`.
     e_b: Complex64,
     /// `phi1(b)`.
     phi1_b: Complex64,
+    /// `1 / b` (0 for `k = 0`, where it is never used).
+    inv_b: Complex64,
     /// `exp(-j k wp tau)`.
     rotation: Complex64,
 }
 
+/// Factors of one piece and eigenvalue that depend on the output frequency
+/// `w` only: `c = (lambda - j w) h`, the exponent of the output integral.
+#[derive(Debug, Clone, Copy)]
+struct OmegaFactor {
+    c: Complex64,
+    e_c: Complex64,
+    phi1_c: Complex64,
+    /// `1 / c` (0 when `|c|` is below the series radius, where it is unused).
+    inv_c: Complex64,
+}
+
+const OMEGA_ZERO: OmegaFactor = OmegaFactor {
+    c: ZERO,
+    e_c: ZERO,
+    phi1_c: ZERO,
+    inv_c: ZERO,
+};
+
+/// Below this modulus a divided difference is evaluated by series, so the
+/// quotient formulas below only ever divide by moduli >= 1.
+const SERIES_DIAMETER: f64 = 1.0;
+
 /// Per-call buffers, allocated once per `g`/`grid` call.
 #[derive(Debug)]
 struct Scratch {
-    /// `exp((lambda_j - s) h_i)`, piece-major.
+    /// `exp(x)` with `x = (lambda_j - s) h_i`, piece-major.
     e: Vec<Complex64>,
-    /// `phi1((lambda_j - s) h_i)`, piece-major.
+    /// `phi1(x)`, piece-major.
     phi: Vec<Complex64>,
+    /// `x` and `1 / x` (0 when `|x| < 1`), piece-major.
+    x: Vec<Complex64>,
+    inv_x: Vec<Complex64>,
     /// Modal (or plain) state after each piece's start jump, piece-major.
     zeta: Vec<Complex64>,
     v: Vec<Complex64>,
     u: Vec<Complex64>,
     mat: Vec<Complex64>,
+    /// Output-frequency factors, piece-major, and `exp(-j w h_i)`.
+    omega: Vec<OmegaFactor>,
+    e_w: Vec<Complex64>,
     /// Block-exponential path: `exp((A - s) h)` and `int exp((A - s) r) dr B`.
     prop: Vec<(DMatrix<Complex64>, DVector<Complex64>)>,
 }
@@ -110,19 +147,41 @@ impl Scratch {
         Self {
             e: vec![ZERO; n * n_pieces],
             phi: vec![ZERO; n * n_pieces],
+            x: vec![ZERO; n * n_pieces],
+            inv_x: vec![ZERO; n * n_pieces],
             zeta: vec![ZERO; n * n_pieces],
             v: vec![ZERO; n],
             u: vec![ZERO; n],
             mat: vec![ZERO; n * n],
+            omega: vec![OMEGA_ZERO; n * n_pieces],
+            e_w: vec![ZERO; n_pieces],
             prop: Vec::new(),
         }
     }
 }
 
+/// `exp(-j theta)` with the phase reduced first, so large arguments keep
+/// their digits.
+fn cis_neg(theta: f64) -> Complex64 {
+    Complex64::from_polar(1.0, -theta.rem_euclid(TAU))
+}
+
+/// `1 / z` when `|z| >= SERIES_DIAMETER`, else 0 (the caller then uses a
+/// series and never reads it).
+fn safe_inverse(z: Complex64) -> Complex64 {
+    if z.norm_sqr() >= SERIES_DIAMETER * SERIES_DIAMETER {
+        ONE / z
+    } else {
+        ZERO
+    }
+}
+
 /// The exact HTF of a SISO [`PiecewiseLti`], jumps included.
 ///
-/// `g(n, w)` is `G_n(jw)` in the estimation convention; it is NaN when
-/// `exp(j (w - n wp) T)` is a Floquet multiplier (no periodic steady state).
+/// `g(n, w)` is `G_n(jw)` in the estimation convention. It has a pole where
+/// `exp(j (w - n wp) T)` is a Floquet multiplier (no periodic steady state);
+/// there it is huge, or NaN if the periodicity solve meets an exactly zero
+/// pivot.
 #[derive(Debug, Clone)]
 pub struct ExactHtf {
     period: f64,
@@ -201,85 +260,83 @@ impl ExactHtf {
     /// `y(t) = sum_k Y_k exp(j (w_in + k wp) t)`; equivalently
     /// `Y_k = G_k(j (w_in + k wp))` (a column of Wereley's HTF).
     pub fn response(&self, w_in: f64, harmonics: &[i32]) -> Vec<Complex64> {
-        let mut scratch = Scratch::new(self.n, self.pieces.len());
-        let e_s: Vec<Complex64> = self
-            .pieces
-            .iter()
-            .map(|p| Complex64::from_polar(1.0, -(w_in * p.h).rem_euclid(TAU)))
-            .collect();
-        let mut factors = vec![self.harmonic_factors_for(0, &self.pieces[0]); self.pieces.len()];
-        if !self.solve_state(w_in, &e_s, &mut scratch) {
-            return vec![Complex64::new(f64::NAN, f64::NAN); harmonics.len()];
-        }
         harmonics
             .iter()
-            .map(|&k| {
-                for (f, p) in factors.iter_mut().zip(&self.pieces) {
-                    *f = self.harmonic_factors_for(k, p);
+            .map(|&k| self.g(k, w_in + f64::from(k) * self.wp))
+            .collect()
+    }
+
+    fn harmonic_factors(&self, k: i32) -> Vec<HarmonicFactors> {
+        let theta = f64::from(k) * self.wp;
+        self.pieces
+            .iter()
+            .map(|p| {
+                let b = Complex64::new(0.0, -theta * p.h);
+                HarmonicFactors {
+                    b,
+                    e_b: cis_neg(theta * p.h),
+                    phi1_b: phi1_direct(b),
+                    inv_b: if k == 0 { ZERO } else { ONE / b },
+                    rotation: cis_neg(theta * p.tau),
                 }
-                self.output(w_in, k, &factors, &mut scratch)
             })
             .collect()
     }
 
-    fn harmonic_factors_for(&self, k: i32, p: &PieceData) -> HarmonicFactors {
-        let theta = f64::from(k) * self.wp;
-        let b = Complex64::new(0.0, -theta * p.h);
-        HarmonicFactors {
-            e_b: Complex64::from_polar(1.0, -(theta * p.h).rem_euclid(TAU)),
-            phi1_b: phi1_direct(b),
-            rotation: Complex64::from_polar(1.0, -(theta * p.tau).rem_euclid(TAU)),
+    /// Fills `scratch.omega` and `scratch.e_w` for output frequency `w`.
+    fn omega_factors(&self, modal: &Modal, w: f64, scratch: &mut Scratch) {
+        let n = self.n;
+        for (i, (p, mp)) in self.pieces.iter().zip(&modal.pieces).enumerate() {
+            let e_w = cis_neg(w * p.h);
+            scratch.e_w[i] = e_w;
+            for j in 0..n {
+                let c = Complex64::new(mp.lambda[j].re * p.h, (mp.lambda[j].im - w) * p.h);
+                let e_c = mp.e_lambda_h[j] * e_w;
+                scratch.omega[i * n + j] = OmegaFactor {
+                    c,
+                    e_c,
+                    phi1_c: phi1(c, e_c),
+                    inv_c: safe_inverse(c),
+                };
+            }
         }
     }
 
-    /// Solves for the periodic state at input frequency `w_in`, given
-    /// `e_s[i] = exp(-j w_in h_i)`. Leaves in `scratch.zeta` the (modal)
-    /// state after each piece's start jump. Returns `false` if `I - Phi(s)`
-    /// is singular.
-    fn solve_state(&self, w_in: f64, e_s: &[Complex64], scratch: &mut Scratch) -> bool {
-        match &self.modal {
-            Some(modal) => self.solve_state_modal(modal, w_in, e_s, scratch),
-            None => self.solve_state_block(w_in, scratch),
-        }
-    }
-
-    /// `Y_k` after [`Self::solve_state`].
-    fn output(
-        &self,
-        w_in: f64,
-        k: i32,
-        factors: &[HarmonicFactors],
-        scratch: &mut Scratch,
-    ) -> Complex64 {
-        match &self.modal {
-            Some(modal) => self.output_modal(modal, w_in, k, factors, scratch),
-            None => self.output_block(w_in, k, factors, scratch),
-        }
-    }
-
-    fn solve_state_modal(
+    /// `G_k(jw)` on the modal path, after [`Self::omega_factors`] for `w`;
+    /// `hf` are the factors of harmonic `k`. The input frequency is
+    /// `w - k wp`, so `x = (lambda - s) h = c - b`.
+    fn modal_value(
         &self,
         modal: &Modal,
-        w_in: f64,
-        e_s: &[Complex64],
+        hf: &[HarmonicFactors],
         scratch: &mut Scratch,
-    ) -> bool {
+    ) -> Complex64 {
         let n = self.n;
-        let s = Complex64::new(0.0, w_in);
+        // exp(-sT) = prod_i exp(-j w h_i) exp(+j k wp h_i).
         let mut e_st = ONE;
-        for (i, (p, mp)) in self.pieces.iter().zip(&modal.pieces).enumerate() {
-            e_st *= e_s[i];
+        for (i, f) in hf.iter().enumerate() {
+            e_st *= scratch.e_w[i] * f.e_b.conj();
             for j in 0..n {
-                let x = (mp.lambda[j] - s) * p.h;
-                let e = mp.e_lambda_h[j] * e_s[i];
-                scratch.e[i * n + j] = e;
-                scratch.phi[i * n + j] = phi1(x, e);
+                let idx = i * n + j;
+                let of = scratch.omega[idx];
+                let x = of.c - f.b;
+                // exp(x) = exp(c) / exp(b), and |exp(b)| = 1.
+                let e = of.e_c * f.e_b.conj();
+                let inv_x = safe_inverse(x);
+                scratch.x[idx] = x;
+                scratch.inv_x[idx] = inv_x;
+                scratch.e[idx] = e;
+                scratch.phi[idx] = if x.norm_sqr() < SERIES_DIAMETER * SERIES_DIAMETER {
+                    phi1(x, e)
+                } else {
+                    (e - ONE) * inv_x
+                };
             }
         }
         // psi: one period from the zero state.
         scratch.v.fill(ZERO);
         for (i, (p, mp)) in self.pieces.iter().zip(&modal.pieces).enumerate() {
-            self.modal_step(i, p, mp, scratch);
+            modal_step(n, i, p.h, mp, scratch);
         }
         // (I - exp(-sT) Phi_0) zeta_0 = psi.
         for r in 0..n {
@@ -289,60 +346,71 @@ impl ExactHtf {
             }
         }
         if !solve_in_place(&mut scratch.mat, &mut scratch.v, n) {
-            return false;
+            return Complex64::new(f64::NAN, f64::NAN);
         }
-        // March the periodic state through the pieces.
-        for (i, (p, mp)) in self.pieces.iter().zip(&modal.pieces).enumerate() {
-            scratch.zeta[i * n..(i + 1) * n].copy_from_slice(&scratch.v);
-            if i + 1 < self.pieces.len() {
-                self.modal_step(i, p, mp, scratch);
-            }
-        }
-        true
-    }
-
-    /// `v <- transfer_i (E_i v + h phi_i beta_i)`.
-    fn modal_step(&self, i: usize, p: &PieceData, mp: &ModalPiece, scratch: &mut Scratch) {
-        let n = self.n;
-        for j in 0..n {
-            scratch.u[j] =
-                scratch.e[i * n + j] * scratch.v[j] + scratch.phi[i * n + j] * mp.beta[j] * p.h;
-        }
-        for r in 0..n {
-            let mut acc = ZERO;
-            for c in 0..n {
-                acc += mp.transfer[r * n + c] * scratch.u[c];
-            }
-            scratch.v[r] = acc;
-        }
-    }
-
-    fn output_modal(
-        &self,
-        modal: &Modal,
-        w_in: f64,
-        k: i32,
-        factors: &[HarmonicFactors],
-        scratch: &Scratch,
-    ) -> Complex64 {
-        let n = self.n;
-        let zero = ZERO;
         let mut y = ZERO;
+        let n_pieces = self.pieces.len();
         for (i, (p, mp)) in self.pieces.iter().zip(&modal.pieces).enumerate() {
-            let f = &factors[i];
-            let b = Complex64::new(0.0, -f64::from(k) * self.wp * p.h);
-            let mut acc = f.phi1_b * (p.d * p.h);
+            let f = &hf[i];
+            let mut acc = f.phi1_b * p.d;
             for j in 0..n {
-                // c_j = (lambda_j - s) h + b = (lambda_j - j (w_in + k wp)) h.
-                let cj = Complex64::new(mp.lambda[j].re * p.h, (mp.lambda[j].im - w_in) * p.h) + b;
-                let ec = scratch.e[i * n + j] * f.e_b;
-                let homogeneous = scratch.zeta[i * n + j] * phi1(cj, ec);
-                let forced = mp.beta[j] * dd2(zero, ONE, b, f.e_b, cj, ec) * p.h;
-                acc += mp.gamma[j] * (homogeneous + forced) * p.h;
+                let idx = i * n + j;
+                let of = scratch.omega[idx];
+                let homogeneous = scratch.v[j] * of.phi1_c;
+                let forced = mp.beta[j] * self.dd2_0bc(f, &of, scratch, idx) * p.h;
+                acc += mp.gamma[j] * (homogeneous + forced);
             }
-            y += f.rotation * acc;
+            y += f.rotation * acc * p.h;
+            if i + 1 < n_pieces {
+                modal_step(n, i, p.h, mp, scratch);
+            }
         }
         y / self.period
+    }
+
+    /// `exp[0, b, c]` from the cached pieces: with `x = c - b`,
+    /// `exp[b, c] = e^b phi1(x)`, `exp[0, c] = phi1(c)`, `exp[0, b] = phi1(b)`,
+    /// divided by the widest pair's difference (>= 1), or by series for a
+    /// tight cluster.
+    #[inline]
+    fn dd2_0bc(
+        &self,
+        f: &HarmonicFactors,
+        of: &OmegaFactor,
+        scratch: &Scratch,
+        idx: usize,
+    ) -> Complex64 {
+        let nb = f.b.norm_sqr();
+        let nc = of.c.norm_sqr();
+        let nx = scratch.x[idx].norm_sqr();
+        let widest = nb.max(nc).max(nx);
+        if widest < SERIES_DIAMETER * SERIES_DIAMETER {
+            return dd2(ZERO, ONE, f.b, f.e_b, of.c, of.e_c);
+        }
+        let e_bc = f.e_b * scratch.phi[idx];
+        if widest <= nc {
+            (e_bc - f.phi1_b) * of.inv_c
+        } else if widest <= nb {
+            (e_bc - of.phi1_c) * f.inv_b
+        } else {
+            (of.phi1_c - f.phi1_b) * scratch.inv_x[idx]
+        }
+    }
+
+    /// `G_k(jw)` on the block-exponential path.
+    fn block_value(
+        &self,
+        w: f64,
+        k: i32,
+        hf: &[HarmonicFactors],
+        scratch: &mut Scratch,
+    ) -> Complex64 {
+        let w_in = w - f64::from(k) * self.wp;
+        if self.solve_state_block(w_in, scratch) {
+            self.output_block(w_in, k, hf, scratch)
+        } else {
+            Complex64::new(f64::NAN, f64::NAN)
+        }
     }
 
     fn solve_state_block(&self, w_in: f64, scratch: &mut Scratch) -> bool {
@@ -391,7 +459,7 @@ impl ExactHtf {
         &self,
         w_in: f64,
         k: i32,
-        factors: &[HarmonicFactors],
+        hf: &[HarmonicFactors],
         scratch: &Scratch,
     ) -> Complex64 {
         let n = self.n;
@@ -418,9 +486,26 @@ impl ExactHtf {
             for r in 0..n {
                 acc += ex[(n + 1, r)] * scratch.zeta[i * n + r];
             }
-            y += factors[i].rotation * acc;
+            y += hf[i].rotation * acc;
         }
         y / self.period
+    }
+}
+
+/// `v <- transfer_i (E_i v + h phi_i beta_i)`: one piece in modal
+/// coordinates, then the next piece's jump and change of basis.
+#[inline]
+fn modal_step(n: usize, i: usize, h: f64, mp: &ModalPiece, scratch: &mut Scratch) {
+    for j in 0..n {
+        scratch.u[j] =
+            scratch.e[i * n + j] * scratch.v[j] + scratch.phi[i * n + j] * mp.beta[j] * h;
+    }
+    for r in 0..n {
+        let mut acc = ZERO;
+        for c in 0..n {
+            acc += mp.transfer[r * n + c] * scratch.u[c];
+        }
+        scratch.v[r] = acc;
     }
 }
 
@@ -430,49 +515,42 @@ impl HarmonicTransferFunction for ExactHtf {
     }
 
     fn g(&self, n: i32, w: f64) -> Complex64 {
-        let w_in = w - f64::from(n) * self.wp;
-        self.response(w_in, &[n])[0]
+        let mut scratch = Scratch::new(self.n, self.pieces.len());
+        let hf = self.harmonic_factors(n);
+        match &self.modal {
+            Some(modal) => {
+                self.omega_factors(modal, w, &mut scratch);
+                self.modal_value(modal, &hf, &mut scratch)
+            }
+            None => self.block_value(w, n, &hf, &mut scratch),
+        }
     }
 
-    /// Tabulates with cached exponentials: `exp(-j w_in h_i)` is the product
-    /// of a per-frequency `exp(-j w h_i)` and a per-harmonic
-    /// `exp(j n wp h_i)`, so the inner loop evaluates no transcendental
-    /// function on the modal path.
+    /// Tabulates with cached factors: those of each output frequency
+    /// (`exp((lambda - j w) h)`, its `phi1`) are shared by all harmonics and
+    /// those of each harmonic by all frequencies, so on the modal path a
+    /// grid point costs a few multiplications and one division per state
+    /// and piece, with no transcendental function.
     fn grid(&self, harmonics: &[i32], omegas: &[f64]) -> HtfGrid {
-        let n_pieces = self.pieces.len();
-        let mut scratch = Scratch::new(self.n, n_pieces);
-        let per_harmonic: Vec<HarmonicFactors> = harmonics
+        let mut scratch = Scratch::new(self.n, self.pieces.len());
+        let per_harmonic: Vec<Vec<HarmonicFactors>> = harmonics
             .iter()
-            .flat_map(|&k| self.pieces.iter().map(move |p| (k, p)))
-            .map(|(k, p)| self.harmonic_factors_for(k, p))
+            .map(|&k| self.harmonic_factors(k))
             .collect();
-        let shift: Vec<Complex64> = harmonics
-            .iter()
-            .flat_map(|&k| {
-                self.pieces.iter().map(move |p| {
-                    Complex64::from_polar(1.0, (f64::from(k) * self.wp * p.h).rem_euclid(TAU))
-                })
-            })
-            .collect();
-        let mut e_w = vec![ZERO; n_pieces];
-        let mut e_s = vec![ZERO; n_pieces];
         let mut values = Vec::with_capacity(harmonics.len() * omegas.len());
         for &w in omegas {
-            for (e, p) in e_w.iter_mut().zip(&self.pieces) {
-                *e = Complex64::from_polar(1.0, -(w * p.h).rem_euclid(TAU));
-            }
-            for (ih, &k) in harmonics.iter().enumerate() {
-                let w_in = w - f64::from(k) * self.wp;
-                for i in 0..n_pieces {
-                    e_s[i] = e_w[i] * shift[ih * n_pieces + i];
+            match &self.modal {
+                Some(modal) => {
+                    self.omega_factors(modal, w, &mut scratch);
+                    for hf in &per_harmonic {
+                        values.push(self.modal_value(modal, hf, &mut scratch));
+                    }
                 }
-                let factors = &per_harmonic[ih * n_pieces..(ih + 1) * n_pieces];
-                let value = if self.solve_state(w_in, &e_s, &mut scratch) {
-                    self.output(w_in, k, factors, &mut scratch)
-                } else {
-                    Complex64::new(f64::NAN, f64::NAN)
-                };
-                values.push(value);
+                None => {
+                    for (hf, &k) in per_harmonic.iter().zip(harmonics) {
+                        values.push(self.block_value(w, k, hf, &mut scratch));
+                    }
+                }
             }
         }
         HtfGrid {

@@ -287,3 +287,75 @@ fn time_shift_rotates_harmonics() {
         }
     }
 }
+
+fn critical_matrices(seg: usize, _t: f64) -> (Matrix2<f64>, Vector2<f64>, RowVector2<f64>, f64) {
+    let a = if seg == 0 {
+        // Critically damped: double eigenvalue -10 with one eigenvector.
+        Matrix2::new(0.0, 1.0, -100.0, -20.0)
+    } else {
+        Matrix2::new(0.0, 1.0, -K, 0.0)
+    };
+    (a, Vector2::new(0.0, 1.0), RowVector2::new(1.0, 0.0), 0.0)
+}
+
+#[test]
+fn defective_piece_falls_back_to_block_exponentials() {
+    let critical = Piece::siso(
+        0.4,
+        dmatrix![0.0, 1.0; -100.0, -20.0],
+        dvector![0.0, 1.0],
+        RowDVector::from_row_slice(&[1.0, 0.0]),
+        0.0,
+    );
+    let lti = PiecewiseLti::new(1.0, 0.0, vec![critical, hopper_piece(0.6, false)]).expect("valid");
+    assert!(matches!(
+        ExactHtf::with_method(&lti, ExactMethod::Modal),
+        Err(htfid_theory::TheoryError::NotDiagonalisable { piece: 0, .. })
+    ));
+    let htf = ExactHtf::new(&lti).expect("htf");
+    assert_eq!(htf.method(), ExactMethod::BlockExponential);
+    let brute = BruteLtp {
+        period: 1.0,
+        bounds: vec![0.0, 0.4, 1.0],
+        jumps: vec![Matrix2::identity(); 2],
+        matrices: &critical_matrices,
+    };
+    let err = worst_relative_error(&htf, &brute);
+    assert!(err < 1e-8, "critically damped vs RK4: {err:e}");
+}
+
+fn near_critical_lti(split_sq: f64) -> PiecewiseLti {
+    // Eigenvalues -10 +- sqrt(split_sq).
+    let piece = Piece::siso(
+        0.4,
+        dmatrix![0.0, 1.0; -100.0 + split_sq, -20.0],
+        dvector![0.0, 1.0],
+        RowDVector::from_row_slice(&[1.0, 0.0]),
+        0.0,
+    );
+    PiecewiseLti::new(1.0, 0.0, vec![piece, hopper_piece(0.6, false)]).expect("valid")
+}
+
+#[test]
+fn nearly_defective_piece_is_handled_by_either_path() {
+    // Eigenvalue split 0.063 (eigenvector condition ~3e3): the modal path is
+    // used and must agree with block exponentials; its error grows like
+    // ~1e-20 cond^2, i.e. ~1e-13 here, so 1e-11 of max|G| has margin.
+    let modal = ExactHtf::new(&near_critical_lti(1e-3)).expect("htf");
+    assert_eq!(modal.method(), ExactMethod::Modal);
+    let block = ExactHtf::with_method(&near_critical_lti(1e-3), ExactMethod::BlockExponential)
+        .expect("htf");
+    let omegas: Vec<f64> = (0..120)
+        .map(|i| -30.0 + 0.5 * f64::from(i) + 0.01)
+        .collect();
+    let ks = harmonics();
+    let a = modal.grid(&ks, &omegas);
+    let b = block.grid(&ks, &omegas);
+    let scale = a.max_abs();
+    for (x, y) in a.values.iter().zip(&b.values) {
+        assert!((x - y).norm() < 1e-11 * scale, "{x} vs {y}");
+    }
+    // Split 1e-3 (condition ~1e5): Auto must refuse the modal path.
+    let auto = ExactHtf::new(&near_critical_lti(1e-6)).expect("htf");
+    assert_eq!(auto.method(), ExactMethod::BlockExponential);
+}

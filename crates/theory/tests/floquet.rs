@@ -105,8 +105,14 @@ fn floquet_exponents_of_an_lti_system_are_its_eigenvalues() {
     // x'' + 0.7 x' + 33 x = 0 viewed with period 0.8: exponents must equal
     // the eigenvalues -0.35 +- j sqrt(33 - 0.35^2) modulo j wp.
     let a = dmatrix![0.0, 1.0; -33.0, -0.7];
-    let lti = PiecewiseLti::lti(0.8, a, dmatrix![0.0; 1.0], dmatrix![1.0, 0.0], dmatrix![0.0])
-        .expect("valid");
+    let lti = PiecewiseLti::lti(
+        0.8,
+        a,
+        dmatrix![0.0; 1.0],
+        dmatrix![1.0, 0.0],
+        dmatrix![0.0],
+    )
+    .expect("valid");
     let floquet = Floquet::new(&lti);
     let wd = (33.0_f64 - 0.35 * 0.35).sqrt();
     let wp = TAU / 0.8;

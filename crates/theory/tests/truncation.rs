@@ -6,9 +6,7 @@ mod common;
 
 use common::BruteLtp;
 use htfid_ltp::{fft_fourier_fn, Piece, PiecewiseLti};
-use htfid_theory::{
-    ExactHtf, FourierLtp, HarmonicTransferFunction, TheoryError, TruncatedHtf,
-};
+use htfid_theory::{ExactHtf, FourierLtp, HarmonicTransferFunction, TheoryError, TruncatedHtf};
 use nalgebra::{dmatrix, dvector, DMatrix, Matrix2, RowDVector, RowVector2, Vector2};
 use std::f64::consts::TAU;
 
@@ -36,7 +34,9 @@ fn truncation_error(exact: &ExactHtf, lti: &PiecewiseLti, n_trunc: usize) -> f64
     let omegas = [3.0, 9.0, 14.0, 20.0, 33.0];
     let ks: Vec<i32> = (-10..=10).collect();
     let truth = exact.grid(&ks, &omegas);
-    let trunc = TruncatedHtf::new(lti, n_trunc).expect("htf").grid(&ks, &omegas);
+    let trunc = TruncatedHtf::new(lti, n_trunc)
+        .expect("htf")
+        .grid(&ks, &omegas);
     let scale = truth.max_abs();
     truth
         .values
@@ -86,7 +86,12 @@ fn smooth_a(t: f64) -> Matrix2<f64> {
 }
 
 fn smooth_matrices(_seg: usize, t: f64) -> (Matrix2<f64>, Vector2<f64>, RowVector2<f64>, f64) {
-    (smooth_a(t), Vector2::new(0.0, 1.0), RowVector2::new(1.0, 0.0), 0.0)
+    (
+        smooth_a(t),
+        Vector2::new(0.0, 1.0),
+        RowVector2::new(1.0, 0.0),
+        0.0,
+    )
 }
 
 fn smooth_fourier_ltp() -> FourierLtp {

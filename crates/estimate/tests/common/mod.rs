@@ -60,7 +60,8 @@ impl Truth for Rational {
     }
 }
 
-/// `G_n(jw) = a_n + b_n w` with `a_{-n} = conj(a_n)`, `b_{-n} = -conj(b_n)`.
+/// `G_n(jw) = a_n + b_n w` with `a_{-n} = conj(a_n)`, `b_{-n} = -conj(b_n)` (`a_0` must be real
+/// and `b_0` imaginary).
 #[derive(Debug, Clone)]
 pub struct Affine {
     pub coef: Vec<(Complex64, Complex64)>,
@@ -140,14 +141,12 @@ pub fn c_at(c: &[Complex64], k: i64) -> Complex64 {
     }
 }
 
+/// Nonzero DFT bins as `(signed bin, value)`.
+pub type Bins = Vec<(i64, Complex64)>;
+
 /// Spectra of one record: input `U[k] = C[k] exp(-j w_k tau)` (the periodic input delayed by
 /// `tau`) and output `Y[k] = sum_n G_n(w_k) U[k - nP]`, on bins `-kmax_out..=kmax_out`.
-pub fn record_spectra(
-    grid: Grid,
-    c: &[Complex64],
-    tau: f64,
-    truth: &dyn Truth,
-) -> (Vec<(i64, Complex64)>, Vec<(i64, Complex64)>) {
+pub fn record_spectra(grid: Grid, c: &[Complex64], tau: f64, truth: &dyn Truth) -> (Bins, Bins) {
     let kmax = (c.len() as i64 - 1) / 2;
     let p = grid.p();
     let dw = grid.dw();

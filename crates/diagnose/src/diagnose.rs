@@ -1,0 +1,1121 @@
+//! The diagnosis: nominal fit, candidate fits, held-out scores and the decision.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+use htfid_model::{DamperLaw, Effects, HopperParams};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::deriv::{local_fit, window_half_width};
+use crate::effect::Slot;
+use crate::fit::{Context, FitResult, ModelPoint, Scales, Segment};
+use crate::interp::Interpolation;
+use crate::noise::noise_floor;
+use crate::screen::Screening;
+use crate::sim::{Extent, MeasuredForce, SimMethod, Stepping};
+use crate::{DiagnoseError, Effect, NominalModel, Record};
+
+/// Fewest scored samples a range must keep after the burn-in.
+const MIN_SCORED: usize = 16;
+
+/// Settings of [`diagnose`]. Every field has a default ([`DiagnoseOptions::default`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DiagnoseOptions {
+    /// Sample-index ranges (0-based, end exclusive) the models are fitted on. Empty: the first
+    /// 70 % of the record.
+    pub fit: Vec<Range<usize>>,
+    /// Held-out sample-index ranges the models are judged on; must not overlap `fit`. Empty:
+    /// the last 30 % of the record.
+    pub validation: Vec<Range<usize>>,
+    /// Time (s) at the start of every range that is simulated but left out of costs and
+    /// scores, so the transient from the estimated initial state dies out. `None`: four decay
+    /// times `2 m / c` of the nominal model (with `c` halved for the switching damper, which
+    /// is on about half the time), at most a quarter of the shortest range.
+    pub burn_in_s: Option<f64>,
+    /// The effects tried. Default: the whole library, [`Effect::ALL`].
+    pub candidates: Vec<Effect>,
+    /// A candidate's effect parameter must lie this many standard errors from its nominal
+    /// value (zero for an absent effect) to be significant, `> 0`. Default 5.
+    pub significance_sigma: f64,
+    /// Smallest relative reduction `1 - rmse_candidate / rmse_nominal` of the held-out error
+    /// for a significant candidate, in `[0, 1)`. Default 0.05.
+    pub min_gain: f64,
+    /// Evidence margin in BIC units: a significant candidate must lower the fit BIC by this
+    /// much below the nominal's, and the winner must beat every other significant candidate's
+    /// BIC by this much, `>= 0`. Default 10 ("very strong" on Kass and Raftery's scale).
+    pub bic_margin: f64,
+    /// A held-out RMSE above this multiple of the noise floor is "clear residual structure",
+    /// `>= 1`. Default 1.5.
+    pub unexplained_ratio: f64,
+    /// Fraction of the nominal's excess error (above the noise floor, in mean square) the
+    /// winner must remove when its own residual is still above `unexplained_ratio` times the
+    /// noise floor, in `[0, 1]`. Default 0.75.
+    pub min_explained: f64,
+    /// How the measured force is read between samples. Default: cubic spline.
+    pub interpolation: Interpolation,
+    /// How models are simulated. Default: fixed-step RK4 with `max_rate_step = 0.1`.
+    pub sim: SimMethod,
+    /// Fit the position and velocity at the start of every fit range (two extra parameters per
+    /// range) instead of taking them from the data. Default `false`.
+    pub fit_initial_state: bool,
+    /// Most Levenberg-Marquardt iterations per fit, `>= 1`. Default 40.
+    pub max_iterations: usize,
+    /// Band of the residual spectrum whose level is the noise floor, as fractions of the
+    /// Nyquist frequency, `0 < lo < hi <= 1`. Default (0.6, 0.95).
+    pub noise_band: (f64, f64),
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            fit: Vec::new(),
+            validation: Vec::new(),
+            burn_in_s: None,
+            candidates: Effect::ALL.to_vec(),
+            significance_sigma: 5.0,
+            min_gain: 0.05,
+            bic_margin: 10.0,
+            unexplained_ratio: 1.5,
+            min_explained: 0.75,
+            interpolation: Interpolation::default(),
+            sim: SimMethod::default(),
+            fit_initial_state: false,
+            max_iterations: 40,
+            noise_band: (0.6, 0.95),
+        }
+    }
+}
+
+impl DiagnoseOptions {
+    /// Checks every range-free option; ranges are checked against the record in [`diagnose`].
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
+        let bad = |name, expected, value| {
+            Err(DiagnoseError::InvalidOption {
+                name,
+                expected,
+                value,
+            })
+        };
+        if let Some(b) = self.burn_in_s {
+            if !(b.is_finite() && b >= 0.0) {
+                return bad("burn_in_s", ">= 0 and finite", b);
+            }
+        }
+        if !(self.significance_sigma.is_finite() && self.significance_sigma > 0.0) {
+            return bad(
+                "significance_sigma",
+                "> 0 and finite",
+                self.significance_sigma,
+            );
+        }
+        if !(self.min_gain >= 0.0 && self.min_gain < 1.0) {
+            return bad("min_gain", "in [0, 1)", self.min_gain);
+        }
+        if !(self.bic_margin.is_finite() && self.bic_margin >= 0.0) {
+            return bad("bic_margin", ">= 0 and finite", self.bic_margin);
+        }
+        if !(self.unexplained_ratio.is_finite() && self.unexplained_ratio >= 1.0) {
+            return bad(
+                "unexplained_ratio",
+                ">= 1 and finite",
+                self.unexplained_ratio,
+            );
+        }
+        if !(0.0..=1.0).contains(&self.min_explained) {
+            return bad("min_explained", "in [0, 1]", self.min_explained);
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", ">= 1", 0.0);
+        }
+        let (lo, hi) = self.noise_band;
+        if !(lo > 0.0 && lo < hi) {
+            return bad("noise_band.0", "> 0 and below noise_band.1", lo);
+        }
+        if !(hi <= 1.0) {
+            return bad("noise_band.1", "<= 1", hi);
+        }
+        match self.sim {
+            SimMethod::FixedStep { max_rate_step } => {
+                if !(max_rate_step.is_finite() && max_rate_step > 0.0) {
+                    return bad("sim.max_rate_step", "> 0 and finite", max_rate_step);
+                }
+            }
+            SimMethod::Adaptive { rtol } => {
+                if !(rtol.is_finite() && rtol > 0.0) {
+                    return bad("sim.rtol", "> 0 and finite", rtol);
+                }
+            }
+        }
+        for (i, e) in self.candidates.iter().enumerate() {
+            if self.candidates[..i].contains(e) {
+                return Err(DiagnoseError::DuplicateCandidate { name: e.name() });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A model's simulation error on a set of samples.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Score {
+    /// `rmse / std(measured x)` over the same samples.
+    pub nrmse: f64,
+    /// Root-mean-square of `simulated x - measured x` (m).
+    pub rmse: f64,
+}
+
+/// One candidate effect, fitted and judged.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Candidate {
+    /// Effect name ([`Effect::name`]).
+    pub effect: String,
+    /// Fitted effect parameters and refitted nominal parameters, by name.
+    pub parameters: BTreeMap<String, f64>,
+    /// Their standard errors (allowing for correlated residuals; infinite when the data do
+    /// not determine the parameter).
+    pub stderr: BTreeMap<String, f64>,
+    /// NRMSE on the held-out ranges (NaN when not fitted).
+    pub nrmse_validation: f64,
+    /// RMSE on the held-out ranges (m; NaN when not fitted).
+    pub rmse_validation: f64,
+    /// BIC on the fit ranges (NaN when not fitted).
+    pub bic: f64,
+    /// Whether the candidate passed every significance test (see the crate docs).
+    pub significant: bool,
+    /// Why it is (not) significant, or why it was skipped.
+    pub note: String,
+}
+
+/// The answer: the named cause, the extended model's parameters and the measured gain.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Diagnosis {
+    /// The winning effect's name, `none` (the nominal model explains the data to the noise
+    /// floor or no candidate is significant while the residual is at the noise floor) or
+    /// `unexplained` (clear residual structure that no single library effect explains).
+    pub cause: String,
+    /// Parameters of the extended model (effect parameters and refitted nominal parameters);
+    /// for `none` and `unexplained`, the refitted nominal parameters.
+    pub parameters: BTreeMap<String, f64>,
+    /// Standard errors of `parameters`.
+    pub stderr: BTreeMap<String, f64>,
+    /// The nominal model's (with `free` refitted) held-out score.
+    pub nominal: Score,
+    /// The extended model's held-out score (equal to `nominal` without a winner).
+    pub extended: Score,
+    /// `1 - extended.rmse / nominal.rmse` on the held-out data.
+    pub gain: f64,
+    /// Every candidate, best held-out RMSE first; skipped and failed ones last.
+    pub candidates: Vec<Candidate>,
+    /// Sentences explaining the decision.
+    pub evidence: Vec<String>,
+}
+
+/// A fitted model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FittedModel {
+    /// Parameters (the forcing amplitude is zero: the force is the measured one).
+    pub params: HopperParams,
+    /// Damper law.
+    pub damper: DamperLaw,
+    /// Effects, including any fitted one.
+    pub effects: Effects,
+}
+
+/// [`Diagnosis`] plus what a caller needs to plot and check it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnosisReport {
+    /// The diagnosis (the JSON part).
+    pub diagnosis: Diagnosis,
+    /// The nominal model with its free parameters refitted.
+    pub nominal_model: FittedModel,
+    /// The extended (winning) model; the nominal fit when there is no winner.
+    pub extended_model: FittedModel,
+    /// Simulated position of the nominal fit at every sample of the fit and validation ranges
+    /// (each range simulated from its own initial state, burn-in included); NaN elsewhere.
+    pub nominal_output: Vec<f64>,
+    /// The same for the extended model.
+    pub extended_output: Vec<f64>,
+    /// The nominal fit's score on the fit ranges.
+    pub nominal_fit_score: Score,
+    /// Noise floor (m) estimated from the nominal residual spectrum; `None` when the ranges
+    /// are too short for it (64 samples).
+    pub noise_floor: Option<f64>,
+    /// Burn-in used (s).
+    pub burn_in_s: f64,
+    /// Fit ranges used.
+    pub fit_ranges: Vec<Range<usize>>,
+    /// Validation ranges used.
+    pub validation_ranges: Vec<Range<usize>>,
+    /// Residual evaluations (simulations of the fit ranges) spent by all fits.
+    pub evaluations: usize,
+}
+
+/// Diagnoses `record` against `nominal`; see the crate docs for the method and the decision
+/// rule.
+pub fn diagnose(
+    record: &Record,
+    nominal: &NominalModel,
+    opts: &DiagnoseOptions,
+) -> Result<DiagnosisReport, DiagnoseError> {
+    diagnose_with_progress(record, nominal, opts, &|_| {})
+}
+
+/// [`diagnose`] reporting progress as short sentences (called from worker threads).
+pub fn diagnose_with_progress(
+    record: &Record,
+    nominal: &NominalModel,
+    opts: &DiagnoseOptions,
+    progress: &(dyn Fn(&str) + Sync),
+) -> Result<DiagnosisReport, DiagnoseError> {
+    nominal.validate()?;
+    opts.validate()?;
+    let n = record.len();
+    let dt = record.dt();
+    let (fit_ranges, val_ranges) = resolve_ranges(opts, n)?;
+    let free = nominal.free_slots();
+    let start = ModelPoint {
+        params: nominal.measured_params(),
+        effects: nominal.effects,
+    };
+
+    let f_n = (start.params.k / start.params.m).sqrt() / (2.0 * std::f64::consts::PI);
+    let half = window_half_width(f_n, dt);
+    let burn_in_s = match opts.burn_in_s {
+        Some(b) => b,
+        None => auto_burn_in(nominal, &fit_ranges, &val_ranges, dt),
+    };
+    let skip = (burn_in_s / dt - 1e-9).ceil().max(0.0) as usize;
+    let init_half = init_half_width(f_n, dt);
+    let fit = segments(record, &fit_ranges, skip, init_half, "fit", burn_in_s)?;
+    let validation = segments(
+        record,
+        &val_ranges,
+        skip,
+        init_half,
+        "validation",
+        burn_in_s,
+    )?;
+
+    let x = record.x();
+    let x_min = x.iter().copied().fold(f64::INFINITY, f64::min);
+    let x_max = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mut ctx = Context {
+        record,
+        input: MeasuredForce::new(record.t()[0], dt, record.f(), opts.interpolation),
+        damper: nominal.damper,
+        method: opts.sim,
+        extent: Extent {
+            x_min,
+            x_max,
+            v_max: 0.0,
+        },
+        scales: Scales {
+            x_std: positive_or(std_dev(x), 1.0),
+            v_std: 1.0,
+            f_std: positive_or(std_dev(record.f()), 1.0),
+        },
+        fit,
+        validation,
+        fit_initial_state: opts.fit_initial_state,
+        max_iterations: opts.max_iterations,
+    };
+    let screening = Screening::new(&ctx, half);
+    let v: Vec<f64> = screening.samples().iter().map(|(_, k)| k.v).collect();
+    let v_max = v.iter().fold(0.0_f64, |a, b| a.max(b.abs()));
+    let v_std = positive_or(
+        std_dev(&v),
+        ctx.scales.x_std * 2.0 * std::f64::consts::PI * f_n,
+    );
+    drop(screening);
+    ctx.extent.v_max = v_max;
+    ctx.scales.v_std = v_std;
+    let ctx = ctx;
+    let screening = Screening::new(&ctx, half);
+
+    progress("fitting the nominal model");
+    let nominal_fit = fit_nominal(&ctx, &screening, &start, &free)?;
+    let nominal_val = evaluate(&ctx, &nominal_fit.point, &nominal_fit.stepping).map_err(|e| {
+        DiagnoseError::NominalSimulation {
+            time: e.0,
+            reason: e.1,
+        }
+    })?;
+    let nominal_fit_eval =
+        evaluate_fit(&ctx, &nominal_fit).map_err(|e| DiagnoseError::NominalSimulation {
+            time: e.0,
+            reason: e.1,
+        })?;
+    let noise = {
+        let mut parts: Vec<&[f64]> = nominal_fit_eval.residuals.iter().map(|r| &r[..]).collect();
+        parts.extend(nominal_val.residuals.iter().map(|r| &r[..]));
+        noise_floor(&parts, opts.noise_band)
+    };
+    progress(&format!(
+        "nominal fit: held-out RMSE {:.3e}, noise floor {}",
+        nominal_val.score.rmse,
+        noise.map_or("unknown".to_string(), |s| format!("{s:.3e}"))
+    ));
+
+    let outcomes: Vec<Outcome> = opts
+        .candidates
+        .par_iter()
+        .map(|&effect| {
+            let out = run_candidate(&ctx, &screening, &nominal_fit, &free, effect);
+            match &out.fit {
+                Some(f) => progress(&format!(
+                    "{}: held-out RMSE {:.3e} after {} simulations",
+                    effect.name(),
+                    out.val_rmse,
+                    f.evaluations
+                )),
+                None => progress(&format!("{}: {}", effect.name(), out.note)),
+            }
+            out
+        })
+        .collect();
+
+    let decision = decide(
+        &nominal_fit,
+        &nominal_val.score,
+        noise,
+        outcomes,
+        &free,
+        opts,
+        nominal,
+    );
+    let winner_fit = decision.winner.as_ref().and_then(|w| w.fit.as_ref());
+    let extended_fit = winner_fit.unwrap_or(&nominal_fit);
+    let nominal_output = plot_output(&ctx, &nominal_fit);
+    let extended_output = plot_output(&ctx, extended_fit);
+    let evaluations = nominal_fit.evaluations + decision.evaluations;
+    let fitted = |f: &FitResult| FittedModel {
+        params: f.point.params,
+        damper: nominal.damper,
+        effects: f.point.effects,
+    };
+    Ok(DiagnosisReport {
+        nominal_model: fitted(&nominal_fit),
+        extended_model: fitted(extended_fit),
+        diagnosis: decision.diagnosis,
+        nominal_output,
+        extended_output,
+        nominal_fit_score: nominal_fit_eval.score,
+        noise_floor: noise,
+        burn_in_s,
+        fit_ranges,
+        validation_ranges: val_ranges,
+        evaluations,
+    })
+}
+
+/// Simulates `model` on the samples `range` of `record`, driven by the measured force, from
+/// `init` (position, velocity at `range.start`) or, when `None`, from the state estimated from
+/// the data as [`diagnose`] does. Returns the simulated positions of the range.
+pub fn simulate_record(
+    record: &Record,
+    model: &FittedModel,
+    range: Range<usize>,
+    init: Option<[f64; 2]>,
+    interpolation: Interpolation,
+    sim: SimMethod,
+) -> Result<Vec<f64>, DiagnoseError> {
+    let n = record.len();
+    if range.start >= range.end || range.end > n {
+        return Err(DiagnoseError::InvalidRange {
+            which: "simulation",
+            start: range.start,
+            end: range.end,
+            len: n,
+        });
+    }
+    let p = HopperParams {
+        forcing_amplitude: 0.0,
+        ..model.params
+    };
+    let input = MeasuredForce::new(record.t()[0], record.dt(), record.f(), interpolation);
+    let hopper = input.drive(p, model.damper, model.effects)?;
+    let f_n = (p.k / p.m).sqrt() / (2.0 * std::f64::consts::PI);
+    let half = init_half_width(f_n, record.dt());
+    let init = match init {
+        Some(i) => i,
+        None => segments(record, &[range.clone()], 0, half, "simulation", 0.0)?[0].init,
+    };
+    let x = record.x();
+    let extent = Extent {
+        x_min: x.iter().copied().fold(f64::INFINITY, f64::min),
+        x_max: x.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        v_max: 0.0,
+    };
+    let stepping = Stepping::resolve(sim, &p, &model.effects, &extent, record.dt());
+    let mut out = vec![0.0; range.len()];
+    crate::sim::simulate_positions(
+        &hopper,
+        record.t()[range.start],
+        init,
+        record.dt(),
+        &stepping,
+        &mut out,
+    )
+    .map_err(|e| DiagnoseError::Simulation {
+        time: e.time,
+        reason: e.reason,
+    })?;
+    Ok(out)
+}
+
+/// Half-width of the local cubic that estimates an initial state: the window spans about half a
+/// radian of the natural oscillation (so the cubic's bias stays near `0.5^4 / 120` relative),
+/// and at least 2 samples on each side.
+fn init_half_width(f_n: f64, dt: f64) -> usize {
+    let w = 0.5 / (2.0 * std::f64::consts::PI * f_n * dt);
+    if w.is_finite() {
+        w.round().clamp(2.0, 50.0) as usize
+    } else {
+        50
+    }
+}
+
+fn positive_or(v: f64, fallback: f64) -> f64 {
+    if v.is_finite() && v > 0.0 {
+        v
+    } else {
+        fallback
+    }
+}
+
+fn std_dev(v: &[f64]) -> f64 {
+    if v.len() < 2 {
+        return 0.0;
+    }
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    (v.iter().map(|a| (a - mean) * (a - mean)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+}
+
+fn resolve_ranges(
+    opts: &DiagnoseOptions,
+    n: usize,
+) -> Result<(Vec<Range<usize>>, Vec<Range<usize>>), DiagnoseError> {
+    let split = (n as f64 * 0.7).floor() as usize;
+    let fit = if opts.fit.is_empty() {
+        vec![0..split]
+    } else {
+        opts.fit.clone()
+    };
+    let val = if opts.validation.is_empty() {
+        vec![split..n]
+    } else {
+        opts.validation.clone()
+    };
+    for (which, ranges) in [("fit", &fit), ("validation", &val)] {
+        for r in ranges.iter() {
+            if r.start >= r.end || r.end > n {
+                return Err(DiagnoseError::InvalidRange {
+                    which,
+                    start: r.start,
+                    end: r.end,
+                    len: n,
+                });
+            }
+        }
+    }
+    for f in &fit {
+        for v in &val {
+            if f.start < v.end && v.start < f.end {
+                return Err(DiagnoseError::OverlappingRanges {
+                    fit_start: f.start,
+                    fit_end: f.end,
+                    val_start: v.start,
+                    val_end: v.end,
+                });
+            }
+        }
+    }
+    Ok((fit, val))
+}
+
+fn auto_burn_in(
+    nominal: &NominalModel,
+    fit: &[Range<usize>],
+    val: &[Range<usize>],
+    dt: f64,
+) -> f64 {
+    let p = &nominal.params;
+    let c_eff = match nominal.damper {
+        DamperLaw::AlwaysOn => p.c,
+        DamperLaw::Switching => 0.5 * p.c,
+    };
+    let shortest = fit.iter().chain(val).map(|r| r.len()).min().unwrap_or(0) as f64 * dt;
+    let decay_time = if c_eff > 0.0 {
+        2.0 * p.m / c_eff
+    } else {
+        f64::INFINITY
+    };
+    (4.0 * decay_time).min(0.25 * shortest)
+}
+
+fn segments(
+    record: &Record,
+    ranges: &[Range<usize>],
+    skip: usize,
+    half: usize,
+    which: &'static str,
+    burn_in_s: f64,
+) -> Result<Vec<Segment>, DiagnoseError> {
+    let x = record.x();
+    let n = x.len();
+    ranges
+        .iter()
+        .map(|r| {
+            let kept = r.len().saturating_sub(skip);
+            if kept < MIN_SCORED {
+                return Err(DiagnoseError::RangeTooShort {
+                    which,
+                    start: r.start,
+                    end: r.end,
+                    kept,
+                    burn_in_s,
+                    min: MIN_SCORED,
+                });
+            }
+            // Position and velocity of a local cubic through the samples around the start
+            // (those before it are measured data too; only the state is taken from them).
+            let lo = r.start.saturating_sub(half);
+            let hi = (r.start + half + 1).min(n);
+            let init = local_fit(x, lo, hi, r.start, record.dt(), 3)
+                .map_or([x[r.start], 0.0], |k| [k.x, k.v]);
+            Ok(Segment {
+                range: r.clone(),
+                skip,
+                init,
+            })
+        })
+        .collect()
+}
+
+fn fit_nominal(
+    ctx: &Context<'_>,
+    screening: &Screening<'_, '_>,
+    start: &ModelPoint,
+    free: &[Slot],
+) -> Result<FitResult, DiagnoseError> {
+    if free.is_empty() {
+        // Nothing to fit: score the nominal as given (an empty fit).
+        return ctx
+            .evaluate_fixed(start)
+            .map_err(|e| DiagnoseError::NominalSimulation {
+                time: e.0,
+                reason: e.1,
+            });
+    }
+    let refined = screening.refine_nominal(start, free);
+    let cost = |p: &ModelPoint| ctx.fit_cost(p).unwrap_or(f64::INFINITY);
+    let (c0, c1) = (cost(start), cost(&refined));
+    if !c0.is_finite() && !c1.is_finite() {
+        return Err(DiagnoseError::NominalSimulation {
+            time: ctx.record.t()[0],
+            reason: "the nominal model cannot be simulated on the fit ranges".to_string(),
+        });
+    }
+    let from = if c1 < c0 { refined } else { *start };
+    ctx.fit(&from, free)
+        .map_err(|reason| DiagnoseError::NominalFit { reason })
+}
+
+impl Context<'_> {
+    /// Sum of squared fit residuals with initial states from the data.
+    fn fit_cost(&self, p: &ModelPoint) -> Option<f64> {
+        let hopper = self.hopper(p).ok()?;
+        let stepping = self.stepping(p);
+        let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
+        let mut r = vec![0.0; self.n_fit()];
+        self.residuals(&hopper, &self.fit, &init, &stepping, &mut r)
+            .ok()?;
+        let c: f64 = r.iter().map(|v| v * v).sum();
+        c.is_finite().then_some(c)
+    }
+
+    /// A "fit" of no parameters: the model as given.
+    fn evaluate_fixed(&self, p: &ModelPoint) -> Result<FitResult, (f64, String)> {
+        let stepping = self.stepping(p);
+        let hopper = self.hopper(p).map_err(|e| (self.record.t()[0], e))?;
+        let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
+        let n = self.n_fit();
+        let mut r = vec![0.0; n];
+        self.residuals(&hopper, &self.fit, &init, &stepping, &mut r)
+            .map_err(|e| (e.time, e.reason))?;
+        let rss: f64 = r.iter().map(|v| v * v).sum();
+        Ok(FitResult {
+            point: *p,
+            slots: Vec::new(),
+            values: Vec::new(),
+            stderr: Vec::new(),
+            at_bound: Vec::new(),
+            init,
+            rss,
+            n,
+            n_params: 0,
+            bic: crate::fit::bic(rss, n, 0),
+            stepping,
+            evaluations: 1,
+        })
+    }
+}
+
+/// Residuals and score of a model on a set of segments.
+struct Evaluation {
+    score: Score,
+    residuals: Vec<Vec<f64>>,
+}
+
+fn score_of(residuals: &[Vec<f64>], measured: &[f64]) -> Score {
+    let n: usize = residuals.iter().map(|r| r.len()).sum();
+    let ss: f64 = residuals.iter().flatten().map(|v| v * v).sum();
+    let rmse = (ss / n.max(1) as f64).sqrt();
+    let sd = std_dev(measured);
+    Score {
+        nrmse: if sd > 0.0 { rmse / sd } else { f64::INFINITY },
+        rmse,
+    }
+}
+
+/// Held-out evaluation (initial states from the data).
+fn evaluate(
+    ctx: &Context<'_>,
+    p: &ModelPoint,
+    stepping: &Stepping,
+) -> Result<Evaluation, (f64, String)> {
+    let inits: Vec<[f64; 2]> = ctx.validation.iter().map(|s| s.init).collect();
+    evaluate_on(ctx, p, stepping, &ctx.validation, &inits)
+}
+
+/// Evaluation on the fit ranges with the fit's initial states.
+fn evaluate_fit(ctx: &Context<'_>, f: &FitResult) -> Result<Evaluation, (f64, String)> {
+    evaluate_on(ctx, &f.point, &f.stepping, &ctx.fit, &f.init)
+}
+
+fn evaluate_on(
+    ctx: &Context<'_>,
+    p: &ModelPoint,
+    stepping: &Stepping,
+    segs: &[Segment],
+    inits: &[[f64; 2]],
+) -> Result<Evaluation, (f64, String)> {
+    let hopper = ctx.hopper(p).map_err(|e| (ctx.record.t()[0], e))?;
+    let x = ctx.record.x();
+    let mut residuals = Vec::with_capacity(segs.len());
+    let mut measured = Vec::new();
+    let mut buf = Vec::new();
+    for (seg, &init) in segs.iter().zip(inits) {
+        ctx.simulate(&hopper, seg, init, stepping, &mut buf)
+            .map_err(|e| (e.time, e.reason))?;
+        let scored = seg.scored();
+        residuals.push(
+            scored
+                .clone()
+                .map(|k| buf[k - seg.range.start] - x[k])
+                .collect(),
+        );
+        measured.extend_from_slice(&x[scored]);
+    }
+    let score = score_of(&residuals, &measured);
+    if !score.rmse.is_finite() {
+        return Err((ctx.record.t()[0], "non-finite simulation".to_string()));
+    }
+    Ok(Evaluation { score, residuals })
+}
+
+fn plot_output(ctx: &Context<'_>, f: &FitResult) -> Vec<f64> {
+    let mut out = vec![f64::NAN; ctx.record.len()];
+    let Ok(hopper) = ctx.hopper(&f.point) else {
+        return out;
+    };
+    let mut buf = Vec::new();
+    let val_inits: Vec<[f64; 2]> = ctx.validation.iter().map(|s| s.init).collect();
+    for (seg, init) in ctx
+        .fit
+        .iter()
+        .zip(&f.init)
+        .chain(ctx.validation.iter().zip(&val_inits))
+    {
+        if ctx
+            .simulate(&hopper, seg, *init, &f.stepping, &mut buf)
+            .is_ok()
+        {
+            out[seg.range.clone()].copy_from_slice(&buf);
+        }
+    }
+    out
+}
+
+/// A candidate after fitting and scoring.
+struct Outcome {
+    effect: Effect,
+    fit: Option<FitResult>,
+    val_rmse: f64,
+    val_nrmse: f64,
+    note: String,
+}
+
+fn run_candidate(
+    ctx: &Context<'_>,
+    screening: &Screening<'_, '_>,
+    nominal: &FitResult,
+    free: &[Slot],
+    effect: Effect,
+) -> Outcome {
+    let failed = |note: String| Outcome {
+        effect,
+        fit: None,
+        val_rmse: f64::NAN,
+        val_nrmse: f64::NAN,
+        note,
+    };
+    if let Some(reason) = effect.skip_reason(ctx.damper, free) {
+        return failed(reason.to_string());
+    }
+    let start = screening.start(&nominal.point, free, effect);
+    let mut slots = free.to_vec();
+    slots.extend(effect.slots(free));
+    let fit = match ctx.fit(&start, &slots) {
+        Ok(f) => f,
+        Err(e) => return failed(format!("fit failed: {e}")),
+    };
+    match evaluate(ctx, &fit.point, &fit.stepping) {
+        Ok(ev) => Outcome {
+            effect,
+            val_rmse: ev.score.rmse,
+            val_nrmse: ev.score.nrmse,
+            fit: Some(fit),
+            note: String::new(),
+        },
+        Err((t, e)) => failed(format!(
+            "the fitted model cannot be simulated on the held-out data (t = {t} s: {e})"
+        )),
+    }
+}
+
+struct Decision {
+    diagnosis: Diagnosis,
+    winner: Option<Outcome>,
+    evaluations: usize,
+}
+
+/// Significance of one fitted candidate against the nominal fit.
+struct Judgement {
+    /// Largest distance of a tested parameter from its nominal value, in standard errors.
+    z: f64,
+    gain: f64,
+    delta_bic: f64,
+    significant: bool,
+    note: String,
+}
+
+fn judge(
+    out: &Outcome,
+    fit: &FitResult,
+    nominal_fit: &FitResult,
+    nominal_rmse: f64,
+    free: &[Slot],
+    opts: &DiagnoseOptions,
+) -> Judgement {
+    let tested = out.effect.tested_slots(free);
+    let mut z = 0.0_f64;
+    let mut parts = Vec::new();
+    let mut bound_note = None;
+    for s in &tested {
+        let Some(i) = fit.slots.iter().position(|q| q == s) else {
+            continue;
+        };
+        let reference = nominal_fit.point.get(*s);
+        let zi = if fit.at_bound[i] {
+            bound_note = Some(format!(
+                "{} ended on its bound {:.4e}",
+                s.name(),
+                fit.values[i]
+            ));
+            0.0
+        } else {
+            let d = (fit.values[i] - reference).abs();
+            if fit.stderr[i] > 0.0 {
+                d / fit.stderr[i]
+            } else if d > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            }
+        };
+        parts.push(format!(
+            "{} = {:.4e} +/- {:.2e} ({:.1} standard errors from {:.4e})",
+            s.name(),
+            fit.values[i],
+            fit.stderr[i],
+            zi,
+            reference
+        ));
+        z = z.max(zi);
+    }
+    let gain = 1.0 - out.val_rmse / nominal_rmse;
+    let delta_bic = nominal_fit.bic - fit.bic;
+    let mut reasons = Vec::new();
+    if z < opts.significance_sigma {
+        reasons.push(format!(
+            "fewer than {} standard errors from nominal",
+            opts.significance_sigma
+        ));
+    }
+    if let Some(b) = bound_note {
+        reasons.push(b);
+    }
+    if !(gain >= opts.min_gain) {
+        reasons.push(format!(
+            "held-out gain {:.1} % below {:.1} %",
+            100.0 * gain,
+            100.0 * opts.min_gain
+        ));
+    }
+    if !(delta_bic >= opts.bic_margin) {
+        reasons.push(format!(
+            "BIC lower by only {:.1} (< {})",
+            delta_bic, opts.bic_margin
+        ));
+    }
+    let significant = reasons.is_empty();
+    let mut note = parts.join("; ");
+    note.push_str(&format!(
+        "; held-out gain {:.1} %; BIC {:.1} below nominal",
+        100.0 * gain,
+        delta_bic
+    ));
+    if !significant {
+        note.push_str(&format!("; not significant: {}", reasons.join(", ")));
+    }
+    Judgement {
+        z,
+        gain,
+        delta_bic,
+        significant,
+        note,
+    }
+}
+
+fn named(fit: &FitResult) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+    let mut p = BTreeMap::new();
+    let mut s = BTreeMap::new();
+    for ((slot, v), e) in fit.slots.iter().zip(&fit.values).zip(&fit.stderr) {
+        p.insert(slot.name().to_string(), *v);
+        s.insert(slot.name().to_string(), *e);
+    }
+    (p, s)
+}
+
+#[allow(clippy::too_many_lines)]
+fn decide(
+    nominal_fit: &FitResult,
+    nominal_score: &Score,
+    noise: Option<f64>,
+    outcomes: Vec<Outcome>,
+    free: &[Slot],
+    opts: &DiagnoseOptions,
+    nominal: &NominalModel,
+) -> Decision {
+    let nominal_rmse = nominal_score.rmse;
+    let evaluations = outcomes
+        .iter()
+        .filter_map(|o| o.fit.as_ref())
+        .map(|f| f.evaluations)
+        .sum();
+    let mut judged: Vec<(Outcome, Option<Judgement>)> = outcomes
+        .into_iter()
+        .map(|o| {
+            let j = o
+                .fit
+                .as_ref()
+                .map(|f| judge(&o, f, nominal_fit, nominal_rmse, free, opts));
+            (o, j)
+        })
+        .collect();
+    // Best held-out RMSE first; unfitted last in library order.
+    judged.sort_by(|a, b| match (a.0.fit.is_some(), b.0.fit.is_some()) {
+        (true, true) => a.0.val_rmse.total_cmp(&b.0.val_rmse),
+        (true, false) => std::cmp::Ordering::Less,
+        (false, true) => std::cmp::Ordering::Greater,
+        (false, false) => a.0.effect.cmp(&b.0.effect),
+    });
+
+    let mut evidence = Vec::new();
+    let free_names: Vec<&str> = nominal.free.iter().map(|p| p.name()).collect();
+    let ratio = noise.map(|s| nominal_rmse / s);
+    evidence.push(format!(
+        "nominal model ({} refitted): held-out RMSE {:.3e} (NRMSE {:.2} %){}",
+        if free_names.is_empty() {
+            "nothing".to_string()
+        } else {
+            free_names.join(", ")
+        },
+        nominal_rmse,
+        100.0 * nominal_score.nrmse,
+        match (noise, ratio) {
+            (Some(s), Some(r)) => format!(
+                ", {r:.2} times the noise floor {s:.3e} estimated from the residual spectrum \
+                 between {:.0} % and {:.0} % of the Nyquist frequency",
+                100.0 * opts.noise_band.0,
+                100.0 * opts.noise_band.1
+            ),
+            _ => ", noise floor unknown (ranges too short)".to_string(),
+        }
+    ));
+    let structured = ratio.map_or(true, |r| r > opts.unexplained_ratio);
+
+    let significant: Vec<usize> = judged
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, j))| j.as_ref().is_some_and(|j| j.significant))
+        .map(|(i, _)| i)
+        .collect();
+
+    let mut winner: Option<usize> = None;
+    let cause: String;
+    if let Some(&w) = significant.first() {
+        let (wo, wj) = (&judged[w].0, judged[w].1.as_ref().expect("judged"));
+        let wf = wo.fit.as_ref().expect("fitted");
+        evidence.push(format!(
+            "best significant candidate {}: held-out RMSE {:.3e}, {:.1} % below nominal; \
+             effect {:.1} standard errors from nominal; fit BIC {:.1} below nominal",
+            wo.effect.name(),
+            wo.val_rmse,
+            100.0 * wj.gain,
+            wj.z,
+            wj.delta_bic
+        ));
+        let rivals: Vec<String> = significant[1..]
+            .iter()
+            .filter_map(|&i| {
+                let f = judged[i].0.fit.as_ref()?;
+                (f.bic - wf.bic < opts.bic_margin).then(|| {
+                    format!(
+                        "{} (BIC only {:.1} higher)",
+                        judged[i].0.effect.name(),
+                        f.bic - wf.bic
+                    )
+                })
+            })
+            .collect();
+        let explained = match noise {
+            Some(s) if nominal_rmse > s => {
+                (nominal_rmse.powi(2) - wo.val_rmse.powi(2)) / (nominal_rmse.powi(2) - s * s)
+            }
+            _ => 1.0,
+        };
+        let at_floor = noise.is_some_and(|s| wo.val_rmse <= opts.unexplained_ratio * s);
+        if !rivals.is_empty() {
+            cause = "unexplained".to_string();
+            evidence.push(format!(
+                "the data cannot separate {} from {}: no single cause is named",
+                wo.effect.name(),
+                rivals.join(", ")
+            ));
+        } else if !at_floor && explained < opts.min_explained {
+            cause = "unexplained".to_string();
+            evidence.push(format!(
+                "{} removes only {:.0} % of the nominal's error above the noise floor \
+                 (at least {:.0} % required) and its residual stays {:.2} times the floor: \
+                 the cause lies outside the library",
+                wo.effect.name(),
+                100.0 * explained,
+                100.0 * opts.min_explained,
+                noise.map_or(f64::NAN, |s| wo.val_rmse / s)
+            ));
+        } else {
+            cause = wo.effect.name().to_string();
+            winner = Some(w);
+            if let Some(next) = significant.get(1) {
+                let f = judged[*next].0.fit.as_ref().expect("fitted");
+                evidence.push(format!(
+                    "runner-up {}: fit BIC {:.1} higher than {}",
+                    judged[*next].0.effect.name(),
+                    f.bic - wf.bic,
+                    wo.effect.name()
+                ));
+            }
+            evidence.push(match noise {
+                Some(s) => format!(
+                    "the extended model's held-out residual is {:.2} times the noise floor and \
+                     removes {:.0} % of the nominal's excess error",
+                    wo.val_rmse / s,
+                    100.0 * explained.min(1.0)
+                ),
+                None => "noise floor unknown; the decision rests on significance alone".to_string(),
+            });
+        }
+    } else if structured {
+        cause = "unexplained".to_string();
+        evidence.push(format!(
+            "no candidate is significant, yet the nominal residual is {} the noise floor: \
+             structure remains that no library effect explains",
+            ratio.map_or("of unknown size relative to".to_string(), |r| format!(
+                "{r:.2} times"
+            ))
+        ));
+    } else {
+        cause = "none".to_string();
+        evidence.push(
+            "no candidate is significant and the nominal residual is at the noise floor: \
+             the nominal model explains the data"
+                .to_string(),
+        );
+    }
+
+    let candidates: Vec<Candidate> = judged
+        .iter()
+        .map(|(o, j)| {
+            let (parameters, stderr) = o.fit.as_ref().map(named).unwrap_or_default();
+            Candidate {
+                effect: o.effect.name().to_string(),
+                parameters,
+                stderr,
+                nrmse_validation: o.val_nrmse,
+                rmse_validation: o.val_rmse,
+                bic: o.fit.as_ref().map_or(f64::NAN, |f| f.bic),
+                significant: j.as_ref().is_some_and(|j| j.significant),
+                note: match j {
+                    Some(j) => j.note.clone(),
+                    None => o.note.clone(),
+                },
+            }
+        })
+        .collect();
+
+    let (parameters, stderr, extended, winner_outcome) = match winner {
+        Some(w) => {
+            let o = judged.swap_remove(w).0;
+            let f = o.fit.as_ref().expect("fitted");
+            let (p, s) = named(f);
+            let score = Score {
+                nrmse: o.val_nrmse,
+                rmse: o.val_rmse,
+            };
+            (p, s, score, Some(o))
+        }
+        None => {
+            let (p, s) = named(nominal_fit);
+            (p, s, *nominal_score, None)
+        }
+    };
+    let gain = 1.0 - extended.rmse / nominal_rmse;
+    Decision {
+        diagnosis: Diagnosis {
+            cause,
+            parameters,
+            stderr,
+            nominal: *nominal_score,
+            extended,
+            gain,
+            candidates,
+            evidence,
+        },
+        winner: winner_outcome,
+        evaluations,
+    }
+}

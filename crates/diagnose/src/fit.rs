@@ -1,0 +1,514 @@
+//! Output-error fits: the parameter vector of a model, the residual function, the
+//! Levenberg-Marquardt call and standard errors that allow for correlated residuals.
+
+use std::ops::Range;
+
+use htfid_estimate::{levenberg_marquardt, FdScheme, LmOptions};
+use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
+use crate::effect::Slot;
+use crate::sim::{simulate_positions, Extent, MeasuredForce, SimFailure, SimMethod, Stepping};
+use crate::Record;
+
+/// Relative finite-difference step of the Jacobians.
+const FD_STEP: f64 = 1e-7;
+/// Refits allowed when the fitted model needs a finer integration than its start.
+const MAX_REFITS: usize = 2;
+
+/// A stretch of the record simulated from its own initial state; the first `skip` samples
+/// (the burn-in) are left out of every cost and score.
+#[derive(Debug, Clone)]
+pub(crate) struct Segment {
+    pub range: Range<usize>,
+    pub skip: usize,
+    /// Position and velocity at `range.start` estimated from the data.
+    pub init: [f64; 2],
+}
+
+impl Segment {
+    pub(crate) fn scored(&self) -> Range<usize> {
+        self.range.start + self.skip..self.range.end
+    }
+}
+
+/// Typical sizes of the data, for parameter scales.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Scales {
+    pub x_std: f64,
+    pub v_std: f64,
+    pub f_std: f64,
+}
+
+/// Everything a fit needs that does not change between candidates.
+#[derive(Debug)]
+pub(crate) struct Context<'a> {
+    pub record: &'a Record,
+    pub input: MeasuredForce,
+    pub damper: DamperLaw,
+    pub method: SimMethod,
+    pub extent: Extent,
+    pub scales: Scales,
+    pub fit: Vec<Segment>,
+    pub validation: Vec<Segment>,
+    pub fit_initial_state: bool,
+    pub max_iterations: usize,
+}
+
+/// A point in model space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ModelPoint {
+    pub params: HopperParams,
+    pub effects: Effects,
+}
+
+impl ModelPoint {
+    pub(crate) fn get(&self, s: Slot) -> f64 {
+        s.get(&self.params, &self.effects)
+    }
+
+    pub(crate) fn set(&mut self, s: Slot, v: f64) {
+        s.set(&mut self.params, &mut self.effects, v);
+    }
+}
+
+/// The result of one output-error fit.
+#[derive(Debug, Clone)]
+pub(crate) struct FitResult {
+    pub point: ModelPoint,
+    pub slots: Vec<Slot>,
+    pub values: Vec<f64>,
+    /// Standard errors of `values`, allowing for correlated residuals (see [`hac_stderr`]).
+    pub stderr: Vec<f64>,
+    /// Whether each value ended on its lower bound (its standard error is then meaningless).
+    pub at_bound: Vec<bool>,
+    /// Initial states of the fit segments used in the fit.
+    pub init: Vec<[f64; 2]>,
+    pub rss: f64,
+    pub n: usize,
+    pub n_params: usize,
+    pub bic: f64,
+    pub stepping: Stepping,
+    pub evaluations: usize,
+}
+
+/// How the vector of fitted numbers maps to a model.
+#[derive(Debug, Clone)]
+struct Layout {
+    slots: Vec<Slot>,
+    log: Vec<bool>,
+    n_init: usize,
+}
+
+impl Layout {
+    fn len(&self) -> usize {
+        self.slots.len() + 2 * self.n_init
+    }
+
+    fn point(&self, base: &ModelPoint, u: &[f64]) -> ModelPoint {
+        let mut p = *base;
+        for (i, &s) in self.slots.iter().enumerate() {
+            let v = if self.log[i] { u[i].exp() } else { u[i] };
+            p.set(s, v);
+        }
+        p
+    }
+
+    fn init(&self, segs: &[Segment], u: &[f64]) -> Vec<[f64; 2]> {
+        let off = self.slots.len();
+        segs.iter()
+            .enumerate()
+            .map(|(k, s)| {
+                if k < self.n_init {
+                    [s.init[0] + u[off + 2 * k], s.init[1] + u[off + 2 * k + 1]]
+                } else {
+                    s.init
+                }
+            })
+            .collect()
+    }
+}
+
+impl Context<'_> {
+    pub(crate) fn hopper(&self, p: &ModelPoint) -> Result<Hopper, String> {
+        self.input
+            .drive(p.params, self.damper, p.effects)
+            .map_err(|e| e.to_string())
+    }
+
+    pub(crate) fn stepping(&self, p: &ModelPoint) -> Stepping {
+        Stepping::resolve(
+            self.method,
+            &p.params,
+            &p.effects,
+            &self.extent,
+            self.record.dt(),
+        )
+    }
+
+    /// Number of scored samples of the fit segments.
+    pub(crate) fn n_fit(&self) -> usize {
+        self.fit.iter().map(|s| s.scored().len()).sum()
+    }
+
+    /// Simulates a segment from `init`; returns the simulated positions of the whole range.
+    pub(crate) fn simulate(
+        &self,
+        hopper: &Hopper,
+        seg: &Segment,
+        init: [f64; 2],
+        stepping: &Stepping,
+        out: &mut Vec<f64>,
+    ) -> Result<(), SimFailure> {
+        out.resize(seg.range.len(), 0.0);
+        let t0 = self.record.t()[seg.range.start];
+        simulate_positions(hopper, t0, init, self.record.dt(), stepping, out)
+    }
+
+    /// Residuals `simulated - measured` over the scored samples of `segs`, concatenated.
+    pub(crate) fn residuals(
+        &self,
+        hopper: &Hopper,
+        segs: &[Segment],
+        init: &[[f64; 2]],
+        stepping: &Stepping,
+        r: &mut [f64],
+    ) -> Result<(), SimFailure> {
+        let x = self.record.x();
+        let mut buf = Vec::new();
+        let mut at = 0;
+        for (seg, &xv) in segs.iter().zip(init) {
+            self.simulate(hopper, seg, xv, stepping, &mut buf)?;
+            let scored = seg.scored();
+            let n = scored.len();
+            for (k, ri) in r[at..at + n].iter_mut().enumerate() {
+                *ri = buf[seg.skip + k] - x[scored.start + k];
+            }
+            at += n;
+        }
+        Ok(())
+    }
+
+    /// Typical size of a parameter, for finite-difference steps.
+    fn typical(&self, s: Slot, p: &ModelPoint) -> f64 {
+        let sc = &self.scales;
+        let force = (p.params.k * sc.x_std).max(sc.f_std).max(f64::MIN_POSITIVE);
+        let v = match s {
+            Slot::M | Slot::K | Slot::C => 1.0,
+            Slot::X0 => sc.x_std.max(p.params.x0.abs()),
+            Slot::InputOffset => force,
+            Slot::K3 => force / sc.x_std.powi(3),
+            Slot::Mu => force,
+            Slot::CF => force / sc.v_std,
+            Slot::C2 => force / (sc.v_std * sc.v_std),
+            Slot::Tau | Slot::Delay => self.record.dt(),
+            Slot::VTh => sc.v_std,
+            Slot::XStop => sc.x_std,
+            Slot::KStop => p.params.k,
+        };
+        if v.is_finite() && v > 0.0 {
+            v
+        } else {
+            1.0
+        }
+    }
+
+    /// Output-error fit of `slots` from `start` (which must hold the starting values).
+    pub(crate) fn fit(&self, start: &ModelPoint, slots: &[Slot]) -> Result<FitResult, String> {
+        let mut start = *start;
+        let mut stepping = self.stepping(&start);
+        let mut evaluations = 0;
+        for _ in 0..=MAX_REFITS {
+            let result = self.fit_once(&start, slots, &stepping)?;
+            evaluations += result.evaluations;
+            let needed = self.stepping(&result.point);
+            if stepping.covers(&needed) {
+                return Ok(FitResult {
+                    evaluations,
+                    ..result
+                });
+            }
+            start = result.point;
+            stepping = needed;
+        }
+        Err("the fitted model kept needing a finer integration step".to_string())
+    }
+
+    fn fit_once(
+        &self,
+        start: &ModelPoint,
+        slots: &[Slot],
+        stepping: &Stepping,
+    ) -> Result<FitResult, String> {
+        let layout = Layout {
+            slots: slots.to_vec(),
+            log: slots
+                .iter()
+                .map(|&s| s.log_scaled() && start.get(s) > 0.0)
+                .collect(),
+            n_init: if self.fit_initial_state {
+                self.fit.len()
+            } else {
+                0
+            },
+        };
+        let np = layout.len();
+        let mut u0 = Vec::with_capacity(np);
+        let mut typical = Vec::with_capacity(np);
+        let mut bounds = Vec::with_capacity(np);
+        for (i, &s) in slots.iter().enumerate() {
+            let v = start.get(s);
+            if layout.log[i] {
+                u0.push(v.ln());
+                typical.push(1.0);
+                bounds.push((f64::NEG_INFINITY, f64::INFINITY));
+            } else {
+                let lower = s.lower_bound();
+                u0.push(v.max(lower));
+                typical.push(self.typical(s, start));
+                bounds.push((lower, f64::INFINITY));
+            }
+        }
+        for _ in 0..layout.n_init {
+            u0.push(0.0);
+            u0.push(0.0);
+            typical.push(1e-2 * self.scales.x_std);
+            typical.push(1e-2 * self.scales.v_std);
+            bounds.push((f64::NEG_INFINITY, f64::INFINITY));
+            bounds.push((f64::NEG_INFINITY, f64::INFINITY));
+        }
+        let n = self.n_fit();
+        if n <= np {
+            return Err(format!(
+                "{n} fitted samples cannot determine {np} parameters"
+            ));
+        }
+        let residual_fn = |u: &[f64], r: &mut [f64]| -> Result<(), String> {
+            let p = layout.point(start, u);
+            let hopper = self.hopper(&p)?;
+            let init = layout.init(&self.fit, u);
+            self.residuals(&hopper, &self.fit, &init, stepping, r)
+                .map_err(|e| format!("t = {} s: {}", e.time, e.reason))
+        };
+        let opts = LmOptions {
+            max_iter: self.max_iterations,
+            ftol: 1e-10,
+            xtol: 1e-10,
+            gtol: 1e-9,
+            fd_scheme: FdScheme::Forward,
+            fd_step: Some(FD_STEP),
+            scales: Some(typical.clone()),
+            bounds: Some(bounds.clone()),
+            lambda0: 1e-3,
+        };
+        let lm = levenberg_marquardt(residual_fn, &u0, n, &opts).map_err(|e| e.to_string())?;
+        let u = lm.params;
+        let jac = self.jacobian(
+            &layout,
+            start,
+            &u,
+            &lm.residuals,
+            &typical,
+            &bounds,
+            stepping,
+        )?;
+        let se_u = hac_stderr(&jac, &lm.residuals, &segment_lengths(&self.fit));
+        let point = layout.point(start, &u);
+        let mut values = Vec::with_capacity(slots.len());
+        let mut stderr = Vec::with_capacity(slots.len());
+        let mut at_bound = Vec::with_capacity(slots.len());
+        for (i, &s) in slots.iter().enumerate() {
+            let v = point.get(s);
+            values.push(v);
+            stderr.push(if layout.log[i] { v * se_u[i] } else { se_u[i] });
+            let lower = bounds[i].0;
+            at_bound.push(lower.is_finite() && u[i] <= lower + 1e-9 * typical[i]);
+        }
+        let rss = lm.cost;
+        Ok(FitResult {
+            point,
+            slots: slots.to_vec(),
+            values,
+            stderr,
+            at_bound,
+            init: layout.init(&self.fit, &u),
+            rss,
+            n,
+            n_params: np,
+            bic: bic(rss, n, np),
+            stepping: stepping.clone(),
+            evaluations: lm.evaluations,
+        })
+    }
+
+    /// Forward-difference Jacobian at `u`, columns in parallel; a side that leaves the bounds
+    /// or fails to simulate is replaced by the other side.
+    #[allow(clippy::type_complexity)]
+    fn jacobian(
+        &self,
+        layout: &Layout,
+        start: &ModelPoint,
+        u: &[f64],
+        r0: &[f64],
+        typical: &[f64],
+        bounds: &[(f64, f64)],
+        stepping: &Stepping,
+    ) -> Result<DMatrix<f64>, String> {
+        let n = r0.len();
+        let eval = |uj: &[f64], r: &mut [f64]| -> bool {
+            let p = layout.point(start, uj);
+            let Ok(hopper) = self.hopper(&p) else {
+                return false;
+            };
+            let init = layout.init(&self.fit, uj);
+            self.residuals(&hopper, &self.fit, &init, stepping, r)
+                .is_ok()
+                && r.iter().all(|v| v.is_finite())
+        };
+        let cols: Vec<Option<Vec<f64>>> = (0..u.len())
+            .into_par_iter()
+            .map(|j| {
+                let h = FD_STEP * u[j].abs().max(typical[j]);
+                let mut r = vec![0.0; n];
+                for step in [h, -h] {
+                    let v = u[j] + step;
+                    if v < bounds[j].0 || v > bounds[j].1 {
+                        continue;
+                    }
+                    let mut uj = u.to_vec();
+                    uj[j] = v;
+                    if eval(&uj, &mut r) {
+                        let realised = v - u[j];
+                        for (ri, &r0i) in r.iter_mut().zip(r0) {
+                            *ri = (*ri - r0i) / realised;
+                        }
+                        return Some(r);
+                    }
+                }
+                None
+            })
+            .collect();
+        let mut jac = DMatrix::zeros(n, u.len());
+        for (j, col) in cols.into_iter().enumerate() {
+            let col = col.ok_or_else(|| {
+                format!("the model cannot be simulated near the fit (parameter {j})")
+            })?;
+            jac.column_mut(j).copy_from_slice(&col);
+        }
+        Ok(jac)
+    }
+}
+
+/// `N ln(RSS / N) + p ln N`.
+pub(crate) fn bic(rss: f64, n: usize, p: usize) -> f64 {
+    let nf = n as f64;
+    nf * (rss.max(f64::MIN_POSITIVE) / nf).ln() + p as f64 * nf.ln()
+}
+
+fn segment_lengths(segs: &[Segment]) -> Vec<usize> {
+    segs.iter().map(|s| s.scored().len()).collect()
+}
+
+/// Standard errors of least-squares parameters that allow for serially correlated residuals:
+/// the Newey-West (Bartlett-kernel) sandwich. With `A = (J^T J)^+` and the score series
+/// `h_t = A J_t^T r_t`, the variance of parameter `i` is
+/// `sum_{|k| <= L} (1 - |k|/(L+1)) sum_t h_{i,t} h_{i,t+k}`, lags never crossing a segment
+/// boundary, `L = ceil(sqrt(n_segment))`. The result is never below the classical
+/// `s^2 A_ii` (`s^2 = RSS / (N - p)`): white residuals keep the classical error, a model error
+/// that leaves structured residuals can only widen it. A parameter the data do not determine
+/// (a null direction of `J`) gets an infinite error.
+pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> Vec<f64> {
+    let (n, p) = jac.shape();
+    let jtj = jac.tr_mul(jac);
+    let svd = jtj.clone().svd(true, true);
+    let smax = svd.singular_values.iter().copied().fold(0.0, f64::max);
+    let tol = smax * 1e-14 * p as f64;
+    let Ok(a) = svd.pseudo_inverse(tol) else {
+        return vec![f64::INFINITY; p];
+    };
+    // A direction with no information: its pseudo-inverse is zero, report it as unknown.
+    let undetermined: Vec<bool> = (0..p)
+        .map(|i| !(jtj[(i, i)] > tol) || !(a[(i, i)] > 0.0))
+        .collect();
+    let rss: f64 = r.iter().map(|v| v * v).sum();
+    let s2 = rss / (n.saturating_sub(p)).max(1) as f64;
+    let mut h = vec![0.0; n];
+    let mut out = Vec::with_capacity(p);
+    for i in 0..p {
+        if undetermined[i] {
+            out.push(f64::INFINITY);
+            continue;
+        }
+        for (t, ht) in h.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for j in 0..p {
+                s += a[(i, j)] * jac[(t, j)];
+            }
+            *ht = s * r[t];
+        }
+        let mut var = 0.0;
+        let mut at = 0;
+        for &len in seg_lens {
+            let seg = &h[at..at + len];
+            at += len;
+            let lags = ((len as f64).sqrt().ceil() as usize).min(len.saturating_sub(1));
+            var += seg.iter().map(|v| v * v).sum::<f64>();
+            for k in 1..=lags {
+                let w = 1.0 - k as f64 / (lags + 1) as f64;
+                let c: f64 = seg[..len - k]
+                    .iter()
+                    .zip(&seg[k..])
+                    .map(|(a, b)| a * b)
+                    .sum();
+                var += 2.0 * w * c;
+            }
+        }
+        let classical = s2 * a[(i, i)];
+        out.push(var.max(classical).sqrt());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn hac_matches_the_classical_error_for_white_residuals_and_widens_for_correlated_ones() {
+        // Straight-line fit y = a + b t. For white noise the sandwich and the classical error
+        // agree to sampling error (about 1/sqrt(L) relative; 15 % allows it), and the classical
+        // error of the intercept is s / sqrt(n) exactly for a centred regressor.
+        let n = 4000;
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let normal = Normal::new(0.0, 1.0).unwrap();
+        let jac = DMatrix::from_fn(n, 2, |t, j| {
+            if j == 0 {
+                1.0
+            } else {
+                (t as f64 - (n - 1) as f64 / 2.0) / n as f64
+            }
+        });
+        let white: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
+        let se = hac_stderr(&jac, &white, &[n]);
+        let s = (white.iter().map(|v| v * v).sum::<f64>() / (n - 2) as f64).sqrt();
+        assert_relative_eq!(se[0], s / (n as f64).sqrt(), max_relative = 0.15);
+        // AR(1) residuals with coefficient 0.9 inflate the variance of a mean by
+        // (1 + 0.9) / (1 - 0.9) = 19, so the error grows by about sqrt(19) = 4.4; the
+        // truncated kernel recovers most of it: require more than a factor 2.5.
+        let mut e = 0.0;
+        let ar: Vec<f64> = (0..n)
+            .map(|_| {
+                e = 0.9 * e + normal.sample(&mut rng);
+                e
+            })
+            .collect();
+        let se_ar = hac_stderr(&jac, &ar, &[n]);
+        let s_ar = (ar.iter().map(|v| v * v).sum::<f64>() / (n - 2) as f64).sqrt();
+        assert!(se_ar[0] > 2.5 * s_ar / (n as f64).sqrt(), "{}", se_ar[0]);
+    }
+}

@@ -1,0 +1,208 @@
+//! Levenberg-Marquardt against problems with known answers.
+
+use htfid_estimate::{levenberg_marquardt, Error, FdScheme, LmOptions, LmStop};
+use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+type Never = std::convert::Infallible;
+
+#[test]
+fn rosenbrock_reaches_its_minimum() {
+    // r = (10 (y - x^2), 1 - x): cost (1 - x)^2 + 100 (y - x^2)^2, minimum 0 at (1, 1).
+    let f = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        r[0] = 10.0 * (p[1] - p[0] * p[0]);
+        r[1] = 1.0 - p[0];
+        Ok(())
+    };
+    let fit = levenberg_marquardt(f, &[-1.2, 1.0], 2, &LmOptions::default()).unwrap();
+    // The residuals vanish at the minimum, so the finite-difference error (~1e-10 in J) does
+    // not bias the solution; 1e-8 is rounding plus the stopping tolerance.
+    assert!((fit.params[0] - 1.0).abs() < 1e-8 && (fit.params[1] - 1.0).abs() < 1e-8);
+    assert!(fit.cost < 1e-16, "cost {}", fit.cost);
+    assert!(
+        fit.covariance.is_none(),
+        "m = p leaves no degrees of freedom"
+    );
+    assert!(fit.iterations < 100, "{} iterations", fit.iterations);
+    // One iteration is not enough from the classic start.
+    let short = LmOptions {
+        max_iter: 1,
+        ..LmOptions::default()
+    };
+    let fit = levenberg_marquardt(f, &[-1.2, 1.0], 2, &short).unwrap();
+    assert_eq!(fit.stop, LmStop::MaxIterations);
+}
+
+#[test]
+fn linear_least_squares_matches_the_closed_form() {
+    // Quadratic model, residuals linear in the parameters: LM must land on the normal-equation
+    // solution, and its covariance must be s^2 (X^T X)^{-1}.
+    let xs: Vec<f64> = (0..30).map(|i| -1.0 + i as f64 / 14.5).collect();
+    let ys: Vec<f64> = xs
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| 0.5 - 1.5 * x + 2.0 * x * x + 0.1 * ((i * 37 % 11) as f64 / 11.0 - 0.5))
+        .collect();
+    let f = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        for i in 0..xs.len() {
+            r[i] = p[0] + p[1] * xs[i] + p[2] * xs[i] * xs[i] - ys[i];
+        }
+        Ok(())
+    };
+    let fit = levenberg_marquardt(f, &[0.0, 0.0, 0.0], xs.len(), &LmOptions::default()).unwrap();
+    let x = DMatrix::from_fn(xs.len(), 3, |i, j| xs[i].powi(j as i32));
+    let y = DVector::from_column_slice(&ys);
+    let xtx_inv = (x.transpose() * &x).try_inverse().unwrap();
+    let beta = &xtx_inv * x.transpose() * &y;
+    let res = &y - &x * &beta;
+    let s2 = res.norm_squared() / (xs.len() - 3) as f64;
+    let cov = fit.covariance.as_ref().unwrap();
+    for j in 0..3 {
+        // Central differences of a linear function are exact up to rounding (eps / h ~ 1e-11).
+        assert!((fit.params[j] - beta[j]).abs() < 1e-9, "p{j}");
+        for k in 0..3 {
+            let want = s2 * xtx_inv[(j, k)];
+            assert!(
+                (cov[j][k] - want).abs() < 1e-6 * s2 * xtx_inv[(j, j)].abs(),
+                "cov {j}{k}"
+            );
+        }
+    }
+    assert!((fit.cost - res.norm_squared()).abs() < 1e-12);
+}
+
+fn decay_data(rng: &mut ChaCha8Rng, sigma: f64) -> (Vec<f64>, Vec<f64>) {
+    let normal = Normal::new(0.0, sigma).unwrap();
+    let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
+    let y = t
+        .iter()
+        .map(|&t| 2.0 * (-0.7 * t).exp() + normal.sample(rng))
+        .collect();
+    (t, y)
+}
+
+fn fit_decay(t: &[f64], y: &[f64], scheme: FdScheme) -> htfid_estimate::LmFit {
+    let f = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        for i in 0..t.len() {
+            r[i] = p[0] * (-p[1] * t[i]).exp() - y[i];
+        }
+        Ok(())
+    };
+    let opts = LmOptions {
+        fd_scheme: scheme,
+        ..LmOptions::default()
+    };
+    levenberg_marquardt(f, &[1.0, 0.2], t.len(), &opts).unwrap()
+}
+
+#[test]
+fn exponential_decay_standard_errors_match_monte_carlo_scatter() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2024);
+    let trials = 200;
+    let mut est = vec![Vec::new(); 2];
+    let mut rep2 = [0.0; 2];
+    for _ in 0..trials {
+        let (t, y) = decay_data(&mut rng, 0.02);
+        let fit = fit_decay(&t, &y, FdScheme::Central);
+        let se = fit.stderr.unwrap();
+        for j in 0..2 {
+            est[j].push(fit.params[j]);
+            rep2[j] += se[j] * se[j] / trials as f64;
+        }
+    }
+    // The sample standard deviation of 200 estimates has a relative spread of
+    // 1/sqrt(2 * 199) = 5%, the mean reported variance far less, and at 1% noise the
+    // nonlinearity bias is second order: 0.8..1.25 is a > 4 sigma band.
+    for j in 0..2 {
+        let mean = est[j].iter().sum::<f64>() / trials as f64;
+        let var = est[j].iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (trials - 1) as f64;
+        let ratio = (var / rep2[j]).sqrt();
+        assert!((0.8..1.25).contains(&ratio), "parameter {j}: ratio {ratio}");
+        // And the estimates are unbiased to within their scatter.
+        let truth = [2.0, 0.7][j];
+        assert!((mean - truth).abs() < 4.0 * var.sqrt() / (trials as f64).sqrt());
+    }
+}
+
+#[test]
+fn forward_differences_reach_the_same_minimum() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (t, y) = decay_data(&mut rng, 0.02);
+    let c = fit_decay(&t, &y, FdScheme::Central);
+    let f = fit_decay(&t, &y, FdScheme::Forward);
+    // Forward differences carry O(sqrt(eps)) ~ 1e-8 relative Jacobian error; the minimum itself
+    // does not depend on J, only the path and the covariance do.
+    for j in 0..2 {
+        assert!((c.params[j] - f.params[j]).abs() < 1e-7 * c.params[j].abs());
+        let (sc, sf) = (c.stderr.as_ref().unwrap()[j], f.stderr.as_ref().unwrap()[j]);
+        assert!((sc - sf).abs() < 1e-5 * sc);
+    }
+}
+
+#[test]
+fn failures_at_the_start_are_errors_and_later_failures_are_avoided() {
+    let fails = |_: &[f64], _: &mut [f64]| -> Result<(), String> { Err("model blew up".into()) };
+    let e = levenberg_marquardt(fails, &[1.0], 3, &LmOptions::default()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "residual function failed at the start point: model blew up"
+    );
+    let nan = |_: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        r[0] = 1.0;
+        r[1] = f64::NAN;
+        Ok(())
+    };
+    let e = levenberg_marquardt(nan, &[1.0], 2, &LmOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::NonFiniteResidual { index: 1, .. }));
+    // r = sqrt(p) - 0.5 is undefined for p < 0; the first full step from p = 4 overshoots into
+    // p < 0 and must be rejected, not crash. Minimum at p = 0.25.
+    let sqrt = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+        if p[0] < 0.0 {
+            return Err(format!("negative p = {}", p[0]));
+        }
+        r[0] = p[0].sqrt() - 0.5;
+        r[1] = 0.0;
+        Ok(())
+    };
+    let fit = levenberg_marquardt(sqrt, &[4.0], 2, &LmOptions::default()).unwrap();
+    assert!((fit.params[0] - 0.25).abs() < 1e-8, "{:?}", fit.params);
+}
+
+#[test]
+fn bounds_hold_and_invalid_options_are_rejected() {
+    let f = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        r[0] = p[0] - 5.0;
+        r[1] = 0.1 * (p[0] - 5.0);
+        Ok(())
+    };
+    let opts = LmOptions {
+        bounds: Some(vec![(0.0, 2.0)]),
+        ..LmOptions::default()
+    };
+    let fit = levenberg_marquardt(f, &[1.0], 2, &opts).unwrap();
+    assert!((fit.params[0] - 2.0).abs() < 1e-12, "{:?}", fit.params);
+    let e = levenberg_marquardt(f, &[3.0], 2, &opts).unwrap_err();
+    assert!(matches!(e, Error::InvalidStart { index: 0, .. }));
+    let bad = LmOptions {
+        bounds: Some(vec![(1.0, 0.0)]),
+        ..LmOptions::default()
+    };
+    assert!(matches!(
+        levenberg_marquardt(f, &[0.5], 2, &bad),
+        Err(Error::InvalidBounds { index: 0, .. })
+    ));
+    assert!(matches!(
+        levenberg_marquardt(f, &[], 2, &LmOptions::default()),
+        Err(Error::LmDimensions { .. })
+    ));
+    let bad = LmOptions {
+        scales: Some(vec![1.0, 2.0]),
+        ..LmOptions::default()
+    };
+    assert!(matches!(
+        levenberg_marquardt(f, &[0.5], 2, &bad),
+        Err(Error::WrongLength { what: "scales", .. })
+    ));
+}
