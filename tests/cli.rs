@@ -51,9 +51,10 @@ fn simulate_writes_the_contracted_files() {
         "timeseries header: {}",
         ts.lines().next().unwrap()
     );
-    // 30 s settling + 9 chirps of 30 s spaced by 30 + 1/9 s, at 100 Hz.
+    // 30 s settling + 9 chirps of 30 s spaced by 30 + 1/9 s (ending at 300.9 s), rounded up to
+    // whole periods, at 100 Hz.
     let rows = ts.lines().count() - 1;
-    assert_eq!(rows, (300.8888889_f64 * 100.0).floor() as usize + 1);
+    assert_eq!(rows, 301 * 100 + 1);
     let lc = fs::read_to_string(out.join("limit_cycle.csv")).unwrap();
     assert_eq!(lc.lines().next().unwrap(), "phase,x,xd,s");
     let summary: serde_json::Value =

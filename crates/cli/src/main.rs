@@ -14,6 +14,7 @@ use clap::{Parser, Subcommand};
 mod commands;
 mod config;
 mod output;
+mod plots;
 mod progress;
 mod settings;
 mod signals;
@@ -48,12 +49,50 @@ enum Command {
         #[command(flatten)]
         out: OutArgs,
     },
+    /// Linearise about the orbit and compute the harmonic transfer functions.
+    Theory {
+        /// Experiment config (TOML).
+        config: PathBuf,
+        /// Comma-separated frequencies in rad/s (default: the config's grid).
+        #[arg(long, value_name = "LIST")]
+        omega: Option<String>,
+        /// Use Wereley's harmonic state space truncated at N harmonics instead of the exact HTF.
+        #[arg(long, value_name = "N")]
+        truncate: Option<usize>,
+        /// Skip the figures.
+        #[arg(long)]
+        no_plots: bool,
+        #[command(flatten)]
+        out: OutArgs,
+    },
+    /// The whole pipeline: simulate, estimate the HTFs, fit, compare with theory.
+    Run {
+        /// Experiment config (TOML).
+        config: PathBuf,
+        /// Skip the figures.
+        #[arg(long)]
+        no_plots: bool,
+        #[command(flatten)]
+        out: OutArgs,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate { config, out } => commands::simulate::run(&config, out.out, out.force),
+        Command::Theory {
+            config,
+            omega,
+            truncate,
+            no_plots,
+            out,
+        } => commands::theory::run(&config, omega, truncate, out.out, out.force, no_plots),
+        Command::Run {
+            config,
+            no_plots,
+            out,
+        } => commands::run::run(&config, out.out, out.force, no_plots),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

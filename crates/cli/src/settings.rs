@@ -24,6 +24,27 @@ pub struct RawConfig {
     pub simulation: RawSimulation,
     pub excitation: Option<RawExcitation>,
     pub theory: Option<RawTheory>,
+    pub noise: Option<RawNoise>,
+    pub estimation: Option<RawEstimation>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawNoise {
+    pub output_std: Num,
+    pub seed: Option<Spanned<i64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawEstimation {
+    pub harmonics: Option<Spanned<Vec<i64>>>,
+    pub omega_min: OptNum,
+    pub omega_max: OptNum,
+    pub estimators: Option<Spanned<Vec<String>>>,
+    pub alpha: Option<Spanned<toml::Value>>,
+    pub fit: Option<Spanned<Vec<String>>>,
+    pub fit_harmonics: Option<Spanned<Vec<i64>>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -64,6 +85,15 @@ pub struct RawExcitation {
     pub duration: OptNum,
     pub amplitude: OptNum,
     pub copies: Option<Spanned<i64>>,
+    pub max_harmonic: Option<Spanned<i64>>,
+    pub omega_min: OptNum,
+    pub omega_max: OptNum,
+    pub spacing: OptNum,
+    pub even_order: Option<Spanned<String>>,
+    pub phases: Option<Spanned<String>>,
+    pub seed: Option<Spanned<i64>>,
+    pub settle: OptNum,
+    pub max_record: OptNum,
 }
 
 #[derive(Debug, Deserialize)]
@@ -90,6 +120,48 @@ pub struct Settings {
     pub integrator: Options,
     pub excitation: Excitation,
     pub theory: TheorySettings,
+    pub noise: Option<NoiseSettings>,
+    pub estimation: EstimationSettings,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseSettings {
+    pub output_std: f64,
+    pub seed: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Estimator {
+    Siddiqi,
+    Multi,
+    Lines,
+}
+
+impl Estimator {
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::Siddiqi => "siddiqi",
+            Estimator::Multi => "multi",
+            Estimator::Lines => "lines",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AlphaSetting {
+    Fixed(f64),
+    Gcv,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimationSettings {
+    pub harmonics: Vec<i32>,
+    pub band: (f64, f64),
+    pub estimators: Vec<Estimator>,
+    pub alpha: AlphaSetting,
+    /// Model parameters fitted to the estimates: names among "k", "c", "m".
+    pub fit: Vec<String>,
+    pub fit_harmonics: Vec<i32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -100,9 +172,34 @@ pub enum Waveform {
     Log,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum EvenOrderSetting {
+    SignReversal,
+    QuadraticGuard,
+    Unprotected,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PhaseSetting {
+    Schroeder,
+    Random(u64),
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub enum Excitation {
     None,
+    /// A periodic multisine designed so that every (line, harmonic) pair has its own output bin.
+    MultisineDesign {
+        max_harmonic: u32,
+        omega_min: f64,
+        omega_max: f64,
+        spacing: f64,
+        amplitude: f64,
+        even_order: EvenOrderSetting,
+        phases: PhaseSetting,
+        settle: f64,
+        max_record: f64,
+    },
     ChirpTrain {
         waveform: Waveform,
         f_start_hz: f64,
@@ -233,6 +330,17 @@ impl Settings {
             Some(e) => resolve_excitation(src, e, params.period)?,
         };
         let theory = resolve_theory(src, raw.theory.as_ref())?;
+        let noise = match &raw.noise {
+            None => None,
+            Some(n) => Some(NoiseSettings {
+                output_std: src.non_negative(&n.output_std, "noise.output_std")?,
+                seed: match &n.seed {
+                    Some(v) => int_in(src, v, "noise.seed", 0, i64::MAX)? as u64,
+                    None => 1,
+                },
+            }),
+        };
+        let estimation = resolve_estimation(src, raw.estimation.as_ref(), &excitation)?;
         Ok(Settings {
             name,
             path: src.path.clone(),
@@ -244,6 +352,8 @@ impl Settings {
             integrator,
             excitation,
             theory,
+            noise,
+            estimation,
         })
     }
 
@@ -258,15 +368,125 @@ fn resolve_excitation(
     e: &RawExcitation,
     _period: f64,
 ) -> Result<Excitation, ConfigError> {
-    match src.choice(&e.kind, "excitation.kind", &["none", "chirp_train"])? {
+    let multisine_only: [(&Option<Spanned<f64>>, &str); 5] = [
+        (&e.omega_min, "excitation.omega_min"),
+        (&e.omega_max, "excitation.omega_max"),
+        (&e.spacing, "excitation.spacing"),
+        (&e.settle, "excitation.settle"),
+        (&e.max_record, "excitation.max_record"),
+    ];
+    match src.choice(
+        &e.kind,
+        "excitation.kind",
+        &["none", "chirp_train", "multisine_design"],
+    )? {
+        "multisine_design" => {
+            let why = "with kind = \"multisine_design\"";
+            src.forbid(&e.waveform, "excitation.waveform", why)?;
+            src.forbid(&e.copies, "excitation.copies", why)?;
+            src.forbid(&e.f_start_hz, "excitation.f_start_hz", why)?;
+            src.forbid(&e.f_end_hz, "excitation.f_end_hz", why)?;
+            src.forbid(&e.duration, "excitation.duration", why)?;
+            let max_harmonic = match &e.max_harmonic {
+                Some(v) => int_in(src, v, "excitation.max_harmonic", 0, 50)? as u32,
+                None => 3,
+            };
+            let omega_min = src.opt_number(
+                &e.omega_min,
+                1.0,
+                "excitation.omega_min",
+                "> 0 (rad/s)",
+                |v| v > 0.0,
+            )?;
+            let omega_max = src.opt_number(
+                &e.omega_max,
+                40.0,
+                "excitation.omega_max",
+                &format!("> omega_min ({omega_min})"),
+                |v| v > omega_min,
+            )?;
+            let spacing =
+                src.opt_number(&e.spacing, 0.45, "excitation.spacing", "> 0 (rad/s)", |v| {
+                    v > 0.0
+                })?;
+            let amplitude = src.positive(
+                src.require(&e.amplitude, "excitation.amplitude", why)?,
+                "excitation.amplitude",
+            )?;
+            let even_order = match &e.even_order {
+                None => EvenOrderSetting::SignReversal,
+                Some(v) => match src.choice(
+                    v,
+                    "excitation.even_order",
+                    &["sign_reversal", "quadratic_guard", "unprotected"],
+                )? {
+                    "quadratic_guard" => EvenOrderSetting::QuadraticGuard,
+                    "unprotected" => EvenOrderSetting::Unprotected,
+                    _ => EvenOrderSetting::SignReversal,
+                },
+            };
+            let seed = match &e.seed {
+                Some(v) => Some(int_in(src, v, "excitation.seed", 0, i64::MAX)? as u64),
+                None => None,
+            };
+            let phases = match &e.phases {
+                None => PhaseSetting::Schroeder,
+                Some(v) => match src.choice(v, "excitation.phases", &["schroeder", "random"])? {
+                    "random" => PhaseSetting::Random(seed.unwrap_or(1)),
+                    _ => PhaseSetting::Schroeder,
+                },
+            };
+            let settle = src.opt_number(&e.settle, 20.0, "excitation.settle", ">= 0 (s)", |v| {
+                v >= 0.0
+            })?;
+            let max_record = src.opt_number(
+                &e.max_record,
+                600.0,
+                "excitation.max_record",
+                "> 0 (s)",
+                |v| v > 0.0,
+            )?;
+            Ok(Excitation::MultisineDesign {
+                max_harmonic,
+                omega_min,
+                omega_max,
+                spacing,
+                amplitude,
+                even_order,
+                phases,
+                settle,
+                max_record,
+            })
+        }
         "none" => {
             let why = "when excitation.kind = \"none\"";
+            for (v, key) in multisine_only {
+                src.forbid(v, key, why)?;
+            }
             src.forbid(&e.waveform, "excitation.waveform", why)?;
             src.forbid(&e.amplitude, "excitation.amplitude", why)?;
             src.forbid(&e.copies, "excitation.copies", why)?;
             Ok(Excitation::None)
         }
         _ => {
+            for (v, key) in multisine_only {
+                src.forbid(v, key, "with kind = \"chirp_train\"")?;
+            }
+            src.forbid(
+                &e.max_harmonic,
+                "excitation.max_harmonic",
+                "with kind = \"chirp_train\"",
+            )?;
+            src.forbid(
+                &e.even_order,
+                "excitation.even_order",
+                "with kind = \"chirp_train\"",
+            )?;
+            src.forbid(
+                &e.phases,
+                "excitation.phases",
+                "with kind = \"chirp_train\"",
+            )?;
             let waveform = match &e.waveform {
                 None => Waveform::Linear,
                 Some(w) => {
@@ -383,4 +603,153 @@ pub fn log_grid(lo: f64, hi: f64, points: usize) -> Vec<f64> {
     (0..points)
         .map(|i| (a + (b - a) * i as f64 / (points.max(2) - 1) as f64).exp())
         .collect()
+}
+
+fn resolve_estimation(
+    src: &Source,
+    e: Option<&RawEstimation>,
+    excitation: &Excitation,
+) -> Result<EstimationSettings, ConfigError> {
+    let default_estimators = match excitation {
+        Excitation::MultisineDesign { .. } => vec![Estimator::Lines],
+        _ => vec![Estimator::Siddiqi, Estimator::Multi],
+    };
+    let default_h: Vec<i32> = (-3..=3).collect();
+    let Some(e) = e else {
+        return Ok(EstimationSettings {
+            harmonics: default_h,
+            band: (1.0, 40.0),
+            estimators: default_estimators,
+            alpha: AlphaSetting::Fixed(1e-3),
+            fit: vec!["k".into(), "c".into()],
+            fit_harmonics: vec![-1, 0, 1],
+        });
+    };
+    let harmonics = match &e.harmonics {
+        Some(h) => harmonics_list(src, h, "estimation.harmonics")?,
+        None => default_h,
+    };
+    let lo = src.opt_number(
+        &e.omega_min,
+        1.0,
+        "estimation.omega_min",
+        "> 0 (rad/s)",
+        |v| v > 0.0,
+    )?;
+    let hi = src.opt_number(
+        &e.omega_max,
+        40.0,
+        "estimation.omega_max",
+        &format!("> omega_min ({lo})"),
+        |v| v > lo,
+    )?;
+    let estimators = match &e.estimators {
+        None => default_estimators,
+        Some(list) => {
+            let mut out = Vec::new();
+            for name in list.get_ref() {
+                let est = match name.as_str() {
+                    "siddiqi" => Estimator::Siddiqi,
+                    "multi" => Estimator::Multi,
+                    "lines" => Estimator::Lines,
+                    other => {
+                        return Err(src.error(
+                            Some(&list.span()),
+                            "estimation.estimators",
+                            format!("unknown estimator \"{other}\"; expected \"siddiqi\", \"multi\" or \"lines\""),
+                        ))
+                    }
+                };
+                let fits = match excitation {
+                    Excitation::MultisineDesign { .. } => est == Estimator::Lines,
+                    Excitation::ChirpTrain { .. } => est != Estimator::Lines,
+                    Excitation::None => false,
+                };
+                if !fits {
+                    return Err(src.error(
+                        Some(&list.span()),
+                        "estimation.estimators",
+                        format!(
+                            "estimator \"{name}\" does not fit the excitation: \"lines\" needs kind = \"multisine_design\", \"siddiqi\" and \"multi\" need kind = \"chirp_train\""
+                        ),
+                    ));
+                }
+                out.push(est);
+            }
+            if out.is_empty() {
+                return Err(src.error(
+                    Some(&list.span()),
+                    "estimation.estimators",
+                    "must name at least one estimator",
+                ));
+            }
+            out
+        }
+    };
+    let alpha = match &e.alpha {
+        None => AlphaSetting::Fixed(1e-3),
+        Some(v) => match v.get_ref() {
+            toml::Value::String(s) if s == "gcv" => AlphaSetting::Gcv,
+            toml::Value::Float(f) if f.is_finite() && *f >= 0.0 => AlphaSetting::Fixed(*f),
+            toml::Value::Integer(i) if *i >= 0 => AlphaSetting::Fixed(*i as f64),
+            other => {
+                return Err(src.error(
+                    Some(&v.span()),
+                    "estimation.alpha",
+                    format!("must be a number >= 0 or \"gcv\" (got {other})"),
+                ))
+            }
+        },
+    };
+    let fit = match &e.fit {
+        None => vec!["k".to_string(), "c".to_string()],
+        Some(list) => {
+            for name in list.get_ref() {
+                if !["k", "c", "m"].contains(&name.as_str()) {
+                    return Err(src.error(
+                        Some(&list.span()),
+                        "estimation.fit",
+                        format!(
+                            "unknown parameter \"{name}\"; expected any of \"k\", \"c\", \"m\""
+                        ),
+                    ));
+                }
+            }
+            list.get_ref().clone()
+        }
+    };
+    let fit_harmonics = match &e.fit_harmonics {
+        Some(h) => harmonics_list(src, h, "estimation.fit_harmonics")?,
+        None => vec![-1, 0, 1],
+    };
+    if let Some(n) = fit_harmonics.iter().find(|n| !harmonics.contains(n)) {
+        let span = e.fit_harmonics.as_ref().map(|v| v.span());
+        return Err(src.error(
+            span.as_ref(),
+            "estimation.fit_harmonics",
+            format!("harmonic {n} is not among estimation.harmonics {harmonics:?}"),
+        ));
+    }
+    if let Excitation::ChirpTrain { copies, .. } = excitation {
+        if estimators.contains(&Estimator::Multi) && harmonics.len() > *copies {
+            let span = e.harmonics.as_ref().map(|v| v.span());
+            return Err(src.error(
+                span.as_ref(),
+                "estimation.harmonics",
+                format!(
+                    "{} harmonics cannot be separated with {copies} phase shifts (excitation.copies): \
+                     the multi-experiment estimator needs at least as many phase-shifted copies as harmonics",
+                    harmonics.len()
+                ),
+            ));
+        }
+    }
+    Ok(EstimationSettings {
+        harmonics,
+        band: (lo, hi),
+        estimators,
+        alpha,
+        fit,
+        fit_harmonics,
+    })
 }

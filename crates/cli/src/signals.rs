@@ -4,11 +4,12 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use htfid_excite::{
-    LinearChirp, LogChirp, PaperChirp, PhaseShiftedTrain, Segment, Signal, TrainLayout,
+    design_htf_multisine, Amplitude, Design, DesignSpec, EvenOrder, LinearChirp, LogChirp,
+    PaperChirp, PhaseRule, PhaseShiftedTrain, Segment, Signal, TrainLayout,
 };
 use htfid_model::InputFn;
 
-use crate::settings::{Excitation, Settings, Waveform};
+use crate::settings::{EvenOrderSetting, Excitation, PhaseSetting, Settings, Waveform};
 
 /// The excitation of an experiment: the input signal and where its parts lie in time.
 pub struct Built {
@@ -17,6 +18,8 @@ pub struct Built {
     pub segments: Vec<Segment>,
     /// End of the excitation (absolute time, s).
     pub end: f64,
+    /// The multisine design, when the excitation is one.
+    pub design: Option<Design>,
 }
 
 impl Built {
@@ -36,7 +39,49 @@ pub fn build(settings: &Settings) -> Result<Built> {
             signal: None,
             segments: Vec::new(),
             end: start,
+            design: None,
         }),
+        Excitation::MultisineDesign {
+            max_harmonic,
+            omega_min,
+            omega_max,
+            spacing,
+            amplitude,
+            even_order,
+            phases,
+            settle,
+            max_record,
+        } => {
+            let design = design_htf_multisine(DesignSpec {
+                period: settings.params.period,
+                max_harmonic: *max_harmonic,
+                omega_lo: *omega_min,
+                omega_hi: *omega_max,
+                spacing: *spacing,
+                amplitude: Amplitude::Peak(*amplitude),
+                phases: match phases {
+                    PhaseSetting::Schroeder => PhaseRule::Schroeder,
+                    PhaseSetting::Random(seed) => PhaseRule::Random { seed: *seed },
+                },
+                even_order: match even_order {
+                    EvenOrderSetting::SignReversal => EvenOrder::SignReversal,
+                    EvenOrderSetting::QuadraticGuard => EvenOrder::QuadraticGuard,
+                    EvenOrderSetting::Unprotected => EvenOrder::Unprotected,
+                },
+                settle: *settle,
+                start,
+                max_record: *max_record,
+            })
+            .with_context(|| {
+                format!("{}: [excitation] multisine design", settings.path.display())
+            })?;
+            Ok(Built {
+                signal: Some(Arc::new(design.input())),
+                segments: Vec::new(),
+                end: design.record_end(),
+                design: Some(design),
+            })
+        }
         Excitation::ChirpTrain {
             waveform,
             f_start_hz,
@@ -73,6 +118,7 @@ pub fn build(settings: &Settings) -> Result<Built> {
                 signal: Some(Arc::new(train)),
                 segments,
                 end,
+                design: None,
             })
         }
     }

@@ -6,7 +6,7 @@ use htfid_hybrid::{HybridSystem, Method, Options};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams, InputFn, ModelError};
 use serde::{Deserialize, Serialize};
 
-use crate::interp::{first_order_lag, Interpolation, SampledSignal};
+use crate::interp::{Interpolation, LaggedSignal, SampledSignal};
 
 /// Largest state dimension the fixed-step integrator handles (position, velocity, lag state).
 const MAX_DIM: usize = 4;
@@ -119,52 +119,44 @@ fn rates(p: &HopperParams, e: &Effects, extent: &Extent) -> (f64, f64) {
     ((k_eff / p.m).sqrt(), c_eff / p.m)
 }
 
-/// The measured force, read between samples, with what is needed to lag it.
+/// The measured force, read between samples.
 #[derive(Debug, Clone)]
 pub(crate) struct MeasuredForce {
-    t0: f64,
-    dt: f64,
-    samples: Vec<f64>,
-    kind: Interpolation,
     signal: Arc<SampledSignal>,
 }
 
 impl MeasuredForce {
     pub(crate) fn new(t0: f64, dt: f64, samples: &[f64], kind: Interpolation) -> Self {
         MeasuredForce {
-            t0,
-            dt,
-            samples: samples.to_vec(),
-            kind,
             signal: Arc::new(SampledSignal::new(t0, dt, samples, kind)),
         }
     }
 
     /// The model driven by the measured force.
     ///
-    /// An actuator lag acts on the input alone, so it is applied to the force samples exactly
-    /// (first-order hold, from the first sample with `F = f`) and the model is simulated with
-    /// `tau = 0` and the lagged force: the same dynamics as the model's lag state, but stable
-    /// for every `tau` without sub-steps shorter than `tau`. A delay then shifts the lagged
-    /// force, which equals lagging the delayed one.
+    /// An actuator lag acts on the input alone, so it is applied to the interpolated force
+    /// exactly ([`LaggedSignal`], from the first sample with `F = f`) and the model is
+    /// simulated with `tau = 0` and the lagged force: the dynamics of the model's lag state,
+    /// without a stiff third state that would need sub-steps shorter than `tau`. A delay then
+    /// shifts the lagged force, which equals lagging the delayed one.
     pub(crate) fn drive(
         &self,
         params: HopperParams,
         damper: DamperLaw,
         effects: Effects,
     ) -> Result<Hopper, ModelError> {
-        let signal = if effects.tau > 0.0 {
-            let lagged = first_order_lag(&self.samples, self.dt, effects.tau);
-            Arc::new(SampledSignal::new(self.t0, self.dt, &lagged, self.kind))
+        let f: InputFn = if effects.tau > 0.0 {
+            let lagged = LaggedSignal::new(Arc::clone(&self.signal), effects.tau);
+            Arc::new(move |t| lagged.eval(t))
         } else {
-            Arc::clone(&self.signal)
+            let signal = Arc::clone(&self.signal);
+            Arc::new(move |t| signal.eval(t))
         };
         let effects = Effects {
             tau: 0.0,
             ..effects
         };
         let hopper = Hopper::with_effects(params, damper, effects)?;
-        let f: InputFn = Arc::new(move |t| signal.eval(t));
         Ok(hopper.with_input(Some(f)))
     }
 }
@@ -461,7 +453,7 @@ mod tests {
         // Between events the motion is a parabola, which RK4 integrates exactly, and the
         // Hermite interpolant of a parabola is exact, so only root finding (1e-14) and rounding
         // remain: 1e-10 m is generous.
-        let g = 9.81;
+        let g: f64 = 9.81;
         let t1 = (2.0 / g).sqrt();
         let v1 = 0.8 * g * t1;
         let dt = 0.01;

@@ -86,6 +86,15 @@ fn explore() {
         d.cause, d.nominal.rmse, d.extended.rmse, d.gain
     );
     println!("params {:?}", d.parameters);
+    if std::env::var("BRIEF").is_ok() {
+        println!(
+            "BRIEF {which}={val} -> {} ratio {:.2} params {:?}",
+            d.cause,
+            d.nominal.rmse / r.noise_floor.unwrap(),
+            d.parameters
+        );
+        return;
+    }
     for c in &d.candidates {
         println!(
             "  {:18} rmse {:.3e} bic {:.1} sig {} :: {:?} | {}",

@@ -65,7 +65,7 @@ impl LineSpec {
 }
 
 /// Estimates `G_n` at the output frequencies reached by the lines of a periodic multisine from a
-/// steady-state record of `M >= 2` whole multisine periods.
+/// steady-state record of `M >= 1` whole multisine periods.
 ///
 /// With `Q` system periods per multisine period, line `b` reaches output bin `b + nQ` through
 /// harmonic `n`, so `G_n(j w_{b+nQ}) = Y[b + nQ] / U[b]`; its mirror gives
@@ -74,6 +74,10 @@ impl LineSpec {
 /// Each period is transformed with absolute-time phase; `Y` and `U` are averaged over periods and
 /// the standard error is the period-to-period scatter of `Y`,
 /// `sqrt(sum_m |Y_m - Y_mean|^2 / (M (M - 1))) / |U_mean|`, with `M - 1` complex degrees of freedom.
+/// With a single period (`M = 1`) the output noise level is instead the mean power of the output
+/// bins that no (line, harmonic) pair reaches and that hold no orbit harmonic; it also contains
+/// the response through harmonics outside `harmonics`, so it is an upper bound on the noise
+/// (NaN when no such bin exists).
 /// The input is taken as noise free, and output bins are assumed to receive nothing from
 /// harmonics outside `harmonics` (unmodelled harmonics alias onto modelled bins).
 pub fn periodic_lines(
@@ -140,10 +144,10 @@ fn estimate(
         });
     }
     let periods = plus.len() / nm;
-    if periods < 2 {
+    if periods < 1 {
         return Err(Error::TooFewPeriods {
             periods,
-            minimum: 2,
+            minimum: 1,
         });
     }
     let below_nyquist = |k: i64| 2 * k.unsigned_abs() < nm as u64;
@@ -194,6 +198,10 @@ fn estimate(
     let mut y_bins = vec![Complex64::new(0.0, 0.0); periods * nt];
     // Largest input bin anywhere, the reference for "this line is not excited".
     let mut largest = 0.0f64;
+    // With one period there is no period-to-period scatter: the noise level is taken from the
+    // output bins that no (line, harmonic) pair reaches and that hold no orbit harmonic.
+    let mut free_power = 0.0f64;
+    let mut free_bins = 0usize;
     for m in 0..periods {
         let range = m * nm..(m + 1) * nm;
         let t0 = plus.t_start() + (m * nm) as f64 * dt;
@@ -214,6 +222,14 @@ fn estimate(
             .fold(largest, f64::max);
         for (ti, t) in targets.iter().enumerate() {
             y_bins[m * nt + ti] = sy.at(t.3);
+        }
+        if periods == 1 {
+            for k in 1..=(nm as i64 - 1) / 2 {
+                if k % q != 0 && !owner.contains_key(&k) && !owner.contains_key(&-k) {
+                    free_power += sy.at(k).norm_sqr();
+                    free_bins += 1;
+                }
+            }
         }
     }
     let mean = |v: &[Complex64], stride: usize, i: usize| -> Complex64 {
@@ -236,7 +252,13 @@ fn estimate(
         let scatter: f64 = (0..periods)
             .map(|m| (y_bins[m * nt + ti] - y_mean).norm_sqr())
             .sum();
-        let var_mean = scatter / (periods * (periods - 1)) as f64;
+        let var_mean = if periods >= 2 {
+            scatter / (periods * (periods - 1)) as f64
+        } else if free_bins > 0 {
+            free_power / free_bins as f64
+        } else {
+            f64::NAN
+        };
         let u = if sign > 0 {
             u_mean[li]
         } else {

@@ -101,6 +101,9 @@ pub struct LmFit {
 
 /// Damping beyond which no step is attempted.
 const LAMBDA_MAX: f64 = 1e16;
+/// Floor of the damping: repeated good steps must not drive it to zero, from which the
+/// multiplicative increase could never recover.
+const LAMBDA_MIN: f64 = 1e-15;
 
 struct Problem<F> {
     f: F,
@@ -271,7 +274,7 @@ where
                     0.0
                 };
                 if rho > 0.75 {
-                    lambda /= 3.0;
+                    lambda = (lambda / 3.0).max(LAMBDA_MIN);
                 } else if rho < 0.25 {
                     lambda *= 2.0;
                 }

@@ -44,7 +44,8 @@ pub enum Leakage {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MultiOptions {
     /// Residual variance is pooled over `2 * pool_half_width + 1` neighbouring bins (plain
-    /// per-bin solve only).
+    /// per-bin solve only; the local polynomial method has its own window, and the regularised
+    /// solves pool over the whole band).
     pub pool_half_width: usize,
     /// Across-bin or per-bin regularisation.
     pub regularisation: Regularisation,
@@ -77,6 +78,13 @@ impl Default for MultiOptions {
 /// `stderr = sqrt(sigma^2 [(A^H A)^{-1}]_nn)`; [`HtfEstimate::dof`] reports the smallest pooled
 /// degrees of freedom. Rank-deficient bins (below `rcond`) get the minimum-norm solution and an
 /// infinite standard error.
+///
+/// With [`Regularisation::Ridge`] or [`Regularisation::Smoothness`] all bins are solved jointly
+/// as in [`siddiqi`](crate::siddiqi) (possible with fewer records than harmonics), with one
+/// residual variance `RSS / (N - tr S)` over the band and posterior standard errors; `cond` still
+/// reports each bin's unregularised condition number (infinite when `K < H`). With
+/// [`Leakage::Lpm`] each bin's variance comes from its own window,
+/// `K (2 half_width + 1 - degree - 1) - H (degree + 1)` complex degrees of freedom.
 ///
 /// Records phase-shifted by `T / K` alias: harmonics `n` and `n + K` enter every bin through
 /// proportional columns, so truth outside the modelled set leaks into the estimate.

@@ -18,9 +18,13 @@ use crate::record::Prepared;
 pub enum Alpha {
     /// A fixed dimensionless weight (see the crate docs for its scaling).
     Fixed(f64),
-    /// Generalised cross-validation: a grid of 25 weights from 1e-8 to 1e4 (half a decade apart),
-    /// then a golden-section search in `log10(alpha)` between the neighbours of the best grid
-    /// point, to 0.01 decade.
+    /// Generalised cross-validation, minimising `(RSS / N) / (1 - tr S / N)^2` over the weight
+    /// (`N` complex data, `S` the influence matrix): a grid of 25 weights from 1e-8 to 1e4 (half
+    /// a decade apart), then a golden-section search in `log10(alpha)` between the neighbours of
+    /// the best grid point, to 0.01 decade. Weights that leave fewer than `0.001 N` residual
+    /// degrees of freedom are skipped: there the score is a ratio of two vanishing numbers that
+    /// the (then ill-conditioned) normal matrix cannot resolve. On noise-free data the score
+    /// vanishes everywhere and the choice is arbitrary.
     Gcv,
 }
 

@@ -95,9 +95,13 @@
 //!    two adjacent intervals is refined by Brent's method on the dense output. Near the ends of
 //!    the step the same is done when the time derivative of the guard along the flow (a finite
 //!    difference of the guard along `f`) shows it turning between `t0` and the first sample, or
-//!    between the last sample and `t1`. If the refined guard value reaches the post-crossing
-//!    side, the pair of crossings is real and the first one is bracketed and located as in 1.;
-//!    if it stays within `graze_tol` of zero, a [`EventKind::Grazing`] event is recorded.
+//!    between the last sample and `t1`. Turns too shallow to get near zero are skipped: the
+//!    refinement runs only if the closest sample is within (the quadratic coefficient of the
+//!    parabola through the samples, or through the end samples and the derivative, which bounds
+//!    that parabola's dip) plus `graze_tol` of zero. If the refined guard value reaches the
+//!    post-crossing side, the pair of crossings is real and the first one is bracketed and
+//!    located as in 1.; if it stays within `graze_tol` of zero, a [`EventKind::Grazing`] event is
+//!    recorded.
 //!
 //! The earliest transition over all guards wins (the lowest guard index on a tie). The step is
 //! cut there: the state is interpolated to the event time, the reset is applied, the event is
@@ -126,10 +130,11 @@
 //!   first one in time wins. Samples are at most `h / (guard_samples + 1)` apart, and `h` is at
 //!   most `h_max`.
 //! - An even number of crossings between two consecutive samples is found only when the
-//!   samples bracket it by a local extremum on the pre-crossing side as described above. A
-//!   guard that crosses and returns between two samples while the samples around it are
-//!   monotone (for instance several oscillations of the guard within one sample interval) is
-//!   undetectable. Bound `h_max`, or raise `guard_samples`, to resolve the fastest guard motion.
+//!   samples bracket it by a local extremum on the pre-crossing side, deep enough by the test
+//!   above. A guard that crosses and returns between two samples while the samples around it
+//!   are monotone, or whose dip is much sharper than the parabola through the samples (for
+//!   instance several oscillations of the guard within one sample interval), is undetectable.
+//!   Bound `h_max`, or raise `guard_samples`, to resolve the fastest guard motion.
 //! - Grazing times are located to about `1.5e-8` times the refined interval: near a touch the
 //!   guard is flat to second order, so the time of its extremum is not better defined in
 //!   floating point.

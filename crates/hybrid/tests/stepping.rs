@@ -136,3 +136,14 @@ fn every_dimension_matches_closed_form() {
         }
     }
 }
+
+#[test]
+fn trait_objects_are_accepted() {
+    // Callers holding `&dyn HybridSystem` (e.g. a model chosen at run time) integrate the same.
+    let sys: &dyn HybridSystem<Mode = ()> = &Oscillator;
+    let opts = Options::default();
+    let dynamic = simulate(sys, (), 0.0, &[1.0, 0.0], 3.0, &[1.5], &opts).unwrap();
+    let concrete = simulate(&Oscillator, (), 0.0, &[1.0, 0.0], 3.0, &[1.5], &opts).unwrap();
+    assert_eq!(dynamic.states, concrete.states);
+    assert_eq!(dynamic.stats, concrete.stats);
+}

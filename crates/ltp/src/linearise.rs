@@ -191,7 +191,13 @@ pub fn linearise<S: InputOutput>(
         );
         // The chart of the piece: the one the switch opening it enters.
         let mode = switches.get(i).map_or(cycle.mode0, |s| s.to);
-        for (node, weight) in GL_NODES.iter().zip(GL_WEIGHTS) {
+        // The tabulated weights sum to 2 only up to rounding; normalising keeps a constant
+        // chart matrix exactly constant.
+        let weight_sum: f64 = GL_WEIGHTS.iter().sum();
+        for (node, weight) in GL_NODES
+            .iter()
+            .zip(GL_WEIGHTS.map(|w| 2.0 * w / weight_sum))
+        {
             let mut t = 0.5 * (a_time + b_time) + half * node;
             if t >= t0 + period {
                 t -= period;

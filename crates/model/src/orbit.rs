@@ -38,11 +38,21 @@ impl Hopper {
         shooting: &ShootingOptions,
         opts: &Options,
     ) -> Result<HopperOrbit, ModelError> {
+        self.limit_cycle_from(&self.initial_guess(), shooting, opts)
+    }
+
+    /// As [`Hopper::limit_cycle`], starting from `x0` (for example the orbit of a nearby
+    /// parameter set, so that little settling is needed).
+    pub fn limit_cycle_from(
+        &self,
+        x0: &[f64],
+        shooting: &ShootingOptions,
+        opts: &Options,
+    ) -> Result<HopperOrbit, ModelError> {
         let unforced = self.with_input(None);
-        let x0 = unforced.initial_guess();
         let mode0 = unforced.mode_of(x0[1]);
         let period = self.params().period;
-        let cycle = find_limit_cycle(&unforced, mode0, 0.0, &x0, period, shooting, opts)?;
+        let cycle = find_limit_cycle(&unforced, mode0, 0.0, x0, period, shooting, opts)?;
         let transitions = || {
             cycle
                 .events

@@ -1,3 +1,5 @@
 //! One module per command.
 
+pub mod run;
 pub mod simulate;
+pub mod theory;

@@ -72,7 +72,11 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
         })?;
     let excitation = signals::build(settings)?;
     let period = settings.params.period;
-    let end = excitation.end.max(settings.settle_time()).max(period);
+    // The record ends on a whole number of periods after the settling, so the estimators can
+    // use all of it.
+    let start = settings.settle_time();
+    let end = start + ((excitation.end - start).max(0.0) / period - 1e-9).ceil() * period;
+    let end = end.max(period);
     let dt = 1.0 / settings.sample_rate;
     let n = (end / dt + 1e-9).floor() as usize + 1;
     let grid: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
@@ -101,7 +105,7 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
         .collect();
     let x = (0..n).map(|i| traj.state(i)[0]).collect();
     let xd = (0..n).map(|i| traj.state(i)[1]).collect();
-    let switches = traj.events.len();
+    let switches = traj.transitions().count();
     Ok(Simulated {
         hopper,
         orbit,

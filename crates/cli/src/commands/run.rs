@@ -1,0 +1,578 @@
+//! `htfid run CONFIG`: the whole pipeline: settle onto the limit cycle, excite, simulate,
+//! estimate the HTFs, fit the model parameters, and compare everything with the exact theory.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use htfid_estimate::{
+    levenberg_marquardt, multi_experiment, periodic_lines, periodic_lines_paired, siddiqi, Alpha,
+    HtfEstimate, LineSpec, LmOptions, MultiOptions, Record,
+};
+use htfid_excite::{alias_map, Polarity};
+use htfid_hybrid::simulate;
+use htfid_ltp::linearise;
+use htfid_model::{Hopper, HopperParams};
+use htfid_orbit::ShootingOptions;
+use htfid_plot::Style;
+use htfid_theory::{ExactHtf, HarmonicTransferFunction};
+use num_complex::Complex64;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use serde_json::{json, Value};
+
+use crate::commands::simulate::{base_summary, report_written, simulate_experiment, Simulated};
+use crate::commands::theory::{self, ltp_json, write_theory_csv, Theory};
+use crate::output::{json_text, open, resolve_dir};
+use crate::plots::{self, Curve};
+use crate::progress::Stages;
+use crate::settings::{AlphaSetting, Estimator, Excitation, Settings};
+
+pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> Result<()> {
+    let settings = Settings::from_file(config)?;
+    if settings.excitation == Excitation::None {
+        bail!(
+            "{}: [excitation] kind = \"none\": there is nothing to estimate from; \
+             use kind = \"chirp_train\" or \"multisine_design\" (or `htfid simulate`)",
+            settings.path.display()
+        );
+    }
+    let dir = resolve_dir(out, &settings.name);
+    let est_names: Vec<String> = settings
+        .estimation
+        .estimators
+        .iter()
+        .map(|e| format!("estimate_{}.csv", e.name()))
+        .collect();
+    let mut names: Vec<&str> = vec![
+        "timeseries.csv",
+        "limit_cycle.csv",
+        "theory.csv",
+        "summary.json",
+    ];
+    names.extend(est_names.iter().map(String::as_str));
+    let plot_names = ["htf_g0", "htf_harmonics"];
+    let plot_files: Vec<String> = plot_names
+        .iter()
+        .flat_map(|p| [format!("{p}.svg"), format!("{p}.png")])
+        .collect();
+    if !no_plots {
+        names.extend(plot_files.iter().map(String::as_str));
+    }
+    let mut outdir = open(&dir, force, &names)?;
+    let mut stages = Stages::new(false);
+
+    let mut sim = simulate_experiment(&settings, &mut stages)?;
+    let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &mut sim))?;
+    let theory = theory::from_orbit(
+        &settings,
+        sim.hopper.clone(),
+        sim.orbit.clone(),
+        &mut stages,
+    )?;
+
+    let mut estimates: Vec<(Estimator, HtfEstimate)> = Vec::new();
+    for &est in &settings.estimation.estimators {
+        let e = stages
+            .run(&format!("estimate ({})", est.name()), || {
+                estimate(&settings, &sim, &deviation, est)
+            })
+            .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
+        estimates.push((est, e));
+    }
+
+    let mut errors = serde_json::Map::new();
+    let mut fits = serde_json::Map::new();
+    let mut alpha = serde_json::Map::new();
+    for (est, e) in &estimates {
+        errors.insert(
+            est.name().into(),
+            harmonic_errors(&settings, &theory.exact, e),
+        );
+        let fit = stages
+            .run(&format!("fit ({})", est.name()), || {
+                fit_parameters(&settings, &sim, e)
+            })
+            .with_context(|| {
+                format!("parametric fit to the \"{}\" estimates failed", est.name())
+            })?;
+        fits.insert(est.name().into(), fit);
+        if let Some(a) = e.alpha() {
+            alpha.insert(
+                est.name().into(),
+                json!({"alpha": a, "alpha_effective": e.alpha_effective()}),
+            );
+        }
+    }
+
+    let grid = stages.run("exact HTF", || {
+        theory
+            .exact
+            .grid(&settings.theory.harmonics, &settings.theory.omegas)
+    });
+    stages.run("write outputs", || -> Result<()> {
+        crate::commands::simulate::write_simulation(&settings, &sim, &mut outdir)?;
+        write_theory_csv(&mut outdir, &grid)?;
+        for (est, e) in &estimates {
+            let mut csv = outdir.csv(
+                &format!("estimate_{}.csv", est.name()),
+                &["omega", "n", "re", "im", "stderr"],
+            )?;
+            for r in e.rows() {
+                csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
+            }
+            csv.finish()?;
+        }
+        Ok(())
+    })?;
+    if !no_plots {
+        stages.run("plots", || {
+            run_plots(&mut outdir, &settings, &theory, &estimates)
+        })?;
+    }
+
+    let mut summary = base_summary(&settings, &sim);
+    summary["ltp"] = ltp_json(&theory);
+    summary["alpha"] = Value::Object(alpha);
+    summary["fit"] = Value::Object(fits);
+    summary["errors"] = Value::Object(errors);
+    summary["estimation"] = json!({
+        "harmonics": settings.estimation.harmonics,
+        "band": [settings.estimation.band.0, settings.estimation.band.1],
+        "estimators": settings.estimation.estimators.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "noise_output_std": settings.noise.map_or(0.0, |n| n.output_std),
+    });
+    if let Some(a) = aliasing(&settings, &theory.exact)? {
+        summary["aliasing"] = a;
+    }
+    if let Some(d) = &sim.excitation.design {
+        summary["design"] = serde_json::to_value(d.report())?;
+    }
+    summary["timings_ms"] = stages.to_json();
+    outdir.write_text("summary.json", &json_text(&summary))?;
+    report_written(&outdir.commit()?);
+    Ok(())
+}
+
+/// Adds the configured measurement noise to `x` and returns the deviation of the measured
+/// position from the limit cycle at every sample (what the estimators see).
+fn orbit_deviation(settings: &Settings, sim: &mut Simulated) -> Result<Vec<f64>> {
+    if let Some(noise) = settings.noise {
+        if noise.output_std > 0.0 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(noise.seed);
+            let normal = Normal::new(0.0, noise.output_std).context("noise.output_std")?;
+            for x in &mut sim.x {
+                *x += normal.sample(&mut rng);
+            }
+        }
+    }
+    let end = *sim.t.last().unwrap_or(&0.0);
+    let free = simulate(
+        &sim.hopper,
+        sim.orbit.cycle.mode0,
+        0.0,
+        &sim.orbit.cycle.state0,
+        end,
+        &sim.t,
+        &settings.integrator,
+    )
+    .context("simulation of the unexcited orbit failed")?;
+    Ok(sim
+        .x
+        .iter()
+        .enumerate()
+        .map(|(i, x)| x - free.state(i)[0])
+        .collect())
+}
+
+/// Cuts `duration` seconds (a whole number of periods) out of the record, from the first sample
+/// at or after `t_a`. The estimators reference phases to absolute time, so a start between
+/// samples only shifts the window, never the phase.
+fn record(
+    settings: &Settings,
+    sim: &Simulated,
+    y: &[f64],
+    t_a: f64,
+    duration: f64,
+) -> Result<Record> {
+    let dt = 1.0 / settings.sample_rate;
+    let i0 = (t_a / dt - 1e-6).ceil().max(0.0) as usize;
+    let n = (duration / dt).round() as usize;
+    if (n as f64 * dt - duration).abs() > 1e-6 * dt {
+        bail!(
+            "a record of {duration} s is not a whole number of samples at \
+             simulation.sample_rate = {} Hz; choose a sample rate whose period divides the forcing period",
+            settings.sample_rate
+        );
+    }
+    if i0 + n > sim.t.len() {
+        bail!(
+            "record [{t_a}, {}) s runs past the simulated {} s",
+            t_a + duration,
+            sim.t.last().unwrap_or(&0.0)
+        );
+    }
+    Ok(Record::new(
+        sim.u[i0..i0 + n].to_vec(),
+        y[i0..i0 + n].to_vec(),
+        dt,
+        i0 as f64 * dt,
+    )?)
+}
+
+fn estimate(
+    settings: &Settings,
+    sim: &Simulated,
+    y: &[f64],
+    est: Estimator,
+) -> Result<HtfEstimate> {
+    let period = settings.params.period;
+    let harmonics = &settings.estimation.harmonics;
+    let band = settings.estimation.band;
+    let t_start = settings.settle_time();
+    match est {
+        Estimator::Siddiqi => {
+            let end = *sim.t.last().unwrap_or(&0.0);
+            let periods = ((end - t_start) / period + 1e-9).floor();
+            let rec = record(settings, sim, y, t_start, periods * period)?;
+            let alpha = match settings.estimation.alpha {
+                AlphaSetting::Fixed(a) => Alpha::Fixed(a),
+                AlphaSetting::Gcv => Alpha::Gcv,
+            };
+            Ok(siddiqi(&rec, period, harmonics, band, alpha)?)
+        }
+        Estimator::Multi => {
+            let Excitation::ChirpTrain { duration, .. } = settings.excitation else {
+                bail!("the multi-experiment estimator needs a chirp train");
+            };
+            let periods = (duration / period).floor();
+            if periods < 1.0 {
+                bail!("excitation.duration ({duration} s) is shorter than one period");
+            }
+            let records = sim
+                .excitation
+                .segments
+                .iter()
+                .map(|s| record(settings, sim, y, s.start, periods * period))
+                .collect::<Result<Vec<_>>>()?;
+            Ok(multi_experiment(
+                &records,
+                period,
+                harmonics,
+                band,
+                &MultiOptions::default(),
+            )?)
+        }
+        Estimator::Lines => {
+            let design = sim
+                .excitation
+                .design
+                .as_ref()
+                .context("the line estimator needs a multisine design")?;
+            let tm = design.multisine_period();
+            let spec = LineSpec::new(tm, design.lines().iter().map(|l| l.bin as usize).collect())?;
+            let block = |p: Polarity| design.blocks().iter().find(|b| b.polarity == p);
+            let plus = block(Polarity::Positive).context("design has no positive block")?;
+            let rec_plus = record(
+                settings,
+                sim,
+                y,
+                plus.measure_start,
+                plus.end - plus.measure_start,
+            )?;
+            let mut e = match block(Polarity::Negative) {
+                Some(minus) => {
+                    let rec_minus = record(
+                        settings,
+                        sim,
+                        y,
+                        minus.measure_start,
+                        minus.end - minus.measure_start,
+                    )?;
+                    periodic_lines_paired(&rec_plus, &rec_minus, period, &spec, harmonics)?
+                }
+                None => periodic_lines(&rec_plus, period, &spec, harmonics)?,
+            };
+            e = keep_band(e, band)?;
+            Ok(e)
+        }
+    }
+}
+
+/// Keeps the rows whose output frequency lies in the band (the line estimator also returns
+/// mirror images at other, possibly negative, frequencies).
+fn keep_band(e: HtfEstimate, band: (f64, f64)) -> Result<HtfEstimate> {
+    let harmonics = e.harmonics().to_vec();
+    let mut omegas = Vec::new();
+    let mut values = Vec::new();
+    let mut stderr = Vec::new();
+    for &n in &harmonics {
+        let rows: Vec<_> = e
+            .rows()
+            .filter(|r| r.n == n && r.omega >= band.0 && r.omega <= band.1)
+            .collect();
+        omegas.push(rows.iter().map(|r| r.omega).collect());
+        values.push(rows.iter().map(|r| r.value).collect());
+        stderr.push(rows.iter().map(|r| r.stderr).collect());
+    }
+    Ok(HtfEstimate::new(
+        e.method(),
+        harmonics,
+        omegas,
+        values,
+        stderr,
+    )?)
+}
+
+/// Per harmonic: median and max of `|G_hat_n - G_n| / max|G_n|` over the band.
+fn harmonic_errors(settings: &Settings, exact: &ExactHtf, e: &HtfEstimate) -> Value {
+    let (lo, hi) = settings.estimation.band;
+    let mut out = serde_json::Map::new();
+    for &n in e.harmonics() {
+        let rows: Vec<_> = e
+            .rows()
+            .filter(|r| r.n == n && r.omega >= lo && r.omega <= hi)
+            .collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let truth: Vec<Complex64> = rows.iter().map(|r| exact.g(n, r.omega)).collect();
+        let scale = truth.iter().map(|g| g.norm()).fold(0.0, f64::max);
+        let mut rel: Vec<f64> = rows
+            .iter()
+            .zip(&truth)
+            .map(|(r, g)| (r.value - g).norm() / scale)
+            .collect();
+        rel.sort_by(f64::total_cmp);
+        let median = rel[rel.len() / 2];
+        let max = *rel.last().unwrap_or(&f64::NAN);
+        out.insert(
+            n.to_string(),
+            json!({"median": median, "max": max, "max_abs_g": scale, "points": rel.len()}),
+        );
+    }
+    Value::Object(out)
+}
+
+/// Levenberg-Marquardt fit of the configured parameters to the estimates, through the exact
+/// HTF of the model's linearisation about its own limit cycle.
+fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Result<Value> {
+    let names = &settings.estimation.fit;
+    let (lo, hi) = settings.estimation.band;
+    let rows: Vec<_> = e
+        .rows()
+        .filter(|r| {
+            settings.estimation.fit_harmonics.contains(&r.n) && r.omega >= lo && r.omega <= hi
+        })
+        .filter(|r| r.value.re.is_finite() && r.value.im.is_finite())
+        .collect();
+    if rows.len() < names.len() {
+        bail!(
+            "only {} estimates in the band for the fitted harmonics",
+            rows.len()
+        );
+    }
+    // Weights: 1 / stderr, floored at 1e-6 of the largest estimate of the harmonic so that
+    // noise-free estimates do not get infinite weight.
+    let mut max_by_n = std::collections::HashMap::new();
+    for r in &rows {
+        let m = max_by_n.entry(r.n).or_insert(0.0f64);
+        *m = m.max(r.value.norm());
+    }
+    let weights: Vec<f64> = rows
+        .iter()
+        .map(|r| {
+            let floor = 1e-6 * max_by_n[&r.n];
+            let s = if r.stderr.is_finite() {
+                r.stderr.max(floor)
+            } else {
+                floor
+            };
+            1.0 / s
+        })
+        .collect();
+    let nominal = settings.params;
+    let p0: Vec<f64> = names.iter().map(|n| param(&nominal, n)).collect();
+    let x_start = sim.orbit.cycle.state0.clone();
+    let shooting = ShootingOptions {
+        settle_periods: 3,
+        ..ShootingOptions::default()
+    };
+    let opts = settings.integrator.clone();
+    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+        let mut params = nominal;
+        for (name, v) in names.iter().zip(p) {
+            set_param(&mut params, name, *v);
+        }
+        let hopper = Hopper::with_effects(params, settings.damper, settings.effects)
+            .map_err(|e| e.to_string())?;
+        let orbit = hopper
+            .limit_cycle_from(&x_start, &shooting, &opts)
+            .map_err(|e| e.to_string())?;
+        let lin = linearise(&hopper, &orbit.cycle, 8, &opts).map_err(|e| e.to_string())?;
+        let exact = ExactHtf::new(&lin.piecewise).map_err(|e| e.to_string())?;
+        for (i, row) in rows.iter().enumerate() {
+            let d = (row.value - exact.g(row.n, row.omega)) * weights[i];
+            r[2 * i] = d.re;
+            r[2 * i + 1] = d.im;
+        }
+        Ok(())
+    };
+    let lm = LmOptions {
+        scales: Some(p0.iter().map(|v| v.abs().max(1e-3)).collect()),
+        bounds: Some(
+            names
+                .iter()
+                .map(|n| {
+                    if n == "c" {
+                        (0.0, f64::INFINITY)
+                    } else {
+                        (1e-12, f64::INFINITY)
+                    }
+                })
+                .collect(),
+        ),
+        ..LmOptions::default()
+    };
+    let fit = levenberg_marquardt(residuals, &p0, 2 * rows.len(), &lm)?;
+    let mut out = serde_json::Map::new();
+    for (i, name) in names.iter().enumerate() {
+        out.insert(name.clone(), json!(fit.params[i]));
+        out.insert(
+            format!("{name}_stderr"),
+            json!(fit.stderr.as_ref().map_or(f64::NAN, |s| s[i])),
+        );
+    }
+    out.insert("harmonics".into(), json!(settings.estimation.fit_harmonics));
+    out.insert("points".into(), json!(rows.len()));
+    out.insert("iterations".into(), json!(fit.iterations));
+    out.insert("cost".into(), json!(fit.cost));
+    out.insert("stop".into(), json!(format!("{:?}", fit.stop)));
+    Ok(Value::Object(out))
+}
+
+fn param(p: &HopperParams, name: &str) -> f64 {
+    match name {
+        "k" => p.k,
+        "c" => p.c,
+        _ => p.m,
+    }
+}
+
+fn set_param(p: &mut HopperParams, name: &str, v: f64) {
+    match name {
+        "k" => p.k = v,
+        "c" => p.c = v,
+        _ => p.m = v,
+    }
+}
+
+/// Which harmonics the chirp train's phase shifts cannot tell apart, with their sizes.
+fn aliasing(settings: &Settings, exact: &ExactHtf) -> Result<Option<Value>> {
+    let Excitation::ChirpTrain { copies, .. } = settings.excitation else {
+        return Ok(None);
+    };
+    let h = &settings.estimation.harmonics;
+    let map = alias_map(copies, h, 10)?;
+    let (lo, hi) = settings.estimation.band;
+    let omegas = crate::settings::log_grid(lo, hi, 200);
+    let peak = |n: i32| {
+        omegas
+            .iter()
+            .map(|&w| exact.g(n, w).norm())
+            .fold(0.0, f64::max)
+    };
+    let mut out = serde_json::Map::new();
+    for entry in map {
+        let own = peak(entry.harmonic);
+        let aliases: Vec<Value> = entry
+            .aliases
+            .iter()
+            .map(|&m| json!({"harmonic": m, "max_abs_g": peak(m), "relative_to_estimated": peak(m) / own}))
+            .collect();
+        out.insert(
+            entry.harmonic.to_string(),
+            json!({"max_abs_g": own, "aliases": aliases}),
+        );
+    }
+    Ok(Some(
+        json!({"copies": copies, "n_max": 10, "by_harmonic": out}),
+    ))
+}
+
+fn run_plots(
+    out: &mut htfid_data::OutputDir,
+    settings: &Settings,
+    theory: &Theory,
+    estimates: &[(Estimator, HtfEstimate)],
+) -> Result<()> {
+    let (lo, hi) = settings.estimation.band;
+    let omegas = crate::settings::log_grid(lo, hi, 600);
+    let harmonics = &settings.estimation.harmonics;
+    let theory_vals: Vec<(i32, Vec<Complex64>)> = harmonics
+        .iter()
+        .map(|&n| (n, omegas.iter().map(|&w| theory.exact.g(n, w)).collect()))
+        .collect();
+    type Series = (String, Vec<f64>, Vec<Complex64>);
+    let est_vals: Vec<(i32, Vec<Series>)> = harmonics
+        .iter()
+        .map(|&n| {
+            let per: Vec<Series> = estimates
+                .iter()
+                .map(|(est, e)| {
+                    let rows: Vec<_> = e.rows().filter(|r| r.n == n).collect();
+                    (
+                        format!("estimate ({})", est.name()),
+                        rows.iter().map(|r| r.omega).collect(),
+                        rows.iter().map(|r| r.value).collect(),
+                    )
+                })
+                .collect();
+            (n, per)
+        })
+        .collect();
+    let curves_for = |n: i32| -> Vec<Curve<'_>> {
+        let mut c = Vec::new();
+        for (m, v) in &theory_vals {
+            if *m == n {
+                c.push(Curve {
+                    label: "theory (exact)",
+                    omega: &omegas,
+                    values: v,
+                    style: Style::Line,
+                });
+            }
+        }
+        for (m, per) in &est_vals {
+            if *m == n {
+                for (i, (label, w, v)) in per.iter().enumerate() {
+                    let style = if i == 0 {
+                        Style::Markers
+                    } else {
+                        Style::Dashed
+                    };
+                    c.push(Curve {
+                        label,
+                        omega: w,
+                        values: v,
+                        style,
+                    });
+                }
+            }
+        }
+        c
+    };
+    if harmonics.contains(&0) {
+        let fig = plots::bode(
+            &format!("{}: G_0, estimate against theory", settings.name),
+            &curves_for(0),
+        );
+        plots::write(out, "htf_g0", &fig)?;
+    }
+    let per: Vec<(i32, Vec<Curve<'_>>)> = harmonics.iter().map(|&n| (n, curves_for(n))).collect();
+    let fig = plots::harmonics(
+        &format!("{}: |G_n|, estimates against theory", settings.name),
+        &per,
+    );
+    plots::write(out, "htf_harmonics", &fig)?;
+    Ok(())
+}
