@@ -624,18 +624,6 @@ fn fit_nominal(
 }
 
 impl Context<'_> {
-    /// Sum of squared fit residuals with initial states from the data.
-    fn fit_cost(&self, p: &ModelPoint) -> Option<f64> {
-        let hopper = self.hopper(p).ok()?;
-        let stepping = self.stepping(p);
-        let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
-        let mut r = vec![0.0; self.n_fit()];
-        self.residuals(&hopper, &self.fit, &init, &stepping, &mut r)
-            .ok()?;
-        let c: f64 = r.iter().map(|v| v * v).sum();
-        c.is_finite().then_some(c)
-    }
-
     /// A "fit" of no parameters: the model as given.
     fn evaluate_fixed(&self, p: &ModelPoint) -> Result<FitResult, (f64, String)> {
         let stepping = self.stepping(p);
@@ -775,12 +763,28 @@ fn run_candidate(
     if let Some(reason) = effect.skip_reason(ctx.damper, free) {
         return failed(reason.to_string());
     }
-    let start = screening.start(&nominal.point, free, effect);
     let mut slots = free.to_vec();
     slots.extend(effect.slots(free));
-    let fit = match ctx.fit(&start, &slots) {
-        Ok(f) => f,
-        Err(e) => return failed(format!("fit failed: {e}")),
+    let mut best: Option<FitResult> = None;
+    let mut error = None;
+    for start in screening.starts(&nominal.point, free, effect) {
+        match ctx.fit(&start, &slots) {
+            Ok(f) => {
+                let evaluations = f.evaluations + best.as_ref().map_or(0, |b| b.evaluations);
+                if best.as_ref().map_or(true, |b| f.rss < b.rss) {
+                    best = Some(FitResult { evaluations, ..f });
+                } else if let Some(b) = best.as_mut() {
+                    b.evaluations = evaluations;
+                }
+            }
+            Err(e) => error = Some(e),
+        }
+    }
+    let Some(fit) = best else {
+        return failed(format!(
+            "fit failed: {}",
+            error.unwrap_or_else(|| "no starting point".to_string())
+        ));
     };
     match evaluate(ctx, &fit.point, &fit.stepping) {
         Ok(ev) => Outcome {

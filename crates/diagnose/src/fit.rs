@@ -190,6 +190,19 @@ impl Context<'_> {
         Ok(())
     }
 
+    /// Sum of squared fit residuals with initial states from the data; `None` when the model
+    /// cannot be simulated.
+    pub(crate) fn fit_cost(&self, p: &ModelPoint) -> Option<f64> {
+        let hopper = self.hopper(p).ok()?;
+        let stepping = self.stepping(p);
+        let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
+        let mut r = vec![0.0; self.n_fit()];
+        self.residuals(&hopper, &self.fit, &init, &stepping, &mut r)
+            .ok()?;
+        let c: f64 = r.iter().map(|v| v * v).sum();
+        c.is_finite().then_some(c)
+    }
+
     /// Typical size of a parameter, for finite-difference steps.
     fn typical(&self, s: Slot, p: &ModelPoint) -> f64 {
         let sc = &self.scales;
@@ -421,15 +434,29 @@ fn segment_lengths(segs: &[Segment]) -> Vec<usize> {
 pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> Vec<f64> {
     let (n, p) = jac.shape();
     let jtj = jac.tr_mul(jac);
-    let svd = jtj.clone().svd(true, true);
-    let smax = svd.singular_values.iter().copied().fold(0.0, f64::max);
-    let tol = smax * 1e-14 * p as f64;
-    let Ok(a) = svd.pseudo_inverse(tol) else {
+    // Scale to unit diagonal first: parameters differ in size by many orders (a contact
+    // stiffness against a contact position), and a tolerance on the unscaled matrix would call
+    // a well-determined small column undetermined.
+    let d: Vec<f64> = (0..p)
+        .map(|i| {
+            let v = jtj[(i, i)];
+            if v > 0.0 && v.is_finite() {
+                1.0 / v.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let scaled = DMatrix::from_fn(p, p, |i, j| jtj[(i, j)] * d[i] * d[j]);
+    let svd = scaled.svd(true, true);
+    let tol = 1e-12 * p as f64;
+    let Ok(b) = svd.pseudo_inverse(tol) else {
         return vec![f64::INFINITY; p];
     };
+    let a = DMatrix::from_fn(p, p, |i, j| b[(i, j)] * d[i] * d[j]);
     // A direction with no information: its pseudo-inverse is zero, report it as unknown.
     let undetermined: Vec<bool> = (0..p)
-        .map(|i| !(jtj[(i, i)] > tol) || !(a[(i, i)] > 0.0))
+        .map(|i| !(d[i] > 0.0) || !(a[(i, i)] > 0.0))
         .collect();
     let rss: f64 = r.iter().map(|v| v * v).sum();
     let s2 = rss / (n.saturating_sub(p)).max(1) as f64;

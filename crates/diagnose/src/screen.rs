@@ -124,6 +124,40 @@ impl<'c, 'a> Screening<'c, 'a> {
         q
     }
 
+    /// Starting points for `effect`. One from [`Screening::start`], except for a switching
+    /// threshold: its effect grows about quadratically on both sides of zero, so the best
+    /// threshold of each sign on a grid of output-error costs starts a fit of its own.
+    pub(crate) fn starts(
+        &self,
+        base: &ModelPoint,
+        free: &[Slot],
+        effect: Effect,
+    ) -> Vec<ModelPoint> {
+        if effect != Effect::SwitchThreshold {
+            return vec![self.start(base, free, effect)];
+        }
+        let v_std = self.ctx.scales.v_std;
+        let v0 = base.get(Slot::VTh);
+        let mut best = [(f64::INFINITY, None), (f64::INFINITY, None)];
+        for q in [0.02, 0.05, 0.1, 0.2, 0.35] {
+            for (side, sign) in [(0, -1.0), (1, 1.0)] {
+                let mut p = *base;
+                p.set(Slot::VTh, v0 + sign * q * v_std);
+                if let Some(c) = self.ctx.fit_cost(&p) {
+                    if c < best[side].0 {
+                        best[side] = (c, Some(p));
+                    }
+                }
+            }
+        }
+        let starts: Vec<ModelPoint> = best.into_iter().filter_map(|(_, p)| p).collect();
+        if starts.is_empty() {
+            vec![*base]
+        } else {
+            starts
+        }
+    }
+
     /// A starting point for `effect`: the nominal fit with the effect's parameters from the
     /// regression (free nominal parameters regressed jointly but kept at their fitted values).
     pub(crate) fn start(&self, base: &ModelPoint, free: &[Slot], effect: Effect) -> ModelPoint {
@@ -137,19 +171,8 @@ impl<'c, 'a> Screening<'c, 'a> {
         };
         match effect {
             Effect::SwitchThreshold => {
-                let v_std = self.ctx.scales.v_std;
-                let mut best = (f64::INFINITY, p.get(Slot::VTh));
-                for q in [-0.5, -0.3, -0.2, -0.1, -0.05, 0.05, 0.1, 0.2, 0.3, 0.5] {
-                    let mut trial = p;
-                    let v = p.get(Slot::VTh) + q * v_std;
-                    trial.set(Slot::VTh, v);
-                    if let Some((_, rss)) = joint(&trial, &[]) {
-                        if rss < best.0 {
-                            best = (rss, v);
-                        }
-                    }
-                }
-                p.set(Slot::VTh, best.1);
+                // A threshold changes the force only while |x'| < |v_th|, too briefly for the
+                // smoothed acceleration to resolve: searched in [`Screening::starts`].
             }
             Effect::HardStop => {
                 let mut xs: Vec<f64> = self.samples.iter().map(|(_, k)| k.x).collect();

@@ -42,7 +42,22 @@ fn explore() {
         _ => {}
     }
     let t = std::time::Instant::now();
-    let rec = generate(&p, params, e, None, 1);
+    let extra: Option<ExtraForce> = match which.as_str() {
+        "sine" => Some(std::sync::Arc::new(move |t: f64, _x: f64, _v: f64| {
+            val * (2.0 * std::f64::consts::PI * 3.3 * t).sin()
+        })),
+        "quad" => Some(std::sync::Arc::new(move |_t: f64, x: f64, _v: f64| {
+            -val * (x - 0.2) * (x - 0.2)
+        })),
+        "vdamp" => Some(std::sync::Arc::new(move |_t: f64, x: f64, v: f64| {
+            -val * (x - 0.151) * v
+        })),
+        "drift" => Some(std::sync::Arc::new(move |t: f64, x: f64, _v: f64| {
+            -val * t / 80.0 * (x - 0.2)
+        })),
+        _ => None,
+    };
+    let rec = generate(&p, params, e, extra, 1);
     println!("generated in {:?}", t.elapsed());
     let x = rec.x();
     let mean = x.iter().sum::<f64>() / x.len() as f64;

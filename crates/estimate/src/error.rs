@@ -230,6 +230,19 @@ pub enum Error {
         /// Samples per multisine period.
         period_samples: usize,
     },
+    /// The plus and minus records of a sign-reversed pair start at different orbit phases.
+    #[error(
+        "the minus record starts at {minus_start} s and the plus record at {plus_start} s: \
+         they must differ by a whole number of periods ({period} s)"
+    )]
+    PairPhaseMismatch {
+        /// Start of the plus record, s.
+        plus_start: f64,
+        /// Start of the minus record, s.
+        minus_start: f64,
+        /// The period, s.
+        period: f64,
+    },
     /// Too few multisine periods for a scatter-based standard error.
     #[error("record holds {periods} multisine periods; at least {minimum} are needed")]
     TooFewPeriods {

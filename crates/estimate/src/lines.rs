@@ -90,7 +90,9 @@ pub fn periodic_lines(
 }
 
 /// As [`periodic_lines`], from a record driven by `+u` and one driven by `-u` at the same orbit
-/// phases. Each period uses `U = (U+ - U-) / 2` and `Y = (Y+ - Y-) / 2`: the linear response
+/// phases (their starts differ by a whole number of periods, else
+/// [`Error::PairPhaseMismatch`]; the inputs must agree in time measured from each record's
+/// start). Both records are referenced to the plus record's start time. Each period uses `U = (U+ - U-) / 2` and `Y = (Y+ - Y-) / 2`: the linear response
 /// survives while every even-order term of a nonlinear response (equal for `+u` and `-u`)
 /// cancels.
 pub fn periodic_lines_paired(
@@ -106,6 +108,14 @@ pub fn periodic_lines_paired(
             plus_dt: plus.dt(),
             minus_samples: minus.len(),
             minus_dt: minus.dt(),
+        });
+    }
+    let shift = (minus.t_start() - plus.t_start()) / period;
+    if (shift - shift.round()).abs() > WHOLE_TOL {
+        return Err(Error::PairPhaseMismatch {
+            plus_start: plus.t_start(),
+            minus_start: minus.t_start(),
+            period,
         });
     }
     estimate(plus, Some(minus), period, lines, harmonics)
@@ -208,7 +218,11 @@ fn estimate(
         let mut su = Spectrum::new(&plus.u()[range.clone()], dt, t0, &fft);
         let mut sy = Spectrum::new(&plus.y()[range.clone()], dt, t0, &fft);
         if let Some(minus) = minus {
-            let t0m = minus.t_start() + (m * nm) as f64 * dt;
+            // The minus record is referenced to the plus record's start: both start at the same
+            // orbit phase (checked below), so the LTP response is the same in local time, and
+            // only with a common time reference do the even-order responses, equal in local
+            // time, cancel in the half difference.
+            let t0m = t0;
             let mu = Spectrum::new(&minus.u()[range.clone()], dt, t0m, &fft);
             let my = Spectrum::new(&minus.y()[range], dt, t0m, &fft);
             su = su.half_difference(&mu);

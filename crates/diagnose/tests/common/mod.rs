@@ -6,8 +6,8 @@ use std::f64::consts::PI;
 use std::sync::Arc;
 
 use htfid_diagnose::Record;
-use htfid_hybrid::{simulate, Options};
-use htfid_model::{DamperLaw, Effects, Hopper, HopperParams, InputFn};
+use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
+use htfid_model::{DamperLaw, Effects, Hopper, HopperMode, HopperParams, InputFn};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -78,27 +78,66 @@ impl Protocol {
     }
 }
 
-/// A record of the paper's hopper with `effects`, forcing `cos(2 pi t)` plus the chirp train;
-/// `disturbance(t, x, v)` is an extra force the measured `f` does not contain (an effect
-/// outside the library). Position and force noise are seeded.
+/// An extra force `g(t, x, x')` (N) outside the library, unknown to the measured force.
+pub type ExtraForce = Arc<dyn Fn(f64, f64, f64) -> f64 + Send + Sync>;
+
+/// The hopper with an extra force added to its acceleration.
+struct WithExtra {
+    hopper: Hopper,
+    extra: Option<ExtraForce>,
+    m: f64,
+}
+
+impl HybridSystem for WithExtra {
+    type Mode = HopperMode;
+    fn dim(&self) -> usize {
+        self.hopper.dim()
+    }
+    fn vector_field(&self, mode: HopperMode, t: f64, x: &[f64], d: &mut [f64]) {
+        self.hopper.vector_field(mode, t, x, d);
+        if let Some(g) = &self.extra {
+            d[1] += g(t, x[0], x[1]) / self.m;
+        }
+    }
+    fn num_guards(&self, mode: HopperMode) -> usize {
+        self.hopper.num_guards(mode)
+    }
+    fn guard(&self, mode: HopperMode, i: usize, t: f64, x: &[f64]) -> f64 {
+        self.hopper.guard(mode, i, t, x)
+    }
+    fn guard_direction(&self, mode: HopperMode, i: usize) -> Crossing {
+        self.hopper.guard_direction(mode, i)
+    }
+    fn transition(&self, mode: HopperMode, i: usize, t: f64, x: &mut [f64]) -> HopperMode {
+        self.hopper.transition(mode, i, t, x)
+    }
+}
+
+/// A record of the hopper with `params` and `effects`, forcing `A cos(2 pi t / T)` plus the
+/// chirp train, integrated by DOP853 (`rtol = 1e-10`) with event location; `extra` is a force
+/// the measured `f` does not contain (an effect outside the library). Position and force noise
+/// are seeded.
 pub fn generate(
     protocol: &Protocol,
     params: HopperParams,
     effects: Effects,
-    disturbance: Option<Arc<dyn Fn(f64) -> f64 + Send + Sync>>,
+    extra: Option<ExtraForce>,
     seed: u64,
 ) -> Record {
     let chirp = protocol.chirp();
-    let dist = disturbance.clone();
-    let u: InputFn = Arc::new(move |t| chirp(t) + dist.as_ref().map_or(0.0, |d| d(t)));
-    let hopper = Hopper::with_effects(params, DamperLaw::Switching, effects)
-        .unwrap()
-        .with_input(Some(u));
+    let u: InputFn = Arc::new(chirp);
+    let hopper = WithExtra {
+        hopper: Hopper::with_effects(params, DamperLaw::Switching, effects)
+            .unwrap()
+            .with_input(Some(u)),
+        extra,
+        m: params.m,
+    };
     let n = (protocol.duration * protocol.rate).round() as usize;
     let dt = 1.0 / protocol.rate;
     let grid: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-    let x0 = hopper.initial_guess();
-    let mode0 = hopper.mode_of(x0[1]);
+    let x0 = hopper.hopper.initial_guess();
+    let mode0 = hopper.hopper.mode_of(x0[1]);
     let opts = Options {
         rtol: 1e-10,
         atol: 1e-12,
@@ -112,8 +151,7 @@ pub fn generate(
     let mut f = Vec::with_capacity(n);
     let mut x = Vec::with_capacity(n);
     for (i, &t) in grid.iter().enumerate() {
-        // The measured force: forcing, chirp and the nominal's input offset, without the
-        // disturbance.
+        // The measured force: forcing and chirp, without the extra force.
         let applied = params.forcing_amplitude * (2.0 * PI * t / params.period).cos() + chirp(t);
         f.push(applied + nf.sample(&mut rng));
         x.push(traj.state(i)[0] + nx.sample(&mut rng));
