@@ -26,4 +26,4 @@ run config="configs/paper.toml":
 
 # Benchmarks (release build); figures go to docs/performance.md.
 bench:
-    cargo run --release --locked -p htfid --bin htfid-bench
+    cargo bench -p htfid --bench pipeline

@@ -55,7 +55,7 @@ pub struct DiagnoseOptions {
     pub min_explained: f64,
     /// How the measured force is read between samples. Default: cubic spline.
     pub interpolation: Interpolation,
-    /// How models are simulated. Default: fixed-step RK4 with `max_rate_step = 0.1`.
+    /// How models are simulated. Default: fixed-step RK4 with `max_rate_step = 0.2`.
     pub sim: SimMethod,
     /// Fit the position and velocity at the start of every fit range (two extra parameters per
     /// range) instead of taking them from the data. Default `false`.

@@ -306,9 +306,9 @@ impl Context<'_> {
         };
         let opts = LmOptions {
             max_iter: self.max_iterations,
-            ftol: 1e-10,
-            xtol: 1e-10,
-            gtol: 1e-9,
+            ftol: 1e-9,
+            xtol: 1e-9,
+            gtol: 1e-7,
             fd_scheme: FdScheme::Forward,
             fd_step: Some(FD_STEP),
             scales: Some(typical.clone()),

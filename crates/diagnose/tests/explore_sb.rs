@@ -31,7 +31,10 @@ fn explore_silverbox() {
         opts.candidates = v.split(',').map(|s| s.parse().unwrap()).collect();
     }
     let t = std::time::Instant::now();
-    let r = diagnose_with_progress(&rec, &nominal, &opts, &|s| println!("  {s}")).unwrap();
+    let r = diagnose_with_progress(&rec, &nominal, &opts, &|s| {
+        println!("  {:?} {s}", t.elapsed())
+    })
+    .unwrap();
     println!(
         "diagnosed in {:?}, evaluations {}",
         t.elapsed(),
@@ -68,5 +71,75 @@ fn explore_silverbox() {
             "arrow {name}: rmse {:.4e}",
             (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt()
         );
+    }
+}
+
+#[test]
+#[ignore = "exploration"]
+fn explore_silverbox_sim() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/silverbox/SNLS80mV.csv"
+    );
+    let spec = CsvSpec::default()
+        .with_columns("V1", "V2")
+        .with_sample_rate(1e7 / 16384.0, 0.0);
+    let series = read_csv(path, &spec).unwrap();
+    let rec = Record::from_series(&series).unwrap();
+    let m = 5.3732921495507545e-6;
+    let model = FittedModel {
+        params: htfid_model::HopperParams {
+            m,
+            k: 0.9901556904245938,
+            c: 0.00022515087020722984,
+            g: 0.0,
+            x0: 0.0,
+            forcing_amplitude: 0.0,
+            period: 1e12,
+        },
+        damper: htfid_model::DamperLaw::AlwaysOn,
+        effects: htfid_model::Effects {
+            k3: 3.912448481237227,
+            input_offset: -0.0053454413975863035,
+            ..Default::default()
+        },
+    };
+    let n = rec.len();
+    let reference = simulate_record(
+        &rec,
+        &model,
+        0..n,
+        None,
+        Interpolation::CubicSpline,
+        SimMethod::Adaptive { rtol: 1e-10 },
+    )
+    .unwrap();
+    for sim in [
+        SimMethod::FixedStep {
+            max_rate_step: 0.05,
+        },
+        SimMethod::FixedStep { max_rate_step: 0.1 },
+        SimMethod::FixedStep { max_rate_step: 0.2 },
+        SimMethod::FixedStep { max_rate_step: 0.3 },
+        SimMethod::Adaptive { rtol: 1e-8 },
+    ] {
+        let t = std::time::Instant::now();
+        let y = simulate_record(&rec, &model, 0..n, None, Interpolation::CubicSpline, sim).unwrap();
+        let el = t.elapsed();
+        let d = (y
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            / n as f64)
+            .sqrt();
+        let e = (y[105712..127400]
+            .iter()
+            .zip(&rec.x()[105712..127400])
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            / 21688.0)
+            .sqrt();
+        println!("{sim:?}: {el:?}, rms vs reference {d:.3e}, test rmse {e:.4e}");
     }
 }

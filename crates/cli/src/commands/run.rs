@@ -70,39 +70,50 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         &mut stages,
     )?;
 
-    let mut estimates: Vec<(Estimator, HtfEstimate)> = Vec::new();
-    for &est in &settings.estimation.estimators {
-        let e = stages
-            .run(&format!("estimate ({})", est.name()), || {
-                estimate(&settings, &sim, &deviation, est)
-            })
-            .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
-        estimates.push((est, e));
-    }
-
-    let mut errors = serde_json::Map::new();
-    let mut fits = serde_json::Map::new();
-    let mut alpha = serde_json::Map::new();
-    for (est, e) in &estimates {
-        errors.insert(
-            est.name().into(),
-            harmonic_errors(&settings, &theory.exact, e),
-        );
-        let fit = stages
-            .run(&format!("fit ({})", est.name()), || {
-                fit_parameters(&settings, &sim, e)
-            })
-            .with_context(|| {
-                format!("parametric fit to the \"{}\" estimates failed", est.name())
-            })?;
-        fits.insert(est.name().into(), fit);
-        if let Some(a) = e.alpha() {
-            alpha.insert(
-                est.name().into(),
-                json!({"alpha": a, "alpha_effective": e.alpha_effective()}),
-            );
+    // The time series is the largest file; it is written on the second core while the
+    // estimators and fits run.
+    let ts_path = outdir.path_for("timeseries.csv")?;
+    let sim_ref = &sim;
+    let (estimates, errors, fits, alpha) = std::thread::scope(|scope| -> Result<_> {
+        let writer =
+            scope.spawn(move || crate::commands::simulate::write_timeseries(&ts_path, sim_ref));
+        let mut estimates: Vec<(Estimator, HtfEstimate)> = Vec::new();
+        for &est in &settings.estimation.estimators {
+            let e = stages
+                .run(&format!("estimate ({})", est.name()), || {
+                    estimate(&settings, &sim, &deviation, est)
+                })
+                .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
+            estimates.push((est, e));
         }
-    }
+
+        let mut errors = serde_json::Map::new();
+        let mut fits = serde_json::Map::new();
+        let mut alpha = serde_json::Map::new();
+        for (est, e) in &estimates {
+            errors.insert(
+                est.name().into(),
+                harmonic_errors(&settings, &theory.exact, e),
+            );
+            let fit = stages
+                .run(&format!("fit ({})", est.name()), || {
+                    fit_parameters(&settings, &sim, e)
+                })
+                .with_context(|| {
+                    format!("parametric fit to the \"{}\" estimates failed", est.name())
+                })?;
+            fits.insert(est.name().into(), fit);
+            if let Some(a) = e.alpha() {
+                alpha.insert(
+                    est.name().into(),
+                    json!({"alpha": a, "alpha_effective": e.alpha_effective()}),
+                );
+            }
+        }
+
+        writer.join().expect("the CSV writer does not panic")?;
+        Ok((estimates, errors, fits, alpha))
+    })?;
 
     let grid = stages.run("exact HTF", || {
         theory
@@ -110,7 +121,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             .grid(&settings.theory.harmonics, &settings.theory.omegas)
     });
     stages.run("write outputs", || -> Result<()> {
-        crate::commands::simulate::write_simulation(&settings, &sim, &mut outdir)?;
+        crate::commands::simulate::write_limit_cycle(&settings, &sim, &mut outdir)?;
         write_theory_csv(&mut outdir, &grid)?;
         for (est, e) in &estimates {
             let mut csv = outdir.csv(
@@ -163,6 +174,31 @@ fn orbit_deviation(settings: &Settings, sim: &mut Simulated) -> Result<Vec<f64>>
             for x in &mut sim.x {
                 *x += normal.sample(&mut rng);
             }
+        }
+    }
+    // When the sample grid repeats every period, one period of the orbit is tiled.
+    let period = settings.params.period;
+    let per_period = settings.sample_rate * period;
+    if (per_period - per_period.round()).abs() < 1e-9 && per_period >= 1.0 {
+        let m = per_period.round() as usize;
+        let phase_grid: Vec<f64> = sim.t.iter().take(m).copied().collect();
+        if phase_grid.len() == m && phase_grid[0].abs() < 1e-12 {
+            let one = simulate(
+                &sim.hopper.with_input(None),
+                sim.orbit.cycle.mode0,
+                0.0,
+                &sim.orbit.cycle.state0,
+                period,
+                &phase_grid,
+                &settings.integrator,
+            )
+            .context("simulation of the unexcited orbit failed")?;
+            return Ok(sim
+                .x
+                .iter()
+                .enumerate()
+                .map(|(i, x)| x - one.state(i % m)[0])
+                .collect());
         }
     }
     let end = *sim.t.last().unwrap_or(&0.0);
@@ -365,6 +401,18 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
         })
         .filter(|r| r.value.re.is_finite() && r.value.im.is_finite())
         .collect();
+    // Dense single-record estimates (one per DFT bin) are thinned to at most
+    // FIT_POINTS_PER_HARMONIC per harmonic, evenly spread: neighbouring bins of a regularised
+    // estimate carry little independent information, and the fit's cost is linear in points.
+    let rows: Vec<_> = {
+        let mut kept = Vec::with_capacity(rows.len());
+        for &n in &settings.estimation.fit_harmonics {
+            let of_n: Vec<_> = rows.iter().filter(|r| r.n == n).copied().collect();
+            let stride = of_n.len().div_ceil(FIT_POINTS_PER_HARMONIC).max(1);
+            kept.extend(of_n.into_iter().step_by(stride));
+        }
+        kept
+    };
     if rows.len() < names.len() {
         bail!(
             "only {} estimates in the band for the fitted harmonics",
@@ -449,6 +497,9 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
     out.insert("stop".into(), json!(format!("{:?}", fit.stop)));
     Ok(Value::Object(out))
 }
+
+/// At most this many estimates per harmonic enter the parametric fit.
+const FIT_POINTS_PER_HARMONIC: usize = 200;
 
 fn param(p: &HopperParams, name: &str) -> f64 {
     match name {

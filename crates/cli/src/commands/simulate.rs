@@ -122,11 +122,23 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
 
 /// `timeseries.csv` and `limit_cycle.csv`.
 pub fn write_simulation(settings: &Settings, sim: &Simulated, out: &mut OutputDir) -> Result<()> {
-    out.write_timeseries_csv(
-        "timeseries.csv",
+    let path = out.path_for("timeseries.csv")?;
+    write_timeseries(&path, sim)?;
+    write_limit_cycle(settings, sim, out)
+}
+
+/// `timeseries.csv` to an already registered path (so it can be written on another thread).
+pub fn write_timeseries(path: &Path, sim: &Simulated) -> Result<()> {
+    htfid_data::write_timeseries_csv(
+        path,
         &sim.t,
         &[("f", &sim.f), ("x", &sim.x), ("xd", &sim.xd), ("u", &sim.u)],
     )?;
+    Ok(())
+}
+
+/// `limit_cycle.csv`.
+pub fn write_limit_cycle(settings: &Settings, sim: &Simulated, out: &mut OutputDir) -> Result<()> {
     let samples = sim
         .hopper
         .sample_orbit(&sim.orbit, ORBIT_SAMPLES, &settings.integrator)?;
