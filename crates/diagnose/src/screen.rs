@@ -124,38 +124,84 @@ impl<'c, 'a> Screening<'c, 'a> {
         q
     }
 
-    /// Starting points for `effect`. One from [`Screening::start`], except for a switching
-    /// threshold: its effect grows about quadratically on both sides of zero, so the best
-    /// threshold of each sign on a grid of output-error costs starts a fit of its own.
+    /// Starting points for `effect`: one from [`Screening::start`], except for the two effects
+    /// whose cost has several minima.
+    ///
+    /// - A switching threshold changes the force only while `|x'| < |v_th|`, too briefly for the
+    ///   smoothed acceleration to resolve, and its effect grows about quadratically on both
+    ///   sides of zero: the best threshold of each sign on a grid of output-error costs starts a
+    ///   fit of its own.
+    /// - A contact position: for each of a grid of low quantiles of the position, the contact
+    ///   stiffness comes from the regression; the two grid points of lowest output-error cost
+    ///   start fits.
     pub(crate) fn starts(
         &self,
         base: &ModelPoint,
         free: &[Slot],
         effect: Effect,
     ) -> Vec<ModelPoint> {
-        if effect != Effect::SwitchThreshold {
-            return vec![self.start(base, free, effect)];
-        }
-        let v_std = self.ctx.scales.v_std;
-        let v0 = base.get(Slot::VTh);
-        let mut best = [(f64::INFINITY, None), (f64::INFINITY, None)];
-        for q in [0.02, 0.05, 0.1, 0.2, 0.35] {
-            for (side, sign) in [(0, -1.0), (1, 1.0)] {
-                let mut p = *base;
-                p.set(Slot::VTh, v0 + sign * q * v_std);
-                if let Some(c) = self.ctx.fit_cost(&p) {
-                    if c < best[side].0 {
-                        best[side] = (c, Some(p));
+        let mut scored: Vec<(f64, ModelPoint, i8)> = Vec::new();
+        match effect {
+            Effect::SwitchThreshold => {
+                let v_std = self.ctx.scales.v_std;
+                let v0 = base.get(Slot::VTh);
+                for q in [0.02, 0.05, 0.1, 0.2, 0.35] {
+                    for side in [-1i8, 1] {
+                        let mut p = *base;
+                        p.set(Slot::VTh, v0 + f64::from(side) * q * v_std);
+                        if let Some(c) = self.ctx.fit_cost(&p) {
+                            scored.push((c, p, side));
+                        }
                     }
                 }
             }
+            Effect::HardStop => {
+                let mut xs: Vec<f64> = self.samples.iter().map(|(_, k)| k.x).collect();
+                xs.sort_by(f64::total_cmp);
+                if let (Some(&lowest), false) = (xs.first(), xs.is_empty()) {
+                    let quantiles = [0.0, 0.002, 0.005, 0.01, 0.02, 0.035, 0.05, 0.1, 0.2, 0.3];
+                    for (i, q) in quantiles.into_iter().enumerate() {
+                        let x_stop = if i == 0 {
+                            lowest
+                        } else {
+                            xs[((xs.len() - 1) as f64 * q) as usize]
+                        };
+                        let mut p = *base;
+                        p.set(Slot::XStop, x_stop);
+                        p.set(Slot::KStop, 0.0);
+                        let mut slots = free.to_vec();
+                        slots.push(Slot::KStop);
+                        let k_stop = self
+                            .regress(&p, &slots)
+                            .map(|(b, _)| b[free.len()])
+                            .filter(|k| *k > 0.0)
+                            .unwrap_or(0.1 * p.params.k);
+                        p.set(Slot::KStop, k_stop);
+                        if let Some(c) = self.ctx.fit_cost(&p) {
+                            // Every grid point competes with every other: side 0.
+                            scored.push((c, p, 0));
+                        }
+                    }
+                }
+            }
+            _ => return vec![self.start(base, free, effect)],
         }
-        let starts: Vec<ModelPoint> = best.into_iter().filter_map(|(_, p)| p).collect();
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut starts: Vec<ModelPoint> = Vec::new();
+        match effect {
+            Effect::SwitchThreshold => {
+                for side in [-1i8, 1] {
+                    if let Some((_, p, _)) = scored.iter().find(|s| s.2 == side) {
+                        starts.push(*p);
+                    }
+                }
+            }
+            _ => starts.extend(scored.iter().take(2).map(|s| s.1)),
+        }
         if starts.is_empty() {
-            vec![*base]
-        } else {
-            starts
+            starts.push(self.start(base, free, effect));
         }
+        starts
     }
 
     /// A starting point for `effect`: the nominal fit with the effect's parameters from the
@@ -175,28 +221,15 @@ impl<'c, 'a> Screening<'c, 'a> {
                 // smoothed acceleration to resolve: searched in [`Screening::starts`].
             }
             Effect::HardStop => {
-                let mut xs: Vec<f64> = self.samples.iter().map(|(_, k)| k.x).collect();
-                xs.sort_by(f64::total_cmp);
-                let mut best: Option<(f64, f64, f64)> = None;
-                if !xs.is_empty() {
-                    for q in [0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3] {
-                        let x_stop = xs[((xs.len() - 1) as f64 * q) as usize];
-                        let mut trial = p;
-                        trial.set(Slot::XStop, x_stop);
-                        trial.set(Slot::KStop, 0.0);
-                        if let Some((b, rss)) = joint(&trial, &[Slot::KStop]) {
-                            if b[0] > 0.0 && best.map_or(true, |(r, _, _)| rss < r) {
-                                best = Some((rss, x_stop, b[0]));
-                            }
-                        }
-                    }
-                }
-                let (x_stop, k_stop) = match best {
-                    Some((_, xs0, ks)) => (xs0, ks),
-                    None => (xs.first().copied().unwrap_or(0.0), 0.1 * p.params.k),
-                };
-                p.set(Slot::XStop, x_stop);
-                p.set(Slot::KStop, k_stop);
+                // Searched on a grid of contact positions in [`Screening::starts`]; this is
+                // the fallback: contact at the lowest smoothed position.
+                let x_low = self
+                    .samples
+                    .iter()
+                    .map(|(_, k)| k.x)
+                    .fold(f64::INFINITY, f64::min);
+                p.set(Slot::XStop, if x_low.is_finite() { x_low } else { 0.0 });
+                p.set(Slot::KStop, 0.1 * p.params.k);
             }
             Effect::ActuatorLag | Effect::InputDelay => {
                 // To first order a lag and a delay both shift the force by `-tau f'`.

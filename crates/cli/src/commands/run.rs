@@ -498,6 +498,9 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
     Ok(Value::Object(out))
 }
 
+/// Markers drawn per harmonic and estimator, at most.
+const MAX_MARKERS: usize = 120;
+
 /// At most this many estimates per harmonic enter the parametric fit.
 const FIT_POINTS_PER_HARMONIC: usize = 200;
 
@@ -570,7 +573,9 @@ fn run_plots(
             let per: Vec<Series> = estimates
                 .iter()
                 .map(|(est, e)| {
-                    let rows: Vec<_> = e.rows().filter(|r| r.n == n).collect();
+                    let all: Vec<_> = e.rows().filter(|r| r.n == n).collect();
+                    let stride = if all.len() > 3 * MAX_MARKERS { 1 } else { all.len().div_ceil(MAX_MARKERS).max(1) };
+                    let rows: Vec<_> = all.into_iter().step_by(stride).collect();
                     (
                         format!("estimate ({})", est.name()),
                         rows.iter().map(|r| r.omega).collect(),
@@ -581,33 +586,21 @@ fn run_plots(
             (n, per)
         })
         .collect();
+    // Dense estimates (one per DFT bin) are drawn as lines, sparse ones as markers (at most
+    // MAX_MARKERS per harmonic); the theory is drawn last so it stays visible on top.
     let curves_for = |n: i32| -> Vec<Curve<'_>> {
         let mut c = Vec::new();
-        for (m, v) in &theory_vals {
-            if *m == n {
-                c.push(Curve {
-                    label: "theory (exact)",
-                    omega: &omegas,
-                    values: v,
-                    style: Style::Line,
-                });
-            }
-        }
         for (m, per) in &est_vals {
             if *m == n {
-                for (i, (label, w, v)) in per.iter().enumerate() {
-                    let style = if i == 0 {
-                        Style::Markers
-                    } else {
-                        Style::Dashed
-                    };
-                    c.push(Curve {
-                        label,
-                        omega: w,
-                        values: v,
-                        style,
-                    });
+                for (label, w, v) in per {
+                    let style = if w.len() > 3 * MAX_MARKERS { Style::Line } else { Style::Markers };
+                    c.push(Curve { label, omega: w, values: v, style });
                 }
+            }
+        }
+        for (m, v) in &theory_vals {
+            if *m == n {
+                c.push(Curve { label: "theory (exact)", omega: &omegas, values: v, style: Style::Line });
             }
         }
         c
