@@ -75,6 +75,16 @@ enum Command {
         #[command(flatten)]
         out: OutArgs,
     },
+    /// Compare measured data with the model: what is wrong, the cause, the extended model.
+    Diagnose {
+        /// Diagnosis config (TOML).
+        config: PathBuf,
+        /// Measured data (CSV), overriding the config's data file.
+        #[arg(long, value_name = "CSV")]
+        data: Option<PathBuf>,
+        #[command(flatten)]
+        out: OutArgs,
+    },
 }
 
 fn main() -> ExitCode {
@@ -93,6 +103,9 @@ fn main() -> ExitCode {
             no_plots,
             out,
         } => commands::run::run(&config, out.out, out.force, no_plots),
+        Command::Diagnose { config, data, out } => {
+            commands::diagnose::run(&config, data, out.out, out.force)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

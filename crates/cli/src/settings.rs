@@ -26,6 +26,76 @@ pub struct RawConfig {
     pub theory: Option<RawTheory>,
     pub noise: Option<RawNoise>,
     pub estimation: Option<RawEstimation>,
+    pub effects: Option<RawEffects>,
+}
+
+/// Extra physical terms of the simulated system (a "truth" that differs from the nominal
+/// hopper); all absent by default.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawEffects {
+    pub k3: OptNum,
+    pub mu: OptNum,
+    pub c_f: OptNum,
+    pub c2: OptNum,
+    pub tau: OptNum,
+    pub delay: OptNum,
+    pub v_th: OptNum,
+    pub x_stop: OptNum,
+    pub k_stop: OptNum,
+    pub input_offset: OptNum,
+}
+
+/// Resolves an `[effects]` table.
+pub fn resolve_effects(
+    src: &Source,
+    e: Option<&RawEffects>,
+    table: &str,
+) -> Result<Effects, ConfigError> {
+    let Some(e) = e else {
+        return Ok(Effects::default());
+    };
+    let key = |k: &str| format!("{table}.{k}");
+    let any = |v: f64| v.is_finite();
+    let nonneg = |v: f64| v >= 0.0;
+    let hard_stop = match (&e.x_stop, &e.k_stop) {
+        (None, None) => None,
+        (Some(x), Some(k)) => Some(htfid_model::HardStop {
+            x_stop: src.number(x, &key("x_stop"), "a finite number (m)", any)?,
+            k_stop: src.number(k, &key("k_stop"), ">= 0 (N/m)", nonneg)?,
+        }),
+        (Some(x), None) => {
+            return Err(src.error(
+                Some(&x.span()),
+                &key("x_stop"),
+                "needs k_stop too (a hard stop has both)",
+            ))
+        }
+        (None, Some(k)) => {
+            return Err(src.error(
+                Some(&k.span()),
+                &key("k_stop"),
+                "needs x_stop too (a hard stop has both)",
+            ))
+        }
+    };
+    Ok(Effects {
+        k3: src.opt_number(&e.k3, 0.0, &key("k3"), "a finite number (N/m^3)", any)?,
+        mu: src.opt_number(&e.mu, 0.0, &key("mu"), ">= 0 (N)", nonneg)?,
+        c_f: src.opt_number(&e.c_f, 0.0, &key("c_f"), ">= 0 (N s/m)", nonneg)?,
+        c2: src.opt_number(&e.c2, 0.0, &key("c2"), ">= 0 (N s^2/m^2)", nonneg)?,
+        tau: src.opt_number(&e.tau, 0.0, &key("tau"), ">= 0 (s)", nonneg)?,
+        delay: src.opt_number(&e.delay, 0.0, &key("delay"), ">= 0 (s)", nonneg)?,
+        v_th: src.opt_number(&e.v_th, 0.0, &key("v_th"), "a finite number (m/s)", any)?,
+        hard_stop,
+        input_offset: src.opt_number(
+            &e.input_offset,
+            0.0,
+            &key("input_offset"),
+            "a finite number (N)",
+            any,
+        )?,
+    })
 }
 
 #[derive(Debug, Deserialize)]
@@ -346,7 +416,7 @@ impl Settings {
             path: src.path.clone(),
             params,
             damper,
-            effects: Effects::default(),
+            effects: resolve_effects(src, raw.effects.as_ref(), "effects")?,
             settle_periods,
             sample_rate,
             integrator,
@@ -752,4 +822,276 @@ fn resolve_estimation(
         fit,
         fit_harmonics,
     })
+}
+
+// ----------------------------------------------------------------------------------------
+// Diagnosis configs (`htfid diagnose`).
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawDiagnoseConfig {
+    pub name: Option<Spanned<String>>,
+    pub data: RawData,
+    pub model: RawNominal,
+    pub forcing: Option<RawForcing>,
+    pub diagnose: Option<RawDiagnoseOptions>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawData {
+    pub file: Spanned<String>,
+    pub time: Option<Spanned<String>>,
+    pub sample_rate: OptNum,
+    pub input: Option<Spanned<String>>,
+    pub output: Option<Spanned<String>>,
+    pub fit: Option<Spanned<Vec<[i64; 2]>>>,
+    pub validation: Option<Spanned<Vec<[i64; 2]>>>,
+    pub test: Option<Spanned<Vec<[i64; 2]>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawNominal {
+    pub m: Num,
+    pub k: Num,
+    pub c: Num,
+    pub g: Option<Num>,
+    pub x0: Option<Num>,
+    pub damper: Option<Spanned<String>>,
+    pub input_offset: OptNum,
+    pub free: Option<Spanned<Vec<String>>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawDiagnoseOptions {
+    pub candidates: Option<Spanned<Vec<String>>>,
+    pub significance_sigma: OptNum,
+    pub min_gain: OptNum,
+    pub burn_in: OptNum,
+    pub fit_initial_state: Option<Spanned<bool>>,
+}
+
+/// Where the measured data are and how to read them.
+#[derive(Debug, Clone)]
+pub struct DataSettings {
+    pub file: PathBuf,
+    pub time: Option<String>,
+    pub sample_rate: Option<f64>,
+    pub input: String,
+    pub output: String,
+    pub fit: Vec<std::ops::Range<usize>>,
+    pub validation: Vec<std::ops::Range<usize>>,
+    /// Extra held-out ranges reported separately (for example a benchmark's test sections).
+    pub test: Vec<std::ops::Range<usize>>,
+}
+
+#[derive(Debug, Clone)]
+pub struct DiagnoseSettings {
+    pub name: String,
+    pub path: PathBuf,
+    pub data: DataSettings,
+    pub params: HopperParams,
+    pub damper: DamperLaw,
+    pub input_offset: f64,
+    pub free: Vec<String>,
+    pub candidates: Option<Vec<String>>,
+    pub significance_sigma: Option<f64>,
+    pub min_gain: Option<f64>,
+    pub burn_in: Option<f64>,
+    pub fit_initial_state: bool,
+}
+
+fn ranges(
+    src: &Source,
+    v: &Option<Spanned<Vec<[i64; 2]>>>,
+    key: &str,
+) -> Result<Vec<std::ops::Range<usize>>, ConfigError> {
+    let Some(list) = v else {
+        return Ok(Vec::new());
+    };
+    let mut out = Vec::new();
+    for [a, b] in list.get_ref() {
+        if *a < 0 || b <= a {
+            return Err(src.error(
+                Some(&list.span()),
+                key,
+                format!(
+                    "ranges are [start, end) sample indices with 0 <= start < end (got [{a}, {b}])"
+                ),
+            ));
+        }
+        out.push(*a as usize..*b as usize);
+    }
+    Ok(out)
+}
+
+impl DiagnoseSettings {
+    pub fn from_file(path: &Path) -> Result<DiagnoseSettings, ConfigError> {
+        let (raw, src): (RawDiagnoseConfig, Source) = load(path)?;
+        let name = match &raw.name {
+            Some(n) => n.get_ref().trim().to_string(),
+            None => path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "diagnosis".into()),
+        };
+        if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+            return Err(src.error(
+                raw.name.as_ref().map(|n| n.span()).as_ref(),
+                "name",
+                "must be a plain file name",
+            ));
+        }
+        let d = &raw.data;
+        // A relative data path is relative to the config file's folder.
+        let file = {
+            let p = PathBuf::from(d.file.get_ref());
+            if p.is_absolute() {
+                p
+            } else {
+                path.parent().unwrap_or(Path::new(".")).join(p)
+            }
+        };
+        let sample_rate = match &d.sample_rate {
+            Some(v) => Some(src.positive(v, "data.sample_rate")?),
+            None => None,
+        };
+        if sample_rate.is_some() && d.time.is_some() {
+            return Err(src.error(
+                d.time.as_ref().map(|t| t.span()).as_ref(),
+                "data.time",
+                "give either a time column or data.sample_rate, not both",
+            ));
+        }
+        let time = match (&d.time, sample_rate) {
+            (Some(t), _) => Some(t.get_ref().clone()),
+            (None, Some(_)) => None,
+            (None, None) => Some("t".to_string()),
+        };
+        let data = DataSettings {
+            file,
+            time,
+            sample_rate,
+            input: d.input.as_ref().map_or("f".into(), |v| v.get_ref().clone()),
+            output: d
+                .output
+                .as_ref()
+                .map_or("x".into(), |v| v.get_ref().clone()),
+            fit: ranges(&src, &d.fit, "data.fit")?,
+            validation: ranges(&src, &d.validation, "data.validation")?,
+            test: ranges(&src, &d.test, "data.test")?,
+        };
+        let m = &raw.model;
+        let zero = |v: &Option<Num>, key: &str| -> Result<f64, ConfigError> {
+            match v {
+                Some(v) => src.finite(v, key),
+                None => Ok(0.0),
+            }
+        };
+        let (amplitude, period) = match &raw.forcing {
+            Some(f) => (
+                src.finite(&f.amplitude, "forcing.amplitude")?,
+                src.positive(&f.period, "forcing.period")?,
+            ),
+            None => (0.0, 1.0),
+        };
+        let params = HopperParams {
+            m: src.positive(&m.m, "model.m")?,
+            k: src.positive(&m.k, "model.k")?,
+            c: src.non_negative(&m.c, "model.c")?,
+            g: zero(&m.g, "model.g")?,
+            x0: zero(&m.x0, "model.x0")?,
+            forcing_amplitude: amplitude,
+            period,
+        };
+        let damper = match &m.damper {
+            None => DamperLaw::Switching,
+            Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
+                "always_on" => DamperLaw::AlwaysOn,
+                _ => DamperLaw::Switching,
+            },
+        };
+        let input_offset = src.opt_number(
+            &m.input_offset,
+            0.0,
+            "model.input_offset",
+            "a finite number",
+            |_| true,
+        )?;
+        let free = match &m.free {
+            None => vec!["k".to_string(), "c".to_string()],
+            Some(list) => {
+                for f in list.get_ref() {
+                    if !["m", "k", "c", "x0", "input_offset"].contains(&f.as_str()) {
+                        return Err(src.error(Some(&list.span()), "model.free", format!("unknown parameter \"{f}\"; expected any of \"m\", \"k\", \"c\", \"x0\", \"input_offset\"")));
+                    }
+                }
+                list.get_ref().clone()
+            }
+        };
+        let o = raw.diagnose.as_ref();
+        let candidates = match o.and_then(|o| o.candidates.as_ref()) {
+            None => None,
+            Some(list) => {
+                for c in list.get_ref() {
+                    if c.parse::<htfid_diagnose::Effect>().is_err() {
+                        return Err(src.error(
+                            Some(&list.span()),
+                            "diagnose.candidates",
+                            format!(
+                                "unknown effect \"{c}\"; the library has {}",
+                                crate::config::quote_list(
+                                    &htfid_diagnose::Effect::ALL
+                                        .iter()
+                                        .map(|e| e.name())
+                                        .collect::<Vec<_>>()
+                                )
+                            ),
+                        ));
+                    }
+                }
+                Some(list.get_ref().clone())
+            }
+        };
+        let opt = |v: Option<&OptNum>,
+                   key: &str,
+                   expected: &str,
+                   ok: fn(f64) -> bool|
+         -> Result<Option<f64>, ConfigError> {
+            match v.and_then(|v| v.as_ref()) {
+                Some(v) => Ok(Some(src.number(v, key, expected, ok)?)),
+                None => Ok(None),
+            }
+        };
+        Ok(DiagnoseSettings {
+            name,
+            path: path.to_path_buf(),
+            data,
+            params,
+            damper,
+            input_offset,
+            free,
+            candidates,
+            significance_sigma: opt(
+                o.map(|o| &o.significance_sigma),
+                "diagnose.significance_sigma",
+                "> 0",
+                |v| v > 0.0,
+            )?,
+            min_gain: opt(
+                o.map(|o| &o.min_gain),
+                "diagnose.min_gain",
+                "in [0, 1)",
+                |v| (0.0..1.0).contains(&v),
+            )?,
+            burn_in: opt(o.map(|o| &o.burn_in), "diagnose.burn_in", ">= 0 (s)", |v| {
+                v >= 0.0
+            })?,
+            fit_initial_state: o
+                .and_then(|o| o.fit_initial_state.as_ref())
+                .is_some_and(|v| *v.get_ref()),
+        })
+    }
 }

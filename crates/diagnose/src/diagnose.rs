@@ -642,8 +642,6 @@ impl Context<'_> {
             at_bound: Vec::new(),
             init,
             rss,
-            n,
-            n_params: 0,
             bic: crate::fit::bic(rss, n, 0),
             stepping,
             evaluations: 1,

@@ -86,8 +86,6 @@ pub(crate) struct FitResult {
     /// Initial states of the fit segments used in the fit.
     pub init: Vec<[f64; 2]>,
     pub rss: f64,
-    pub n: usize,
-    pub n_params: usize,
     pub bic: f64,
     pub stepping: Stepping,
     pub evaluations: usize,
@@ -347,8 +345,6 @@ impl Context<'_> {
             at_bound,
             init: layout.init(&self.fit, &u),
             rss,
-            n,
-            n_params: np,
             bic: bic(rss, n, np),
             stepping: stepping.clone(),
             evaluations: lm.evaluations,

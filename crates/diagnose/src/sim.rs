@@ -2,8 +2,8 @@
 
 use std::sync::Arc;
 
-use htfid_hybrid::{HybridSystem, Method, Options};
-use htfid_model::{DamperLaw, Effects, Hopper, HopperParams, InputFn, ModelError};
+use htfid_hybrid::{Crossing, HybridSystem, Method, Options};
+use htfid_model::{DamperLaw, Effects, Hopper, HopperMode, HopperParams, InputFn, ModelError};
 use serde::{Deserialize, Serialize};
 
 use crate::interp::{Interpolation, LaggedSignal, SampledSignal};
@@ -162,6 +162,94 @@ impl MeasuredForce {
     }
 }
 
+/// The model with its non-smooth points made visible to the integrator: besides the damper's
+/// switching guard, a guard at the contact position of a hard stop (where the force's slope
+/// jumps) and, with an always-on damper, at `x' = 0` for Coulomb friction (where the force
+/// jumps). Their resets are the identity in the same chart: stepping to them and restarting
+/// there keeps the simulated output a smooth function of the parameters, which finite
+/// differences need (a kink stepped over leaves an error of `O(h^2)` that jitters with the
+/// parameters).
+struct Located<'a> {
+    hopper: &'a Hopper,
+    base: [usize; 2],
+    contact: Option<f64>,
+    friction: bool,
+}
+
+impl<'a> Located<'a> {
+    fn new(hopper: &'a Hopper) -> Self {
+        let e = hopper.effects();
+        Located {
+            hopper,
+            base: [
+                hopper.num_guards(HopperMode::Damped),
+                hopper.num_guards(HopperMode::Free),
+            ],
+            contact: e
+                .hard_stop
+                .filter(|h| h.k_stop.abs() > 0.0)
+                .map(|h| h.x_stop),
+            friction: hopper.damper() == DamperLaw::AlwaysOn && e.mu.abs() > 0.0,
+        }
+    }
+
+    fn base(&self, mode: HopperMode) -> usize {
+        match mode {
+            HopperMode::Damped => self.base[0],
+            HopperMode::Free => self.base[1],
+        }
+    }
+
+    /// The extra guard's value: contact first, then friction.
+    fn extra(&self, k: usize, x: &[f64]) -> f64 {
+        match (k, self.contact) {
+            (0, Some(x_stop)) => x[0] - x_stop,
+            _ => x[1],
+        }
+    }
+}
+
+impl HybridSystem for Located<'_> {
+    type Mode = HopperMode;
+
+    fn dim(&self) -> usize {
+        self.hopper.dim()
+    }
+
+    fn vector_field(&self, mode: HopperMode, t: f64, x: &[f64], dxdt: &mut [f64]) {
+        self.hopper.vector_field(mode, t, x, dxdt);
+    }
+
+    fn num_guards(&self, mode: HopperMode) -> usize {
+        self.base(mode) + usize::from(self.contact.is_some()) + usize::from(self.friction)
+    }
+
+    fn guard(&self, mode: HopperMode, index: usize, t: f64, x: &[f64]) -> f64 {
+        let b = self.base(mode);
+        if index < b {
+            self.hopper.guard(mode, index, t, x)
+        } else {
+            self.extra(index - b, x)
+        }
+    }
+
+    fn guard_direction(&self, mode: HopperMode, index: usize) -> Crossing {
+        if index < self.base(mode) {
+            self.hopper.guard_direction(mode, index)
+        } else {
+            Crossing::Either
+        }
+    }
+
+    fn transition(&self, mode: HopperMode, index: usize, t: f64, x: &mut [f64]) -> HopperMode {
+        if index < self.base(mode) {
+            self.hopper.transition(mode, index, t, x)
+        } else {
+            mode
+        }
+    }
+}
+
 /// Simulates `out.len()` samples from `t0` (step `dt`) starting at position and velocity
 /// `xv0`, writing positions. A lag state starts at the commanded force.
 pub(crate) fn simulate_positions(
@@ -177,13 +265,14 @@ pub(crate) fn simulate_positions(
         state.push(hopper.commanded_force(t0 - hopper.effects().delay));
     }
     let mode0 = hopper.mode_of(xv0[1]);
+    let sys = Located::new(hopper);
     match stepping {
-        Stepping::Fixed { substeps } => rk4_hybrid(hopper, mode0, t0, &state, dt, *substeps, out),
+        Stepping::Fixed { substeps } => rk4_hybrid(&sys, mode0, t0, &state, dt, *substeps, out),
         Stepping::Adaptive(opts) => {
             let n = out.len();
             let grid: Vec<f64> = (0..n).map(|i| t0 + i as f64 * dt).collect();
             let t_end = grid.last().copied().unwrap_or(t0);
-            let traj = htfid_hybrid::simulate(hopper, mode0, t0, &state, t_end, &grid, opts)
+            let traj = htfid_hybrid::simulate(&sys, mode0, t0, &state, t_end, &grid, opts)
                 .map_err(|e| SimFailure {
                     time: t0,
                     reason: e.to_string(),
@@ -262,6 +351,10 @@ impl<S: HybridSystem> Stepper<'_, S> {
     fn advance(&mut self, ta: f64, tb: f64) -> Result<(), SimFailure> {
         let n = self.n;
         let mut t = ta;
+        // The guard that just fired sits at zero at the restart; it is not watched again within
+        // the same sub-step (a guard with either crossing direction would otherwise fire again
+        // at once).
+        let mut fired: Option<usize> = None;
         for _ in 0..=MAX_EVENTS_PER_STEP {
             let h = tb - t;
             let mut xb = [0.0; MAX_DIM];
@@ -276,6 +369,9 @@ impl<S: HybridSystem> Stepper<'_, S> {
             self.sys.vector_field(self.mode, tb, &xb[..n], &mut fb[..n]);
             let mut first: Option<(f64, usize)> = None;
             for g in 0..self.sys.num_guards(self.mode) {
+                if fired == Some(g) {
+                    continue;
+                }
                 let ga = self.sys.guard(self.mode, g, t, &self.x[..n]);
                 let gb = self.sys.guard(self.mode, g, tb, &xb[..n]);
                 if !self.sys.guard_direction(self.mode, g).accepts(ga, gb) {
@@ -304,6 +400,7 @@ impl<S: HybridSystem> Stepper<'_, S> {
             let mut xe = [0.0; MAX_DIM];
             rk4_step(self.sys, self.mode, t, &self.x, &self.f, te - t, n, &mut xe);
             self.mode = self.sys.transition(self.mode, guard, te, &mut xe[..n]);
+            fired = Some(guard);
             self.x = xe;
             self.sys
                 .vector_field(self.mode, te, &self.x[..n], &mut self.f[..n]);

@@ -35,7 +35,9 @@ fn explore() {
         "stop" => {
             e.hard_stop = Some(htfid_model::HardStop {
                 x_stop: val,
-                k_stop: 2000.0,
+                k_stop: std::env::var("KSTOP")
+                    .map(|v| v.parse().unwrap())
+                    .unwrap_or(2000.0),
             })
         }
         "m" => params.m = val,
@@ -57,7 +59,10 @@ fn explore() {
         })),
         _ => None,
     };
-    let rec = generate(&p, params, e, extra, 1);
+    let seed: u64 = std::env::var("SEED")
+        .map(|v| v.parse().unwrap())
+        .unwrap_or(1);
+    let rec = generate(&p, params, e, extra, seed);
     println!("generated in {:?}", t.elapsed());
     let x = rec.x();
     let mean = x.iter().sum::<f64>() / x.len() as f64;

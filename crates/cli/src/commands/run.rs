@@ -16,8 +16,6 @@ use htfid_orbit::ShootingOptions;
 use htfid_plot::Style;
 use htfid_theory::{ExactHtf, HarmonicTransferFunction};
 use num_complex::Complex64;
-use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
 use crate::commands::simulate::{base_summary, report_written, simulate_experiment, Simulated};
@@ -61,8 +59,8 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     let mut outdir = open(&dir, force, &names)?;
     let mut stages = Stages::new(false);
 
-    let mut sim = simulate_experiment(&settings, &mut stages)?;
-    let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &mut sim))?;
+    let sim = simulate_experiment(&settings, &mut stages)?;
+    let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
     let theory = theory::from_orbit(
         &settings,
         sim.hopper.clone(),
@@ -164,18 +162,9 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     Ok(())
 }
 
-/// Adds the configured measurement noise to `x` and returns the deviation of the measured
-/// position from the limit cycle at every sample (what the estimators see).
-fn orbit_deviation(settings: &Settings, sim: &mut Simulated) -> Result<Vec<f64>> {
-    if let Some(noise) = settings.noise {
-        if noise.output_std > 0.0 {
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(noise.seed);
-            let normal = Normal::new(0.0, noise.output_std).context("noise.output_std")?;
-            for x in &mut sim.x {
-                *x += normal.sample(&mut rng);
-            }
-        }
-    }
+/// The deviation of the measured position from the limit cycle at every sample (what the
+/// estimators see).
+fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
     // When the sample grid repeats every period, one period of the orbit is tiled.
     let period = settings.params.period;
     let per_period = settings.sample_rate * period;
@@ -574,7 +563,11 @@ fn run_plots(
                 .iter()
                 .map(|(est, e)| {
                     let all: Vec<_> = e.rows().filter(|r| r.n == n).collect();
-                    let stride = if all.len() > 3 * MAX_MARKERS { 1 } else { all.len().div_ceil(MAX_MARKERS).max(1) };
+                    let stride = if all.len() > 3 * MAX_MARKERS {
+                        1
+                    } else {
+                        all.len().div_ceil(MAX_MARKERS).max(1)
+                    };
                     let rows: Vec<_> = all.into_iter().step_by(stride).collect();
                     (
                         format!("estimate ({})", est.name()),
@@ -593,14 +586,28 @@ fn run_plots(
         for (m, per) in &est_vals {
             if *m == n {
                 for (label, w, v) in per {
-                    let style = if w.len() > 3 * MAX_MARKERS { Style::Line } else { Style::Markers };
-                    c.push(Curve { label, omega: w, values: v, style });
+                    let style = if w.len() > 3 * MAX_MARKERS {
+                        Style::Line
+                    } else {
+                        Style::Markers
+                    };
+                    c.push(Curve {
+                        label,
+                        omega: w,
+                        values: v,
+                        style,
+                    });
                 }
             }
         }
         for (m, v) in &theory_vals {
             if *m == n {
-                c.push(Curve { label: "theory (exact)", omega: &omegas, values: v, style: Style::Line });
+                c.push(Curve {
+                    label: "theory (exact)",
+                    omega: &omegas,
+                    values: v,
+                    style: Style::Line,
+                });
             }
         }
         c

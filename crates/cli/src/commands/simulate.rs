@@ -7,6 +7,8 @@ use htfid_data::OutputDir;
 use htfid_hybrid::{simulate, Stats};
 use htfid_model::{Hopper, HopperOrbit};
 use htfid_orbit::ShootingOptions;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
 use crate::output::{json_text, open, resolve_dir};
@@ -103,7 +105,17 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
         .zip(&u)
         .map(|(&t, &u)| hopper.forcing(t) + u)
         .collect();
-    let x = (0..n).map(|i| traj.state(i)[0]).collect();
+    let mut x: Vec<f64> = (0..n).map(|i| traj.state(i)[0]).collect();
+    // Measurement noise on the recorded position (seeded), as configured.
+    if let Some(noise) = settings.noise {
+        if noise.output_std > 0.0 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(noise.seed);
+            let normal = Normal::new(0.0, noise.output_std).context("noise.output_std")?;
+            for v in &mut x {
+                *v += normal.sample(&mut rng);
+            }
+        }
+    }
     let xd = (0..n).map(|i| traj.state(i)[1]).collect();
     let switches = traj.transitions().count();
     Ok(Simulated {

@@ -1,0 +1,666 @@
+//! `htfid diagnose CONFIG [--data CSV]`: measured data against the model: what the model gets
+//! wrong, the cause, the extended model and its gain.
+
+use std::fmt::Write as _;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use htfid_data::{read_csv, CsvSpec, OutputDir, TimeSeries};
+use htfid_diagnose::{
+    diagnose_with_progress, simulate_record, DiagnoseOptions, DiagnosisReport, Effect,
+    NominalModel, NominalParam, Record, Score,
+};
+use htfid_model::Effects;
+use htfid_plot::{
+    grid_figure, spectrum_panel, stacked_figure, time_panel, Panel, Scale, Series, SpectrumScale,
+    Style,
+};
+use num_complex::Complex64;
+use rustfft::FftPlanner;
+use serde_json::{json, Value};
+
+use crate::commands::simulate::report_written;
+use crate::output::{json_text, open, resolve_dir};
+use crate::plots;
+use crate::settings::DiagnoseSettings;
+
+const PLOTS: [&str; 3] = ["residual_time", "residual_spectrum", "orbit"];
+
+/// Harmonics of the data-against-theory HTF figure.
+const HTF_HARMONICS: [i32; 5] = [-2, -1, 0, 1, 2];
+
+pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
+    let mut settings = DiagnoseSettings::from_file(config)?;
+    if let Some(d) = data {
+        settings.data.file = d;
+    }
+    let dir = resolve_dir(out, &settings.name);
+    let files: Vec<String> = PLOTS
+        .iter()
+        .flat_map(|p| [format!("{p}.svg"), format!("{p}.png")])
+        .collect();
+    let mut names: Vec<&str> = vec!["diagnosis.json", "report.md"];
+    names.extend(files.iter().map(String::as_str));
+    let periodic = settings.params.forcing_amplitude.abs() > 0.0;
+    if periodic {
+        names.extend(["htf_data.svg", "htf_data.png"]);
+    }
+    let mut outdir = open(&dir, force, &names)?;
+
+    let started = Instant::now();
+    let series = read_series(&settings)?;
+    let record = Record::from_series(&series).context("measured data")?;
+    let nominal = nominal_model(&settings)?;
+    let opts = options(&settings, record.len())?;
+    eprintln!(
+        "[htfid] diagnosing {} ({} samples at {:.6} Hz) against the {} model, {} candidates",
+        settings.data.file.display(),
+        record.len(),
+        1.0 / record.dt(),
+        match settings.damper {
+            htfid_model::DamperLaw::Switching => "switching hopper",
+            htfid_model::DamperLaw::AlwaysOn => "spring-mass-damper",
+        },
+        opts.candidates.len()
+    );
+    let last = Mutex::new(Instant::now());
+    let progress = |msg: &str| {
+        // One line per step, never more than a few per second.
+        let mut last = last.lock().unwrap_or_else(|e| e.into_inner());
+        if last.elapsed().as_millis() >= 200 || msg.contains("fitted") || msg.contains("nominal") {
+            eprintln!("[htfid] {:6.1} s  {msg}", started.elapsed().as_secs_f64());
+            *last = Instant::now();
+        }
+    };
+    let report =
+        diagnose_with_progress(&record, &nominal, &opts, &progress).context("diagnosis failed")?;
+    eprintln!(
+        "[htfid] {:6.1} s  cause: {} (gain {:.1} %)",
+        started.elapsed().as_secs_f64(),
+        report.diagnosis.cause,
+        100.0 * report.diagnosis.gain
+    );
+
+    let tests = test_scores(&settings, &record, &report, &opts)?;
+    let mut json = serde_json::to_value(&report.diagnosis)?;
+    json["data"] = json!({
+        "file": settings.data.file.display().to_string(),
+        "samples": record.len(),
+        "sample_rate": 1.0 / record.dt(),
+        "fit_ranges": ranges_json(&report.fit_ranges),
+        "validation_ranges": ranges_json(&report.validation_ranges),
+    });
+    json["noise_floor"] = json!(report.noise_floor);
+    json["burn_in_s"] = json!(report.burn_in_s);
+    json["nominal_fit"] = serde_json::to_value(&report.nominal_fit_score)?;
+    json["nominal_model"] = serde_json::to_value(&report.nominal_model)?;
+    json["extended_model"] = serde_json::to_value(&report.extended_model)?;
+    if !tests.is_empty() {
+        json["test"] = Value::Array(tests.clone());
+    }
+    json["elapsed_s"] = json!(started.elapsed().as_secs_f64());
+    outdir.write_text("diagnosis.json", &json_text(&json))?;
+    let mut figures = draw(&mut outdir, &settings, &record, &report)?;
+    if periodic {
+        figures.htf = match htf_figure(&mut outdir, &settings, &record, &report) {
+            Ok(()) => Some(String::new()),
+            Err(e) => Some(format!("{e:#}")),
+        };
+    }
+    outdir.write_text(
+        "report.md",
+        &report_md(&settings, &record, &report, &tests, &figures),
+    )?;
+    report_written(&outdir.commit()?);
+    Ok(())
+}
+
+fn read_series(settings: &DiagnoseSettings) -> Result<TimeSeries> {
+    let d = &settings.data;
+    let mut spec = CsvSpec::default()
+        .with_columns(d.input.clone(), d.output.clone())
+        .with_min_samples(64);
+    spec = match (&d.time, d.sample_rate) {
+        (Some(t), _) => spec.with_time_column(t.clone()),
+        (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
+        (None, None) => spec,
+    };
+    read_csv(&d.file, &spec).with_context(|| format!("{}: [data] file", settings.path.display()))
+}
+
+fn nominal_model(s: &DiagnoseSettings) -> Result<NominalModel> {
+    let free = s
+        .free
+        .iter()
+        .map(|f| match f.as_str() {
+            "m" => NominalParam::M,
+            "k" => NominalParam::K,
+            "c" => NominalParam::C,
+            "x0" => NominalParam::X0,
+            _ => NominalParam::InputOffset,
+        })
+        .collect();
+    let effects = Effects {
+        input_offset: s.input_offset,
+        ..Effects::default()
+    };
+    NominalModel::new(s.params, s.damper, effects, free)
+        .with_context(|| format!("{}: [model]", s.path.display()))
+}
+
+fn options(s: &DiagnoseSettings, n: usize) -> Result<DiagnoseOptions> {
+    let check = |ranges: &[Range<usize>], key: &str| -> Result<()> {
+        if let Some(r) = ranges.iter().find(|r| r.end > n) {
+            anyhow::bail!(
+                "{}: data.{key}: range [{}, {}) runs past the {n} samples of the data",
+                s.path.display(),
+                r.start,
+                r.end
+            );
+        }
+        Ok(())
+    };
+    check(&s.data.fit, "fit")?;
+    check(&s.data.validation, "validation")?;
+    check(&s.data.test, "test")?;
+    let mut opts = DiagnoseOptions {
+        fit: s.data.fit.clone(),
+        validation: s.data.validation.clone(),
+        burn_in_s: s.burn_in,
+        fit_initial_state: s.fit_initial_state,
+        ..DiagnoseOptions::default()
+    };
+    if let Some(c) = &s.candidates {
+        opts.candidates = c
+            .iter()
+            .map(|name| name.parse::<Effect>().map_err(|e| anyhow::anyhow!("{e}")))
+            .collect::<Result<_>>()?;
+    }
+    if let Some(v) = s.significance_sigma {
+        opts.significance_sigma = v;
+    }
+    if let Some(v) = s.min_gain {
+        opts.min_gain = v;
+    }
+    Ok(opts)
+}
+
+fn ranges_json(r: &[Range<usize>]) -> Value {
+    Value::Array(r.iter().map(|r| json!([r.start, r.end])).collect())
+}
+
+/// Scores of the nominal and extended models on the config's extra test ranges.
+fn test_scores(
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+    opts: &DiagnoseOptions,
+) -> Result<Vec<Value>> {
+    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
+    let mut out = Vec::new();
+    for r in &s.data.test {
+        let score = |model| -> Result<Score> {
+            let sim =
+                simulate_record(record, model, r.clone(), None, opts.interpolation, opts.sim)?;
+            let x = &record.x()[r.clone()];
+            let skip = burn.min(x.len() / 2);
+            let (sim, x) = (&sim[skip..], &x[skip..]);
+            let mse = sim.iter().zip(x).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / x.len() as f64;
+            let mean = x.iter().sum::<f64>() / x.len() as f64;
+            let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / x.len() as f64;
+            Ok(Score {
+                nrmse: mse.sqrt() / var.sqrt(),
+                rmse: mse.sqrt(),
+            })
+        };
+        let nominal = score(&report.nominal_model)?;
+        let extended = score(&report.extended_model)?;
+        out.push(json!({
+            "range": [r.start, r.end],
+            "nominal": nominal,
+            "extended": extended,
+            "gain": 1.0 - extended.rmse / nominal.rmse,
+        }));
+    }
+    Ok(out)
+}
+
+/// Residuals of both models over the held-out ranges, and where they are.
+fn residuals(record: &Record, report: &DiagnosisReport) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (mut t, mut r0, mut r1) = (Vec::new(), Vec::new(), Vec::new());
+    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
+    for r in &report.validation_ranges {
+        for i in (r.start + burn).min(r.end)..r.end {
+            let (a, b) = (report.nominal_output[i], report.extended_output[i]);
+            if a.is_finite() && b.is_finite() {
+                t.push(record.t()[i]);
+                r0.push(record.x()[i] - a);
+                r1.push(record.x()[i] - b);
+            }
+        }
+    }
+    (t, r0, r1)
+}
+
+/// One-sided amplitude spectrum (Hann window) against angular frequency.
+fn spectrum(x: &[f64], dt: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = x.len();
+    if n < 16 {
+        return (Vec::new(), Vec::new());
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let mut buf: Vec<Complex64> = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+            Complex64::new((v - mean) * w, 0.0)
+        })
+        .collect();
+    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
+    let dw = 2.0 * std::f64::consts::PI / (n as f64 * dt);
+    let (w, a): (Vec<f64>, Vec<f64>) = (1..n / 2)
+        .map(|k| (k as f64 * dw, 4.0 * buf[k].norm() / n as f64))
+        .unzip();
+    (w, a)
+}
+
+struct Figures {
+    orbit: bool,
+    /// `Some("")` when the HTF figure was drawn, `Some(reason)` when it could not be.
+    htf: Option<String>,
+}
+
+/// The data's HTFs (Siddiqi's estimator on the excited part of the record, deviations from the
+/// measured period-averaged orbit, input = measured force minus the known forcing) against the
+/// exact theory of the nominal and the extended model.
+fn htf_figure(
+    out: &mut OutputDir,
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+) -> Result<()> {
+    use htfid_estimate::{siddiqi, Alpha, Record as EstRecord};
+    use htfid_plot::Style;
+    use htfid_theory::HarmonicTransferFunction;
+    let period = s.params.period;
+    let dt = record.dt();
+    let per = period / dt;
+    if (per - per.round()).abs() > 1e-6 {
+        anyhow::bail!("the sample period does not divide the forcing period");
+    }
+    let per = per.round() as usize;
+    let wp = 2.0 * std::f64::consts::PI / period;
+    let u: Vec<f64> = record
+        .t()
+        .iter()
+        .zip(record.f())
+        .map(|(&t, &f)| f - s.params.forcing_amplitude * (wp * t).cos())
+        .collect();
+    let peak = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let first = u
+        .iter()
+        .position(|v| v.abs() > 1e-3 * peak)
+        .context("no excitation in the record")?;
+    // Start on a period boundary at or before the first excited sample.
+    let t0 = record.t()[first];
+    let start = first - ((t0.rem_euclid(period) / dt).round() as usize).min(first);
+    let periods = (record.len() - start) / per;
+    anyhow::ensure!(periods >= 10, "fewer than 10 excited periods");
+    let end = start + periods * per;
+    // The measured orbit: the position averaged at each phase over the whole record.
+    let mut orbit = vec![(0.0, 0usize); per];
+    for i in 0..record.len() {
+        let k = ((record.t()[i].rem_euclid(period) / dt).round() as usize) % per;
+        orbit[k].0 += record.x()[i];
+        orbit[k].1 += 1;
+    }
+    let y: Vec<f64> = (start..end)
+        .map(|i| {
+            let k = ((record.t()[i].rem_euclid(period) / dt).round() as usize) % per;
+            record.x()[i] - orbit[k].0 / orbit[k].1 as f64
+        })
+        .collect();
+    let rec = EstRecord::new(u[start..end].to_vec(), y, dt, record.t()[start])?;
+    let est = siddiqi(&rec, period, &HTF_HARMONICS, (1.0, 40.0), Alpha::Fixed(1.0))?;
+    let theory = |m: &htfid_diagnose::FittedModel| -> Result<htfid_theory::ExactHtf> {
+        let mut params = m.params;
+        params.forcing_amplitude = s.params.forcing_amplitude;
+        params.period = period;
+        let hopper = htfid_model::Hopper::with_effects(params, m.damper, m.effects)?;
+        let orbit = hopper.limit_cycle(&Default::default(), &Default::default())?;
+        let lin = htfid_ltp::linearise(&hopper, &orbit.cycle, 16, &Default::default())?;
+        Ok(htfid_theory::ExactHtf::new(&lin.piecewise)?)
+    };
+    let nominal = theory(&report.nominal_model)?;
+    let extended = theory(&report.extended_model)?;
+    let omegas = crate::settings::log_grid(1.0, 40.0, 400);
+    let ext_label = format!("extended ({}), theory", report.diagnosis.cause);
+    let data: Vec<(i32, Vec<f64>, Vec<Complex64>)> = HTF_HARMONICS
+        .iter()
+        .map(|&n| {
+            let rows: Vec<_> = est.rows().filter(|r| r.n == n).collect();
+            (
+                n,
+                rows.iter().map(|r| r.omega).collect(),
+                rows.iter().map(|r| r.value).collect(),
+            )
+        })
+        .collect();
+    let th: Vec<(Vec<Complex64>, Vec<Complex64>)> = HTF_HARMONICS
+        .iter()
+        .map(|&n| {
+            (
+                omegas.iter().map(|&w| nominal.g(n, w)).collect(),
+                omegas.iter().map(|&w| extended.g(n, w)).collect(),
+            )
+        })
+        .collect();
+    let per_harmonic: Vec<(i32, Vec<plots::Curve<'_>>)> = data
+        .iter()
+        .zip(&th)
+        .map(|((n, w, v), (g0, g1))| {
+            (
+                *n,
+                vec![
+                    plots::Curve {
+                        label: "data (Siddiqi estimate)",
+                        omega: w,
+                        values: v,
+                        style: Style::Line,
+                    },
+                    plots::Curve {
+                        label: "nominal, theory",
+                        omega: &omegas,
+                        values: g0,
+                        style: Style::Line,
+                    },
+                    plots::Curve {
+                        label: &ext_label,
+                        omega: &omegas,
+                        values: g1,
+                        style: Style::Dashed,
+                    },
+                ],
+            )
+        })
+        .collect();
+    let fig = plots::harmonics(
+        &format!("{}: HTFs of the data against the models", s.name),
+        &per_harmonic,
+    );
+    plots::write(out, "htf_data", &fig)
+}
+
+fn draw(
+    out: &mut OutputDir,
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+) -> Result<Figures> {
+    let (t, r0, r1) = residuals(record, report);
+    let cause = report.diagnosis.cause.clone();
+    let ext_label = format!("extended ({cause})");
+    // Residuals in time (one point per gap-free piece is fine: ranges are drawn as one series).
+    let panel = time_panel(
+        "held-out residual: measured - simulated",
+        "residual (output units)",
+        &t,
+        [("nominal", r0.clone()), (ext_label.as_str(), r1.clone())],
+    );
+    let fig = stacked_figure(
+        format!("{}: what the nominal model gets wrong", s.name),
+        vec![panel],
+    );
+    plots::write(out, "residual_time", &fig)?;
+
+    let (w0, a0) = spectrum(&r0, record.dt());
+    let (w1, a1) = spectrum(&r1, record.dt());
+    let mut panel = spectrum_panel(
+        "residual spectrum (held-out data)",
+        &w0,
+        [("nominal", a0)],
+        SpectrumScale::LogLog,
+    );
+    if !w1.is_empty() {
+        panel
+            .series
+            .push(Series::new(ext_label.clone(), w1, a1, Style::Line));
+    }
+    let fig = stacked_figure(format!("{}: residual spectrum", s.name), vec![panel]);
+    plots::write(out, "residual_spectrum", &fig)?;
+
+    // Period-averaged orbit: measured against both models, folded over the forcing period
+    // when one is known, else the measured against simulated position over a short window.
+    let orbit = s.params.forcing_amplitude.abs() > 0.0;
+    let fig = if orbit {
+        let period = s.params.period;
+        let bins = 100usize;
+        let mut acc = vec![[0.0f64; 4]; bins];
+        for r in &report.validation_ranges {
+            for i in r.clone() {
+                let (a, b) = (report.nominal_output[i], report.extended_output[i]);
+                if !(a.is_finite() && b.is_finite()) {
+                    continue;
+                }
+                let phase = record.t()[i].rem_euclid(period) / period;
+                let k = ((phase * bins as f64) as usize).min(bins - 1);
+                acc[k][0] += record.x()[i];
+                acc[k][1] += a;
+                acc[k][2] += b;
+                acc[k][3] += 1.0;
+            }
+        }
+        let phase: Vec<f64> = (0..bins)
+            .map(|k| (k as f64 + 0.5) / bins as f64 * period)
+            .collect();
+        let col = |j: usize| -> Vec<f64> {
+            acc.iter()
+                .map(|a| if a[3] > 0.0 { a[j] / a[3] } else { f64::NAN })
+                .collect()
+        };
+        let (measured, nom, ext) = (col(0), col(1), col(2));
+        let mut p = Panel::new(
+            "period-averaged orbit (held-out data)",
+            "phase (s)",
+            "position",
+        );
+        p.series = vec![
+            Series::new("measured", phase.clone(), measured.clone(), Style::Markers),
+            Series::new("nominal", phase.clone(), nom.clone(), Style::Line),
+        ];
+        let diff =
+            |m: &[f64]| -> Vec<f64> { m.iter().zip(&measured).map(|(a, b)| a - b).collect() };
+        let mut q = Panel::new(
+            "model - measured, period-averaged",
+            "phase (s)",
+            "difference",
+        );
+        q.series = vec![
+            Series::new("nominal", phase.clone(), diff(&nom), Style::Line),
+            Series::new(ext_label.clone(), phase, diff(&ext), Style::Dashed),
+        ];
+        grid_figure(format!("{}: the orbit", s.name), vec![p, q], 2)
+    } else {
+        let r = report
+            .validation_ranges
+            .first()
+            .cloned()
+            .unwrap_or(0..record.len());
+        let burn = (report.burn_in_s / record.dt()).ceil() as usize;
+        let a = (r.start + burn).min(r.end);
+        let b = (a + (1.0 / record.dt()) as usize).min(r.end);
+        let tt = record.t()[a..b].to_vec();
+        let panel = time_panel(
+            "one second of held-out data",
+            "position",
+            &tt,
+            [
+                ("measured", record.x()[a..b].to_vec()),
+                ("nominal", report.nominal_output[a..b].to_vec()),
+                (ext_label.as_str(), report.extended_output[a..b].to_vec()),
+            ],
+        );
+        stacked_figure(
+            format!("{}: measured against simulated", s.name),
+            vec![panel],
+        )
+    };
+    plots::write(out, "orbit", &fig)?;
+    Ok(Figures { orbit, htf: None })
+}
+
+fn fmt_params(
+    p: &std::collections::BTreeMap<String, f64>,
+    se: &std::collections::BTreeMap<String, f64>,
+) -> String {
+    p.iter()
+        .map(|(k, v)| match se.get(k) {
+            Some(s) if s.is_finite() => format!("`{k}` = {v:.6e} ± {s:.2e}"),
+            _ => format!("`{k}` = {v:.6e}"),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn report_md(
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+    tests: &[Value],
+    figures: &Figures,
+) -> String {
+    let d = &report.diagnosis;
+    let mut m = String::new();
+    let _ = writeln!(m, "# Diagnosis: {}\n", s.name);
+    let verdict = match d.cause.as_str() {
+        "none" => "**No effect found**: the nominal model explains the data down to the noise.".to_string(),
+        "unexplained" => "**Unexplained**: the nominal model leaves clear structure in the residual that no candidate effect in the library explains with confidence.".to_string(),
+        c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {:.1} %.", 100.0 * d.gain),
+    };
+    let _ = writeln!(m, "{verdict}\n");
+    let _ = writeln!(
+        m,
+        "Data: `{}`, {} samples at {:.6} Hz. Fitted on samples {:?}, judged on held-out samples {:?} (the first {:.3} s of each range are a burn-in, simulated but not scored).\n",
+        s.data.file.display(),
+        record.len(),
+        1.0 / record.dt(),
+        report.fit_ranges,
+        report.validation_ranges,
+        report.burn_in_s
+    );
+    let _ = writeln!(m, "## 1. What the nominal model gets wrong\n");
+    let _ = writeln!(
+        m,
+        "The nominal model ({}) with {} refitted: held-out NRMSE **{:.4}** (RMSE {:.4e}); the noise floor of the residual is {}.\n",
+        match s.damper {
+            htfid_model::DamperLaw::Switching => "the switching hopper",
+            htfid_model::DamperLaw::AlwaysOn => "a linear spring-mass-damper",
+        },
+        s.free.join(", "),
+        d.nominal.nrmse,
+        d.nominal.rmse,
+        report.noise_floor.map_or("not estimable (ranges too short)".into(), |v| format!("{v:.3e}"))
+    );
+    let _ = writeln!(m, "![residual in time](residual_time.png)\n");
+    let _ = writeln!(m, "![residual spectrum](residual_spectrum.png)\n");
+    if figures.orbit {
+        let _ = writeln!(
+            m,
+            "The measured orbit, averaged over the forcing period, against both models:\n"
+        );
+    } else {
+        let _ = writeln!(m, "Measured against simulated position:\n");
+    }
+    let _ = writeln!(m, "![orbit](orbit.png)\n");
+    match &figures.htf {
+        Some(reason) if reason.is_empty() => {
+            let _ = writeln!(m, "Harmonic transfer functions estimated from the data (Siddiqi's estimator on the excited part of the record, deviations from the measured period-averaged orbit) against the exact theory of both models:\n");
+            let _ = writeln!(m, "![HTFs of the data](htf_data.png)\n");
+        }
+        Some(reason) => {
+            let _ = writeln!(m, "(No HTF figure: {reason}.)\n");
+        }
+        None => {}
+    }
+    let _ = writeln!(m, "## 2. The evidence\n");
+    for e in &d.evidence {
+        let _ = writeln!(m, "- {e}");
+    }
+    let _ = writeln!(
+        m,
+        "\nEvery candidate, best first (held-out NRMSE; BIC on the fit data, lower is better):\n"
+    );
+    let _ = writeln!(
+        m,
+        "| effect | parameters | held-out NRMSE | BIC | significant | note |"
+    );
+    let _ = writeln!(m, "|---|---|---|---|---|---|");
+    for c in &d.candidates {
+        let _ = writeln!(
+            m,
+            "| `{}` | {} | {:.4} | {:.1} | {} | {} |",
+            c.effect,
+            fmt_params(&c.parameters, &c.stderr),
+            c.nrmse_validation,
+            c.bic,
+            if c.significant { "yes" } else { "no" },
+            c.note.replace('|', "/")
+        );
+    }
+    let _ = writeln!(m, "\n## 3. The extended model\n");
+    if d.cause == "none" || d.cause == "unexplained" {
+        let _ = writeln!(
+            m,
+            "No effect is added; the extended model is the refitted nominal model: {}.\n",
+            fmt_params(&d.parameters, &d.stderr)
+        );
+    } else {
+        let _ = writeln!(
+            m,
+            "The nominal model plus `{}`: {}.\n",
+            d.cause,
+            fmt_params(&d.parameters, &d.stderr)
+        );
+    }
+    let _ = writeln!(m, "## 4. The gain\n");
+    let _ = writeln!(m, "| model | held-out NRMSE | held-out RMSE |");
+    let _ = writeln!(m, "|---|---|---|");
+    let _ = writeln!(
+        m,
+        "| nominal | {:.4} | {:.4e} |",
+        d.nominal.nrmse, d.nominal.rmse
+    );
+    let _ = writeln!(
+        m,
+        "| extended | {:.4} | {:.4e} |",
+        d.extended.nrmse, d.extended.rmse
+    );
+    let _ = writeln!(
+        m,
+        "\nGain `1 - rmse_extended / rmse_nominal` = **{:.1} %**.\n",
+        100.0 * d.gain
+    );
+    if !tests.is_empty() {
+        let _ = writeln!(
+            m,
+            "Further test ranges (simulated from their own start, burn-in excluded):\n"
+        );
+        let _ = writeln!(m, "| samples | nominal RMSE | extended RMSE | gain |");
+        let _ = writeln!(m, "|---|---|---|---|");
+        for t in tests {
+            let _ = writeln!(
+                m,
+                "| {} | {:.4e} | {:.4e} | {:.1} % |",
+                t["range"],
+                t["nominal"]["rmse"].as_f64().unwrap_or(f64::NAN),
+                t["extended"]["rmse"].as_f64().unwrap_or(f64::NAN),
+                100.0 * t["gain"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+    }
+    m
+}
