@@ -422,3 +422,183 @@ fn edited_chirp_band_runs() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(summary(&out)["fit"]["multi"]["k"].as_f64().unwrap() > 0.0);
 }
+
+fn diagnosis(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&fs::read_to_string(dir.join("diagnosis.json")).unwrap()).unwrap()
+}
+
+/// The hopper record (made by `htfid simulate configs/hopper-truth.toml`, whose truth has flight
+/// damping c_f = 0.2 that the nominal model lacks) is diagnosed as flight damping.
+#[test]
+fn diagnose_hopper_names_the_hidden_flight_damping() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("dh");
+    let o = htfid(&[
+        "diagnose",
+        "configs/diagnose-hopper.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let d = diagnosis(&out);
+    assert_eq!(d["cause"], "flight_damping");
+    let c_f = d["parameters"]["c_f"].as_f64().unwrap();
+    assert!((c_f / 0.2 - 1.0).abs() < 0.1, "c_f = {c_f}");
+    assert!(d["gain"].as_f64().unwrap() > 0.2);
+    for key in [
+        "parameters",
+        "stderr",
+        "nominal",
+        "extended",
+        "gain",
+        "candidates",
+    ] {
+        assert!(!d[key].is_null(), "diagnosis.json lacks {key}");
+    }
+    assert!(d["nominal"]["nrmse"].as_f64().unwrap() > d["extended"]["nrmse"].as_f64().unwrap());
+    let report = fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("Cause: `flight_damping`"));
+    for f in [
+        "residual_time.png",
+        "residual_spectrum.png",
+        "orbit.png",
+        "htf_data.png",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+        assert!(report.contains(f), "report.md does not show {f}");
+    }
+}
+
+/// The truth config regenerates the committed record exactly (so the data are reproducible).
+#[test]
+fn hopper_truth_config_reproduces_the_committed_record() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("truth");
+    let o = htfid(&[
+        "simulate",
+        "configs/hopper-truth.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let made: Vec<String> = fs::read_to_string(out.join("timeseries.csv"))
+        .unwrap()
+        .lines()
+        .map(|l| l.split(',').take(3).collect::<Vec<_>>().join(","))
+        .collect();
+    let committed: Vec<String> = fs::read_to_string(root().join("data/hopper-protocol.csv"))
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(str::to_string)
+        .collect();
+    assert_eq!(made.len(), committed.len());
+    // Same integrator, same seed: identical up to the last printed digit on this platform;
+    // compare numerically with a tolerance far below the noise (2e-5 m) to allow other
+    // platforms' libm.
+    for (a, b) in made.iter().zip(&committed).skip(1) {
+        for (x, y) in a.split(',').zip(b.split(',')) {
+            let (x, y): (f64, f64) = (x.parse().unwrap(), y.parse().unwrap());
+            assert!((x - y).abs() <= 1e-9 * (1.0 + y.abs()), "{a} vs {b}");
+        }
+    }
+}
+
+/// Real measured data: the Silverbox benchmark must be diagnosed as a cubic spring, with a
+/// simulation error near the published grey-box figure (~1 mV; linear ~7 mV). The data file
+/// lives in ../shared; a missing file fails this test.
+#[test]
+fn silverbox_is_diagnosed_as_cubic_stiffness() {
+    let data = root().join("../shared/data/silverbox/SNLS80mV.csv");
+    assert!(
+        data.exists(),
+        "Silverbox data missing at {}",
+        data.display()
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sb");
+    let o = htfid(&[
+        "diagnose",
+        "configs/silverbox.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let d = diagnosis(&out);
+    assert_eq!(d["cause"], "cubic_stiffness");
+    let nominal = d["nominal"]["rmse"].as_f64().unwrap();
+    let extended = d["extended"]["rmse"].as_f64().unwrap();
+    assert!(
+        (0.005..0.01).contains(&nominal),
+        "linear model RMSE {nominal} V (published ~7 mV)"
+    );
+    assert!(
+        extended < 1.5e-3,
+        "extended model RMSE {extended} V (published grey-box ~1 mV)"
+    );
+    // The arrow (extrapolation in amplitude) as a further test section.
+    let arrow = &d["test"][0];
+    assert!(arrow["extended"]["rmse"].as_f64().unwrap() < 2e-3);
+}
+
+#[test]
+fn broken_data_files_are_named_with_line_and_column() {
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = tmp.path().join("bad.csv");
+    fs::write(&csv, "t,f,x\n0,1,0.15\n0.01,1,abc\n0.02,1,0.15\n").unwrap();
+    let o = htfid(&[
+        "diagnose",
+        "configs/diagnose-hopper.toml",
+        "--data",
+        csv.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(
+        err.contains("bad.csv:3") && err.contains("\"abc\""),
+        "{err}"
+    );
+    fs::write(&csv, "t,force,x\n0,1,0.15\n").unwrap();
+    let o = htfid(&[
+        "diagnose",
+        "configs/diagnose-hopper.toml",
+        "--data",
+        csv.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o").to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert!(
+        err.contains("no column \"f\"") && err.contains("\"force\""),
+        "{err}"
+    );
+    assert!(!tmp.path().join("o").exists());
+}
+
+/// Every shipped config is exercised by a test in this file, so none can rot unnoticed.
+#[test]
+fn every_shipped_config_is_run_by_a_test() {
+    let covered = [
+        "paper.toml",
+        "paper-improved.toml",
+        "hopper-truth.toml",
+        "diagnose-hopper.toml",
+        "silverbox.toml",
+    ];
+    let this = fs::read_to_string(root().join("tests/cli.rs")).unwrap();
+    for entry in fs::read_dir(root().join("configs")).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        if name.ends_with(".toml") {
+            assert!(
+                covered.contains(&name.as_str()),
+                "configs/{name} is not run by any test"
+            );
+            assert!(
+                this.contains(&format!("\"configs/{name}\"")),
+                "configs/{name} is listed but not run"
+            );
+        }
+    }
+}

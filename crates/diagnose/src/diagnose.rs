@@ -763,21 +763,24 @@ fn run_candidate(
     }
     let mut slots = free.to_vec();
     slots.extend(effect.slots(free));
+    // Several starts (a threshold's two signs, two contact positions) are fitted in parallel;
+    // the lowest fit cost wins.
+    let starts = screening.starts(&nominal.point, free, effect);
+    let fits: Vec<Result<FitResult, String>> = starts
+        .par_iter()
+        .map(|start| ctx.fit(start, &slots))
+        .collect();
+    let evaluations: usize = fits.iter().flatten().map(|f| f.evaluations).sum();
     let mut best: Option<FitResult> = None;
     let mut error = None;
-    for start in screening.starts(&nominal.point, free, effect) {
-        match ctx.fit(&start, &slots) {
-            Ok(f) => {
-                let evaluations = f.evaluations + best.as_ref().map_or(0, |b| b.evaluations);
-                if best.as_ref().map_or(true, |b| f.rss < b.rss) {
-                    best = Some(FitResult { evaluations, ..f });
-                } else if let Some(b) = best.as_mut() {
-                    b.evaluations = evaluations;
-                }
-            }
+    for f in fits {
+        match f {
+            Ok(f) if best.as_ref().map_or(true, |b| f.rss < b.rss) => best = Some(f),
+            Ok(_) => {}
             Err(e) => error = Some(e),
         }
     }
+    let best = best.map(|b| FitResult { evaluations, ..b });
     let Some(fit) = best else {
         return failed(format!(
             "fit failed: {}",
