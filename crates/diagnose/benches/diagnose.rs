@@ -3,6 +3,10 @@
 //! with a hidden cubic spring, diagnosed over the whole library; plus single simulations, and
 //! the silverbox record when present. Run with `cargo bench -p htfid-diagnose`.
 
+// Fit and validation stretches are lists of sample-index ranges; a list of one is not a
+// mistaken attempt to list the indices.
+#![allow(clippy::single_range_in_vec_init)]
+
 use std::f64::consts::PI;
 use std::sync::Arc;
 use std::time::{Duration, Instant};

@@ -133,7 +133,7 @@ impl DiagnoseOptions {
         if !(lo > 0.0 && lo < hi) {
             return bad("noise_band.0", "> 0 and below noise_band.1", lo);
         }
-        if !(hi <= 1.0) {
+        if hi.is_nan() || hi > 1.0 {
             return bad("noise_band.1", "<= 1", hi);
         }
         match self.sim {
@@ -440,7 +440,17 @@ pub fn simulate_record(
     let half = init_half_width(f_n, record.dt());
     let init = match init {
         Some(i) => i,
-        None => segments(record, &[range.clone()], 0, half, "simulation", 0.0)?[0].init,
+        None => {
+            segments(
+                record,
+                std::slice::from_ref(&range),
+                0,
+                half,
+                "simulation",
+                0.0,
+            )?[0]
+                .init
+        }
     };
     let x = record.x();
     let extent = Extent {
@@ -493,18 +503,18 @@ fn std_dev(v: &[f64]) -> f64 {
     (v.iter().map(|a| (a - mean) * (a - mean)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
 }
 
-fn resolve_ranges(
-    opts: &DiagnoseOptions,
-    n: usize,
-) -> Result<(Vec<Range<usize>>, Vec<Range<usize>>), DiagnoseError> {
+/// Sample-index ranges.
+type Ranges = Vec<Range<usize>>;
+
+fn resolve_ranges(opts: &DiagnoseOptions, n: usize) -> Result<(Ranges, Ranges), DiagnoseError> {
     let split = (n as f64 * 0.7).floor() as usize;
     let fit = if opts.fit.is_empty() {
-        vec![0..split]
+        std::iter::once(0..split).collect()
     } else {
         opts.fit.clone()
     };
     let val = if opts.validation.is_empty() {
-        vec![split..n]
+        std::iter::once(split..n).collect()
     } else {
         opts.validation.clone()
     };
@@ -873,14 +883,14 @@ fn judge(
     if let Some(b) = bound_note {
         reasons.push(b);
     }
-    if !(gain >= opts.min_gain) {
+    if gain.is_nan() || gain < opts.min_gain {
         reasons.push(format!(
             "held-out gain {:.1} % below {:.1} %",
             100.0 * gain,
             100.0 * opts.min_gain
         ));
     }
-    if !(delta_bic >= opts.bic_margin) {
+    if delta_bic.is_nan() || delta_bic < opts.bic_margin {
         reasons.push(format!(
             "BIC lower by only {:.1} (< {})",
             delta_bic, opts.bic_margin

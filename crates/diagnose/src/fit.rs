@@ -452,7 +452,7 @@ pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> V
     let a = DMatrix::from_fn(p, p, |i, j| b[(i, j)] * d[i] * d[j]);
     // A direction with no information: its pseudo-inverse is zero, report it as unknown.
     let undetermined: Vec<bool> = (0..p)
-        .map(|i| !(d[i] > 0.0) || !(a[(i, i)] > 0.0))
+        .map(|i| d[i] <= 0.0 || a[(i, i)].is_nan() || a[(i, i)] <= 0.0)
         .collect();
     let rss: f64 = r.iter().map(|v| v * v).sum();
     let s2 = rss / (n.saturating_sub(p)).max(1) as f64;

@@ -44,7 +44,7 @@ impl SampledSignal {
     fn locate(&self, t: f64) -> Option<(usize, f64)> {
         let n = self.values.len();
         let s = (t - self.t0) * self.inv_dt;
-        if !(s > 0.0) || s >= (n - 1) as f64 {
+        if s.is_nan() || s <= 0.0 || s >= (n - 1) as f64 {
             return None;
         }
         // `s` lies in (0, n - 1), so the cast is in range.

@@ -26,7 +26,7 @@ impl Record {
         check_columns(&t, &f, &x)?;
         let n = t.len();
         let dt = (t[n - 1] - t[0]) / (n - 1) as f64;
-        if !(dt > 0.0) {
+        if dt <= 0.0 {
             return Err(DiagnoseError::NonUniformTime {
                 index: 0,
                 step: t[1] - t[0],

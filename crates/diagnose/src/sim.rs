@@ -475,7 +475,7 @@ fn hermite(
 /// zero): Illinois false position to `1e-14`.
 fn locate(mut g: impl FnMut(f64) -> f64, ga: f64, gb: f64) -> f64 {
     let (mut a, mut fa, mut b, mut fb) = (0.0_f64, ga, 1.0_f64, gb);
-    if !(fb.abs() > 0.0) {
+    if fb.is_nan() || fb.abs() <= 0.0 {
         return 1.0;
     }
     let mut side = 0i8;
@@ -491,7 +491,7 @@ fn locate(mut g: impl FnMut(f64) -> f64, ga: f64, gb: f64) -> f64 {
         let converged = (next - c).abs() <= 1e-15;
         c = next;
         let fc = g(c);
-        if converged || !(fc.abs() > 0.0) {
+        if converged || fc.is_nan() || fc.abs() <= 0.0 {
             return c;
         }
         if (fc > 0.0) == (fb > 0.0) {
@@ -540,7 +540,7 @@ mod tests {
             Crossing::Falling
         }
         fn transition(&self, m: (), _i: usize, _t: f64, x: &mut [f64]) -> Self::Mode {
-            x[1] = -0.8 * x[1];
+            x[1] *= -0.8;
             m
         }
     }

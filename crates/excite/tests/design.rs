@@ -402,10 +402,21 @@ fn record_layout_and_input_signal() {
     for &t in &[0.0, 29.999, d.record_end(), d.record_end() + 5.0] {
         assert_abs_diff_eq!(u.value(t), 0.0);
     }
+    // The input never jumps: across every block start it is continuous (the settling segment
+    // cross-fades from the previous block, or from zero, over its first half). The bound is the
+    // largest change of u over 2e-6 s, |u'| <= sum |A w| <= sum |A| * 60 rad/s.
+    for blk in b {
+        let (before, after) = (u.value(blk.start - 1e-6), u.value(blk.start + 1e-6));
+        assert!((before - after).abs() < 2e-6 * 60.0 * a_sum, "jump at {}", blk.start);
+    }
     for k in 0..200 {
-        let tau = -10.0 + k as f64 * 1.4567;
-        // Same window-local time in both blocks: opposite signs, and the
-        // settling segment is the periodic continuation of the window.
+        let tau = -5.0 + k as f64 * 1.4567;
+        if tau >= tm {
+            break;
+        }
+        // Same window-local time in both blocks: opposite signs, and after the cross-fade
+        // (the first half of the 10 s settling) the settling segment is the periodic
+        // continuation of the window.
         let plus = u.value(b[0].measure_start + tau);
         let minus = u.value(b[1].measure_start + tau);
         // Tolerance: argument rounding of ~2650 bins at t ~ 600 s, times sum |A|.
