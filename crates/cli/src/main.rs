@@ -32,7 +32,7 @@ struct Cli {
 
 #[derive(Debug, clap::Args)]
 struct OutArgs {
-    /// Output directory (default: out/<config name>/).
+    /// Output directory (default: out/NAME, NAME being the config's name).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Replace output files that already exist in the output directory.

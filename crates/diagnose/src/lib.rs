@@ -7,14 +7,23 @@
 //! [`Diagnosis`] serialises to the JSON contract (`cause`, `parameters`, `stderr`, `nominal`,
 //! `extended`, `gain`, `candidates`, `evidence`).
 //!
+//! Main types: [`Record`] (validated measured data), [`NominalModel`] (the hopper's parameters,
+//! damper law, effects already present and the parameters refitted everywhere),
+//! [`DiagnoseOptions`] (ranges, candidates, thresholds), [`diagnose`] and
+//! [`diagnose_with_progress`], [`DiagnosisReport`] with [`Diagnosis`], [`Candidate`], [`Score`]
+//! and the fitted models ([`FittedModel`]) and simulated outputs for plotting;
+//! [`simulate_record`] simulates any fitted model on a record the same way. The library of
+//! effects is [`Effect`]; errors are [`DiagnoseError`].
+//!
 //! # Method
 //!
 //! 1. **Simulation with the measured input.** A model is simulated with the measured force as
 //!    its input (the nominal's forcing amplitude is ignored: `f` is the total applied force),
-//!    read between samples by a natural cubic spline ([`Interpolation`]). Each fit or
+//!    read between samples by a cubic spline ([`Interpolation`]). Each fit or
 //!    validation range is simulated from its own initial state: the position and velocity of a
-//!    local cubic fitted to the samples around the range's first sample (optionally refined by
-//!    the fit). The first `burn_in_s` seconds of every range are simulated but left out of all
+//!    local cubic fitted to the samples around the range's first sample, then refined: for fit
+//!    ranges by the fit itself (by default), for validation ranges by least squares over their
+//!    burn-in samples with the model fixed. The first `burn_in_s` seconds of every range are simulated but left out of all
 //!    costs and scores. The default integrator is classical RK4 on the sample grid with
 //!    sub-steps ([`SimMethod`]); damper switches, the contact of a hard stop and the sign change
 //!    of Coulomb friction under an always-on damper are located inside the step, so the

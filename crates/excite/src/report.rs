@@ -24,7 +24,7 @@ pub struct HarmonicCoverage {
     pub meets_target: bool,
 }
 
-/// Machine-readable summary of a [`Design`]; `Display` prints it for people.
+/// Machine-readable summary of a [`Design`](crate::Design); `Display` prints it for people.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DesignReport {
     /// Forcing period T, s.

@@ -407,7 +407,11 @@ fn record_layout_and_input_signal() {
     // largest change of u over 2e-6 s, |u'| <= sum |A w| <= sum |A| * 60 rad/s.
     for blk in b {
         let (before, after) = (u.value(blk.start - 1e-6), u.value(blk.start + 1e-6));
-        assert!((before - after).abs() < 2e-6 * 60.0 * a_sum, "jump at {}", blk.start);
+        assert!(
+            (before - after).abs() < 2e-6 * 60.0 * a_sum,
+            "jump at {}",
+            blk.start
+        );
     }
     for k in 0..200 {
         let tau = -5.0 + k as f64 * 1.4567;

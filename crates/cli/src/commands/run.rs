@@ -431,7 +431,7 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
     let p0: Vec<f64> = names.iter().map(|n| param(&nominal, n)).collect();
     let x_start = sim.orbit.cycle.state0.clone();
     let shooting = ShootingOptions {
-        settle_periods: 3,
+        settle_periods: 0,
         ..ShootingOptions::default()
     };
     let opts = settings.integrator.clone();
