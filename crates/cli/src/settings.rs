@@ -900,7 +900,7 @@ pub struct DiagnoseSettings {
     pub significance_sigma: Option<f64>,
     pub min_gain: Option<f64>,
     pub burn_in: Option<f64>,
-    pub fit_initial_state: bool,
+    pub fit_initial_state: Option<bool>,
 }
 
 fn ranges(
@@ -1091,7 +1091,7 @@ impl DiagnoseSettings {
             })?,
             fit_initial_state: o
                 .and_then(|o| o.fit_initial_state.as_ref())
-                .is_some_and(|v| *v.get_ref()),
+                .map(|v| *v.get_ref()),
         })
     }
 }

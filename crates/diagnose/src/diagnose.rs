@@ -176,10 +176,10 @@ pub struct Candidate {
     pub effect: String,
     /// Fitted effect parameters and refitted nominal parameters, by name.
     pub parameters: BTreeMap<String, f64>,
-    /// Their standard errors (allowing for correlated residuals; infinite when the data do
-    /// not determine the parameter).
+    /// Their standard errors (allowing for correlated residuals; infinite, `null` in JSON,
+    /// when the data do not determine the parameter).
     pub stderr: BTreeMap<String, f64>,
-    /// NRMSE on the held-out ranges (NaN when not fitted).
+    /// NRMSE on the held-out ranges (NaN, `null` in JSON, when not fitted).
     pub nrmse_validation: f64,
     /// RMSE on the held-out ranges (m; NaN when not fitted).
     pub rmse_validation: f64,
@@ -251,7 +251,9 @@ pub struct DiagnosisReport {
     pub fit_ranges: Vec<Range<usize>>,
     /// Validation ranges used.
     pub validation_ranges: Vec<Range<usize>>,
-    /// Residual evaluations (simulations of the fit ranges) spent by all fits.
+    /// Residual evaluations (simulations of all fit ranges) spent by the Levenberg-Marquardt
+    /// iterations of all fits; the final Jacobians for the standard errors, the screening and
+    /// the scoring come on top. A work counter for spotting regressions in effort.
     pub evaluations: usize,
 }
 

@@ -19,17 +19,18 @@
 //!
 //! 1. **Simulation with the measured input.** A model is simulated with the measured force as
 //!    its input (the nominal's forcing amplitude is ignored: `f` is the total applied force),
-//!    read between samples by a cubic spline ([`Interpolation`]). Each fit or
-//!    validation range is simulated from its own initial state: the position and velocity of a
-//!    local cubic fitted to the samples around the range's first sample, then refined: for fit
-//!    ranges by the fit itself (by default), for validation ranges by least squares over their
-//!    burn-in samples with the model fixed. The first `burn_in_s` seconds of every range are simulated but left out of all
-//!    costs and scores. The default integrator is classical RK4 on the sample grid with
-//!    sub-steps ([`SimMethod`]); damper switches, the contact of a hard stop and the sign change
-//!    of Coulomb friction under an always-on damper are located inside the step, so the
-//!    simulated output is a smooth function of the parameters (finite-difference Jacobians
-//!    need that). An actuator lag acts on the input alone and is applied to the interpolated
-//!    force exactly, so lags far below the sample step are simulated without a stiff state.
+//!    read between samples by a cubic spline ([`Interpolation`]). Each fit or validation range
+//!    is simulated from its own initial state: the position and velocity of a local cubic
+//!    fitted to the samples around the range's first sample, then refined: for fit ranges by
+//!    the fit itself (by default), for validation ranges by least squares over their burn-in
+//!    samples with the model fixed. The first `burn_in_s` seconds of every range are
+//!    simulated but left out of all costs and scores. The default integrator is classical RK4
+//!    on the sample grid with sub-steps ([`SimMethod`]); damper switches, the contact of a hard
+//!    stop and the sign change of Coulomb friction under an always-on damper are located
+//!    inside the step, so the simulated output is a smooth function of the parameters
+//!    (finite-difference Jacobians need that). An actuator lag acts on the input alone and is
+//!    applied to the interpolated force exactly, so lags far below the sample step are
+//!    simulated without a stiff state.
 //!    The adaptive DOP853 of `htfid-hybrid` is available and is the reference in the tests.
 //! 2. **Nominal fit.** The nominal structure with its `free` parameters refitted (after a
 //!    few equation-error steps from the given values) by output error: Levenberg-Marquardt
@@ -125,8 +126,10 @@
 //!     for j in 0..4 {
 //!         let s = t + j as f64 * h;
 //!         let (k1x, k1v) = (v, accel(s, x, v));
-//!         let (k2x, k2v) = (v + 0.5 * h * k1v, accel(s + 0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v));
-//!         let (k3x, k3v) = (v + 0.5 * h * k2v, accel(s + 0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v));
+//!         let (xm, vm) = (x + 0.5 * h * k1x, v + 0.5 * h * k1v);
+//!         let (k2x, k2v) = (vm, accel(s + 0.5 * h, xm, vm));
+//!         let (xm, vm) = (x + 0.5 * h * k2x, v + 0.5 * h * k2v);
+//!         let (k3x, k3v) = (vm, accel(s + 0.5 * h, xm, vm));
 //!         let (k4x, k4v) = (v + h * k3v, accel(s + h, x + h * k3x, v + h * k3v));
 //!         x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
 //!         v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);

@@ -75,6 +75,9 @@ impl<'c, 'a> Screening<'c, 'a> {
             return Some((Vec::new(), y.iter().map(|v| v * v).sum()));
         }
         let n = y.len();
+        if n <= slots.len() {
+            return None;
+        }
         let mut x = DMatrix::zeros(n, slots.len());
         for (j, &s) in slots.iter().enumerate() {
             let v = p.get(s);

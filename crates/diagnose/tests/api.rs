@@ -278,3 +278,32 @@ fn fitted_initial_states_and_explicit_ranges_work() {
     assert!(report.extended_output[5500..].iter().all(|v| v.is_nan()));
     assert!(report.extended_output[..5500].iter().all(|v| v.is_finite()));
 }
+
+#[test]
+fn degenerate_records_give_an_answer_or_an_error_never_a_panic() {
+    // Records the diagnosis cannot do much with: very short, constant, or pure noise. Each
+    // must end in a diagnosis or an error.
+    let nominal = NominalModel::hopper(HopperParams::paper()).unwrap();
+    let n = 64;
+    let t = uniform(n);
+    let cases: Vec<(Vec<f64>, Vec<f64>)> = vec![
+        (vec![0.0; n], vec![0.15; n]),
+        (
+            t.iter().map(|t| (6.0 * t).sin()).collect(),
+            t.iter().map(|t| 0.15 + 1e-3 * (7.0 * t).cos()).collect(),
+        ),
+        (
+            (0..n)
+                .map(|k| ((k * 7919) % 101) as f64 / 101.0 - 0.5)
+                .collect(),
+            (0..n).map(|k| ((k * 104729) % 97) as f64 * 1e-4).collect(),
+        ),
+    ];
+    for (f, x) in cases {
+        let record = Record::new(t.clone(), f, x).unwrap();
+        match diagnose(&record, &nominal, &DiagnoseOptions::default()) {
+            Ok(report) => assert!(!report.diagnosis.cause.is_empty()),
+            Err(e) => assert!(!e.to_string().is_empty()),
+        }
+    }
+}

@@ -106,7 +106,12 @@ impl Hopper {
 
     /// The forcing `A cos(2 pi t / T)` (N).
     pub fn forcing(&self, t: f64) -> f64 {
-        self.params.forcing_amplitude * (self.params.pump_frequency() * t).cos()
+        let a = self.params.forcing_amplitude;
+        // Measured data carry the forcing in their input: skip the cosine when there is none.
+        if a == 0.0 {
+            return 0.0;
+        }
+        a * (self.params.pump_frequency() * t).cos()
     }
 
     /// The commanded force `f(t) = A cos(2 pi t/T) + u(t) + offset`, before delay and lag.

@@ -15,8 +15,7 @@ use htfid_diagnose::{
 };
 use htfid_model::Effects;
 use htfid_plot::{
-    grid_figure, spectrum_panel, stacked_figure, time_panel, Panel, Scale, Series, SpectrumScale,
-    Style,
+    grid_figure, spectrum_panel, stacked_figure, time_panel, Panel, Series, SpectrumScale, Style,
 };
 use num_complex::Complex64;
 use rustfft::FftPlanner;
@@ -170,9 +169,11 @@ fn options(s: &DiagnoseSettings, n: usize) -> Result<DiagnoseOptions> {
         fit: s.data.fit.clone(),
         validation: s.data.validation.clone(),
         burn_in_s: s.burn_in,
-        fit_initial_state: s.fit_initial_state,
         ..DiagnoseOptions::default()
     };
+    if let Some(v) = s.fit_initial_state {
+        opts.fit_initial_state = v;
+    }
     if let Some(c) = &s.candidates {
         opts.candidates = c
             .iter()
