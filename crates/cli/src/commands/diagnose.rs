@@ -94,9 +94,9 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     });
     json["noise_floor"] = json!(report.noise_floor);
     json["burn_in_s"] = json!(report.burn_in_s);
-    json["nominal_fit"] = serde_json::to_value(&report.nominal_fit_score)?;
-    json["nominal_model"] = serde_json::to_value(&report.nominal_model)?;
-    json["extended_model"] = serde_json::to_value(&report.extended_model)?;
+    json["nominal_fit"] = serde_json::to_value(report.nominal_fit_score)?;
+    json["nominal_model"] = serde_json::to_value(report.nominal_model)?;
+    json["extended_model"] = serde_json::to_value(report.extended_model)?;
     if !tests.is_empty() {
         json["test"] = Value::Array(tests.clone());
     }
