@@ -2,8 +2,8 @@
 
 default: test
 
-# Format check, lints as errors, docs, and the whole test suite.
-test: fmt-check clippy doc tests
+# Format check, lints as errors, docs, the whole test suite, and the wide hidden-effect sweep.
+test: fmt-check clippy doc tests sweep
 
 # Alias kept for CI scripts.
 ci: test
@@ -19,6 +19,10 @@ doc:
 
 tests:
     cargo test --workspace --locked
+
+# The diagnosis's wide sweep: 100 seeded records with a hidden effect (or none), about 70 s.
+sweep:
+    cargo test --locked -p htfid-diagnose --test hidden_effects -- --ignored
 
 # The main job: the paper's experiment end to end.
 run config="configs/paper.toml":
