@@ -1,5 +1,5 @@
 //! Real data: the Silverbox benchmark (an electronic Duffing oscillator, see
-//! /work/shared/data/silverbox/README.md). The nominal linear spring-mass-damper must be found
+//! ../shared/data/silverbox/README.md). The nominal linear spring-mass-damper must be found
 //! wanting and the cause named `cubic_stiffness`, with a simulation error on the test data near
 //! the published grey-box figure. Fails, not skips, when the file is missing.
 

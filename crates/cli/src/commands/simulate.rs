@@ -54,8 +54,8 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
     Ok(())
 }
 
-/// Limit cycle, then the whole experiment from `t = 0` on the orbit.
-pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
+/// The configured hopper and its limit cycle (settling plus Newton shooting).
+pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hopper, HopperOrbit)> {
     let hopper = Hopper::with_effects(settings.params, settings.damper, settings.effects)
         .with_context(|| format!("{}: invalid model", settings.path.display()))?;
     let shooting = ShootingOptions {
@@ -72,6 +72,12 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
                 settings.path.display()
             )
         })?;
+    Ok((hopper, orbit))
+}
+
+/// Limit cycle, then the whole experiment from `t = 0` on the orbit.
+pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
+    let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
     let excitation = signals::build(settings)?;
     let period = settings.params.period;
     // The record ends on a whole number of periods after the settling, so the estimators can

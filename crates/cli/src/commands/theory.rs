@@ -5,13 +5,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use htfid_ltp::{linearise, square_wave_fourier, Floquet, Linearisation};
 use htfid_model::{Hopper, HopperMode, HopperOrbit};
-use htfid_orbit::ShootingOptions;
 use htfid_plot::Style;
 use htfid_theory::{ExactHtf, HarmonicTransferFunction, HtfGrid, TruncatedHtf};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use crate::commands::simulate::{limit_cycle_json, report_written};
+use crate::commands::simulate::{hopper_and_orbit, limit_cycle_json, report_written};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
@@ -28,22 +27,7 @@ pub struct Theory {
 }
 
 pub fn build(settings: &Settings, stages: &mut Stages) -> Result<Theory> {
-    let hopper = Hopper::with_effects(settings.params, settings.damper, settings.effects)
-        .with_context(|| format!("{}: invalid model", settings.path.display()))?;
-    let shooting = ShootingOptions {
-        settle_periods: settings.settle_periods.max(30),
-        ..ShootingOptions::default()
-    };
-    let orbit = stages
-        .run("limit cycle", || {
-            hopper.limit_cycle(&shooting, &settings.integrator)
-        })
-        .with_context(|| {
-            format!(
-                "{}: no limit cycle for these parameters",
-                settings.path.display()
-            )
-        })?;
+    let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
     from_orbit(settings, hopper, orbit, stages)
 }
 
