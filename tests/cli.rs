@@ -602,3 +602,79 @@ fn every_shipped_config_is_run_by_a_test() {
         }
     }
 }
+
+/// Reads `estimate_<name>.csv` into rows `[omega, n, re, im, stderr]`.
+fn estimate_rows(dir: &Path, name: &str) -> Vec<Vec<f64>> {
+    fs::read_to_string(dir.join(format!("estimate_{name}.csv")))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
+/// Monte Carlo through the whole pipeline: with seeded measurement noise, the standard errors
+/// `htfid run` reports match the scatter of its estimates over noise realisations.
+fn stderr_matches_scatter(config: &str, estimator: &str, noise: f64) {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = fs::read_to_string(root().join(config)).unwrap();
+    let seeds = 16;
+    let mut runs = Vec::new();
+    for seed in 0..seeds {
+        let cfg = tmp.path().join(format!("mc{seed}.toml"));
+        fs::write(
+            &cfg,
+            format!("{text}\n[noise]\noutput_std = {noise}\nseed = {seed}\n"),
+        )
+        .unwrap();
+        let out = tmp.path().join(format!("mc{seed}"));
+        let o = htfid(&[
+            "run",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--no-plots",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        runs.push(estimate_rows(&out, estimator));
+    }
+    let rows = runs[0].len();
+    let mut ratios = Vec::new();
+    for i in 0..rows {
+        let n = seeds as f64;
+        let (mut sre, mut sim) = (0.0, 0.0);
+        for r in &runs {
+            sre += r[i][2];
+            sim += r[i][3];
+        }
+        let (mre, mim) = (sre / n, sim / n);
+        // Complex standard deviation: sqrt(E|G - mean|^2), with n - 1 degrees of freedom.
+        let var: f64 = runs
+            .iter()
+            .map(|r| (r[i][2] - mre).powi(2) + (r[i][3] - mim).powi(2))
+            .sum::<f64>()
+            / (n - 1.0);
+        let reported = (runs.iter().map(|r| r[i][4].powi(2)).sum::<f64>() / n).sqrt();
+        if reported.is_finite() && reported > 0.0 {
+            ratios.push(var.sqrt() / reported);
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios[ratios.len() / 2];
+    // 16 realisations give each bin's scatter a ~18 % relative spread; the median over hundreds
+    // of bins is far tighter, so 0.8..1.25 leaves room only for a real miscalibration.
+    assert!(
+        (0.8..1.25).contains(&median),
+        "{config} {estimator}: median scatter / stderr = {median}"
+    );
+}
+
+#[test]
+fn reported_standard_errors_match_monte_carlo_scatter_multi() {
+    stderr_matches_scatter("configs/paper.toml", "multi", 1e-6);
+}
+
+#[test]
+fn reported_standard_errors_match_monte_carlo_scatter_lines() {
+    stderr_matches_scatter("configs/paper-improved.toml", "lines", 1e-6);
+}

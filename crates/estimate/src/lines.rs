@@ -75,9 +75,10 @@ impl LineSpec {
 /// the standard error is the period-to-period scatter of `Y`,
 /// `sqrt(sum_m |Y_m - Y_mean|^2 / (M (M - 1))) / |U_mean|`, with `M - 1` complex degrees of freedom.
 /// With a single period (`M = 1`) the output noise level is instead the mean power of the output
-/// bins that no (line, harmonic) pair reaches and that hold no orbit harmonic; it also contains
-/// the response through harmonics outside `harmonics`, so it is an upper bound on the noise
-/// (NaN when no such bin exists).
+/// bins whose residue modulo the period belongs to no line or mirror (they receive no linear
+/// response at any harmonic) and that hold no orbit harmonic; when every residue is taken, the
+/// bins no estimated (line, harmonic) pair reaches, which also hold the response through
+/// harmonics outside `harmonics` and so overstate the noise (NaN when no bin is left).
 /// The input is taken as noise free, and output bins are assumed to receive nothing from
 /// harmonics outside `harmonics` (unmodelled harmonics alias onto modelled bins).
 pub fn periodic_lines(
@@ -238,8 +239,23 @@ fn estimate(
             y_bins[m * nt + ti] = sy.at(t.3);
         }
         if periods == 1 {
+            // Bins whose residue modulo the period no line (or mirror) has receive no linear
+            // response at any harmonic, not only at the estimated ones: pure noise (plus
+            // odd-order distortion). Without such residues, fall back to the bins no estimated
+            // (line, harmonic) pair reaches.
+            let line_residues: std::collections::HashSet<i64> = spec
+                .lines
+                .iter()
+                .flat_map(|&b| [(b as i64).rem_euclid(q), (-(b as i64)).rem_euclid(q)])
+                .collect();
+            let any_free_residue = (1..q).any(|r| !line_residues.contains(&r));
             for k in 1..=(nm as i64 - 1) / 2 {
-                if k % q != 0 && !owner.contains_key(&k) && !owner.contains_key(&-k) {
+                let free = if any_free_residue {
+                    k % q != 0 && !line_residues.contains(&k.rem_euclid(q))
+                } else {
+                    k % q != 0 && !owner.contains_key(&k) && !owner.contains_key(&-k)
+                };
+                if free {
                     free_power += sy.at(k).norm_sqr();
                     free_bins += 1;
                 }
