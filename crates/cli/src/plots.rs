@@ -2,7 +2,9 @@
 
 use anyhow::{Context, Result};
 use htfid_data::OutputDir;
-use htfid_plot::{bode_panels_each, grid_figure, magnitude_panel, save, BodeSeries, Figure, Style};
+use htfid_plot::{
+    bode_panels_each, grid_figure, magnitude_panel, phase_panel, save, BodeSeries, Figure, Style,
+};
 use num_complex::Complex64;
 
 /// A named frequency response on its own grid.
@@ -46,6 +48,23 @@ pub fn harmonics(title: &str, per_harmonic: &[(i32, Vec<Curve<'_>>)]) -> Figure 
         .map(|(n, curves)| {
             let series: Vec<BodeSeries<'_>> = curves.iter().map(Curve::series).collect();
             magnitude_panel(&format!("G_{n}"), &series)
+        })
+        .collect::<Vec<_>>();
+    let columns = if panels.len() > 4 {
+        3
+    } else {
+        panels.len().max(1)
+    };
+    grid_figure(title, panels, columns)
+}
+
+/// One phase panel per harmonic.
+pub fn harmonic_phases(title: &str, per_harmonic: &[(i32, Vec<Curve<'_>>)]) -> Figure {
+    let panels = per_harmonic
+        .iter()
+        .map(|(n, curves)| {
+            let series: Vec<BodeSeries<'_>> = curves.iter().map(Curve::series).collect();
+            phase_panel(&format!("G_{n}"), &series)
         })
         .collect::<Vec<_>>();
     let columns = if panels.len() > 4 {

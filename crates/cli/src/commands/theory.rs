@@ -164,6 +164,8 @@ pub fn run(
             "theory_g0.png",
             "theory_harmonics.svg",
             "theory_harmonics.png",
+            "theory_phases.svg",
+            "theory_phases.png",
         ]);
     }
     let mut outdir = open(&dir, force, &names)?;
@@ -264,5 +266,7 @@ fn theory_plots(
         .collect();
     let fig = plots::harmonics(&format!("{}: |G_n|, theory", settings.name), &per);
     plots::write(out, "theory_harmonics", &fig)?;
+    let fig = plots::harmonic_phases(&format!("{}: phase of G_n, theory", settings.name), &per);
+    plots::write(out, "theory_phases", &fig)?;
     Ok(())
 }
