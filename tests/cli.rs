@@ -678,3 +678,13 @@ fn reported_standard_errors_match_monte_carlo_scatter_multi() {
 fn reported_standard_errors_match_monte_carlo_scatter_lines() {
     stderr_matches_scatter("configs/paper-improved.toml", "lines", 1e-6);
 }
+
+#[test]
+fn a_config_of_the_other_kind_is_explained() {
+    let o = htfid(&["diagnose", "configs/paper.toml", "--out", "/nonexistent/never"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("this is an experiment config"), "{}", stderr(&o));
+    let o = htfid(&["run", "configs/silverbox.toml", "--out", "/nonexistent/never"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("run it with `htfid diagnose`"), "{}", stderr(&o));
+}

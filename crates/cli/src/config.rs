@@ -164,7 +164,10 @@ pub fn quote_list(choices: &[&str]) -> String {
 }
 
 /// Reads and parses a config file into raw options.
-pub fn load<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<(T, Source), ConfigError> {
+pub fn load<T: for<'de> Deserialize<'de>>(
+    path: &Path,
+    kind: Kind,
+) -> Result<(T, Source), ConfigError> {
     let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
         path: path.to_path_buf(),
         line: None,
@@ -175,6 +178,7 @@ pub fn load<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<(T, Source), Co
         path: path.to_path_buf(),
         text,
     };
+    check_kind(&source, kind)?;
     let raw: T = toml::from_str(&source.text).map_err(|e| {
         let line = e.span().map(|s| source.line_of(&s));
         ConfigError {
@@ -185,4 +189,46 @@ pub fn load<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<(T, Source), Co
         }
     })?;
     Ok((raw, source))
+}
+
+/// The two kinds of config: experiments (`simulate`, `theory`, `run`) and diagnoses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Experiment,
+    Diagnosis,
+}
+
+/// A clear message when a config of the other kind is given to a command.
+fn check_kind(source: &Source, kind: Kind) -> Result<(), ConfigError> {
+    // An unparsable file is reported by the typed parse that follows, with its line.
+    let Ok(table) = source.text.parse::<toml::Table>() else {
+        return Ok(());
+    };
+    let has_data = table.contains_key("data");
+    let experiment_only = [
+        "simulation",
+        "excitation",
+        "estimation",
+        "theory",
+        "noise",
+        "effects",
+    ]
+    .iter()
+    .find(|k| table.contains_key(**k));
+    let message = match (kind, has_data, experiment_only) {
+        (Kind::Experiment, true, _) => {
+            "this is a diagnosis config (it has [data]); run it with `htfid diagnose`".to_string()
+        }
+        (Kind::Diagnosis, false, Some(k)) => format!(
+            "this is an experiment config (it has [{k}]); `htfid diagnose` needs a diagnosis \
+             config with a [data] table (see configs/diagnose-hopper.toml)"
+        ),
+        _ => return Ok(()),
+    };
+    Err(ConfigError {
+        path: source.path.clone(),
+        line: None,
+        key: "config".into(),
+        message,
+    })
 }

@@ -9,7 +9,7 @@ use htfid_model::{DamperLaw, Effects, HopperParams};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::config::{load, ConfigError, Source};
+use crate::config::{load, ConfigError, Kind, Source};
 
 type Num = Spanned<f64>;
 type OptNum = Option<Spanned<f64>>;
@@ -329,7 +329,7 @@ fn harmonics_list(src: &Source, v: &Spanned<Vec<i64>>, key: &str) -> Result<Vec<
 impl Settings {
     /// Loads and resolves a config file.
     pub fn from_file(path: &Path) -> Result<Settings, ConfigError> {
-        let (raw, src): (RawConfig, Source) = load(path)?;
+        let (raw, src): (RawConfig, Source) = load(path, Kind::Experiment)?;
         Self::resolve(raw, &src)
     }
 
@@ -929,7 +929,7 @@ fn ranges(
 
 impl DiagnoseSettings {
     pub fn from_file(path: &Path) -> Result<DiagnoseSettings, ConfigError> {
-        let (raw, src): (RawDiagnoseConfig, Source) = load(path)?;
+        let (raw, src): (RawDiagnoseConfig, Source) = load(path, Kind::Diagnosis)?;
         let name = match &raw.name {
             Some(n) => n.get_ref().trim().to_string(),
             None => path
