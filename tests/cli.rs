@@ -681,10 +681,73 @@ fn reported_standard_errors_match_monte_carlo_scatter_lines() {
 
 #[test]
 fn a_config_of_the_other_kind_is_explained() {
-    let o = htfid(&["diagnose", "configs/paper.toml", "--out", "/nonexistent/never"]);
+    let o = htfid(&[
+        "diagnose",
+        "configs/paper.toml",
+        "--out",
+        "/nonexistent/never",
+    ]);
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("this is an experiment config"), "{}", stderr(&o));
-    let o = htfid(&["run", "configs/silverbox.toml", "--out", "/nonexistent/never"]);
+    assert!(
+        stderr(&o).contains("this is an experiment config"),
+        "{}",
+        stderr(&o)
+    );
+    let o = htfid(&[
+        "run",
+        "configs/silverbox.toml",
+        "--out",
+        "/nonexistent/never",
+    ]);
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("run it with `htfid diagnose`"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("run it with `htfid diagnose`"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// `--truncate N` gives Wereley's truncated HTF, close to the exact one and closer as N grows.
+#[test]
+fn theory_truncate_converges_to_exact() {
+    let tmp = tempfile::tempdir().unwrap();
+    let read = |args: &[&str], name: &str| -> Vec<Vec<f64>> {
+        let out = tmp.path().join(name);
+        let mut all = vec![
+            "theory",
+            "configs/paper.toml",
+            "--omega",
+            "3,9,13.5,20",
+            "--no-plots",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        all.extend_from_slice(args);
+        let o = htfid(&all);
+        assert!(o.status.success(), "{}", stderr(&o));
+        fs::read_to_string(out.join("theory.csv"))
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect()
+    };
+    let exact = read(&[], "exact");
+    let max_g = exact.iter().map(|r| r[2].hypot(r[3])).fold(0.0, f64::max);
+    let err = |rows: &[Vec<f64>]| {
+        rows.iter()
+            .zip(&exact)
+            .map(|(a, b)| (a[2] - b[2]).hypot(a[3] - b[3]))
+            .fold(0.0, f64::max)
+            / max_g
+    };
+    let (e10, e40) = (
+        err(&read(&["--truncate", "10"], "t10")),
+        err(&read(&["--truncate", "40"], "t40")),
+    );
+    assert!(e10 < 1e-4, "N = 10: {e10}");
+    assert!(e40 < e10 / 10.0, "N = 40: {e40} vs N = 10: {e10}");
+    let s = summary(&tmp.path().join("t10"));
+    assert_eq!(s["htf"]["method"], "truncated");
+    assert_eq!(s["htf"]["truncation"], 10);
 }
