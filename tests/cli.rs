@@ -16,6 +16,17 @@ fn htfid(args: &[&str]) -> Output {
         .expect("the htfid binary runs")
 }
 
+/// Runs `htfid` and requires success, showing its stderr otherwise.
+fn htfid_ok(args: &[&str]) {
+    let o = htfid(args);
+    assert!(
+        o.status.success(),
+        "htfid {}: {}",
+        args.join(" "),
+        stderr(&o)
+    );
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -38,13 +49,12 @@ fn line_of(path: &Path, needle: &str) -> usize {
 fn simulate_writes_the_contracted_files() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sim");
-    let o = htfid(&[
+    htfid_ok(&[
         "simulate",
         "configs/paper.toml",
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     let ts = fs::read_to_string(out.join("timeseries.csv")).unwrap();
     assert!(
         ts.starts_with("t,f,x"),
@@ -100,8 +110,7 @@ fn existing_outputs_are_not_overwritten_unless_forced() {
         fs::read_to_string(out.join("summary.json")).unwrap(),
         "keep me"
     );
-    let o = htfid(&["simulate", "configs/paper.toml", "--out", out_s, "--force"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    htfid_ok(&["simulate", "configs/paper.toml", "--out", out_s, "--force"]);
     assert_ne!(
         fs::read_to_string(out.join("summary.json")).unwrap(),
         "keep me"
@@ -242,7 +251,7 @@ fn theory_csv_matches_the_independent_reference() {
         .collect::<Vec<_>>()
         .join(",");
     let out = tmp.path().join("th");
-    let o = htfid(&[
+    htfid_ok(&[
         "theory",
         "configs/paper.toml",
         "--omega",
@@ -251,7 +260,6 @@ fn theory_csv_matches_the_independent_reference() {
         out.to_str().unwrap(),
         "--no-plots",
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     let csv = fs::read_to_string(out.join("theory.csv")).unwrap();
     let mut lines = csv.lines();
     assert_eq!(lines.next().unwrap(), "omega,n,re,im");
@@ -287,8 +295,7 @@ fn theory_csv_matches_the_independent_reference() {
 fn run_paper_reproduces_the_papers_failure() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("paper");
-    let o = htfid(&["run", "configs/paper.toml", "--out", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    htfid_ok(&["run", "configs/paper.toml", "--out", out.to_str().unwrap()]);
     for f in [
         "timeseries.csv",
         "theory.csv",
@@ -332,14 +339,13 @@ fn run_paper_reproduces_the_papers_failure() {
 fn run_paper_improved_meets_its_targets() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("improved");
-    let o = htfid(&[
+    htfid_ok(&[
         "run",
         "configs/paper-improved.toml",
         "--out",
         out.to_str().unwrap(),
         "--no-plots",
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     let s = summary(&out);
     assert!(s["simulation"]["t_end"].as_f64().unwrap() - 30.0 <= 600.0 + 1e-9);
     for n in -3..=3 {
@@ -412,14 +418,13 @@ fn edited_chirp_band_runs() {
         "waveform = \"linear\"\nf_start_hz = 0.1\nf_end_hz = 7.0\nduration = 30.0\namplitude = 0.004",
     );
     let out = tmp.path().join("o");
-    let o = htfid(&[
+    htfid_ok(&[
         "run",
         cfg.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "--no-plots",
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     assert!(summary(&out)["fit"]["multi"]["k"].as_f64().unwrap() > 0.0);
 }
 
@@ -433,13 +438,12 @@ fn diagnosis(dir: &Path) -> serde_json::Value {
 fn diagnose_hopper_names_the_hidden_flight_damping() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("dh");
-    let o = htfid(&[
+    htfid_ok(&[
         "diagnose",
         "configs/diagnose-hopper.toml",
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     let d = diagnosis(&out);
     assert_eq!(d["cause"], "flight_damping");
     let c_f = d["parameters"]["c_f"].as_f64().unwrap();
@@ -474,13 +478,12 @@ fn diagnose_hopper_names_the_hidden_flight_damping() {
 fn hopper_truth_config_reproduces_the_committed_record() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("truth");
-    let o = htfid(&[
+    htfid_ok(&[
         "simulate",
         "configs/hopper-truth.toml",
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     let made: Vec<String> = fs::read_to_string(out.join("timeseries.csv"))
         .unwrap()
         .lines()
@@ -517,13 +520,12 @@ fn silverbox_is_diagnosed_as_cubic_stiffness() {
     );
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sb");
-    let o = htfid(&[
+    htfid_ok(&[
         "diagnose",
         "configs/silverbox.toml",
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", stderr(&o));
     let d = diagnosis(&out);
     assert_eq!(d["cause"], "cubic_stiffness");
     let nominal = d["nominal"]["rmse"].as_f64().unwrap();
@@ -628,14 +630,13 @@ fn stderr_matches_scatter(config: &str, estimator: &str, noise: f64) {
         )
         .unwrap();
         let out = tmp.path().join(format!("mc{seed}"));
-        let o = htfid(&[
+        htfid_ok(&[
             "run",
             cfg.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
             "--no-plots",
         ]);
-        assert!(o.status.success(), "{}", stderr(&o));
         runs.push(estimate_rows(&out, estimator));
     }
     let rows = runs[0].len();
