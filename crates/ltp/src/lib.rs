@@ -17,9 +17,14 @@
 //!   [`PiecewiseLti::liouville_determinant`].
 //! - Linearisation of a hybrid system about its limit cycle: [`linearise`] samples
 //!   `A(t), B(t), C(t), D(t)` along the orbit of any [`InputOutput`] system built on
-//!   `htfid-hybrid`, computes the saltation matrix at every [`Switch`], and builds the
-//!   piecewise-LTI approximation (one constant matrix set per chart, averaged over the
-//!   chart's interval; the saltations become the jumps). For the hopper the damper force
+//!   `htfid-hybrid` (one scalar input, [`InputOutput::num_outputs`] outputs: `C` is
+//!   `p x n`, `D` has length `p`), computes the saltation matrix at every [`Switch`], and
+//!   builds the piecewise-LTI approximation (one constant matrix set per chart, averaged over
+//!   the chart's interval; the saltations become the jumps), a `p`-output [`PiecewiseLti`]
+//!   whose SISO channels [`PiecewiseLti::channel`] selects. The approximation is exact when
+//!   every chart's matrices are constant along the orbit (the paper's hopper); when `A(t)`
+//!   varies within a chart, `htfid-theory`'s `OrbitHtf` integrates the linearisation along the
+//!   orbit instead. For the hopper the damper force
 //!   `c x'` vanishes on the switching surface `x' = 0`, so every saltation is the identity
 //!   and the clock-driven LTP model is exact to first order; a damper that engages at
 //!   `x' > v_th` makes the vector field jump at the switch and `S != I`.

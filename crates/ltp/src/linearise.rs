@@ -4,20 +4,25 @@
 
 use htfid_hybrid::{simulate, EventKind, HybridError, HybridSystem, Options};
 use htfid_orbit::{saltation, vector_field_jacobian, LimitCycle};
-use nalgebra::{DMatrix, DVector, RowDVector};
+use nalgebra::{DMatrix, DVector};
 
 use crate::{LtpError, Piece, PiecewiseLti};
 
-/// A hybrid system with one scalar input entering its vector field and one scalar output, as
-/// needed for its harmonic transfer functions.
+/// A hybrid system with one scalar input entering its vector field and `p` outputs, as needed
+/// for its harmonic transfer functions. Required: the input gain `B` and the output gain `C`;
+/// one output and no feedthrough by default.
 pub trait InputOutput: HybridSystem {
-    /// `B(t) = df/du` at `(mode, t, x)` with the input at zero, written into `b` (length `dim`).
+    /// `B(t) = df/du` at `(mode, t, x)` with the input at zero, into `b` (length `dim`).
     fn input_gain(&self, mode: Self::Mode, t: f64, x: &[f64], b: &mut [f64]);
-    /// `C = dy/dx` at `(mode, t, x)`, written into `c` (length `dim`).
+    /// Number of outputs `p` (default 1).
+    fn num_outputs(&self) -> usize {
+        1
+    }
+    /// `C = dy/dx`, row-major `p x dim`, into `c`.
     fn output_gain(&self, mode: Self::Mode, t: f64, x: &[f64], c: &mut [f64]);
-    /// `D = dy/du`; zero by default.
-    fn feedthrough(&self, _mode: Self::Mode, _t: f64, _x: &[f64]) -> f64 {
-        0.0
+    /// `D = dy/du`, length `p`, into `d`; zeros by default.
+    fn feedthrough(&self, _mode: Self::Mode, _t: f64, _x: &[f64], d: &mut [f64]) {
+        d.iter_mut().for_each(|v| *v = 0.0)
     }
 }
 
@@ -47,10 +52,10 @@ pub struct LinearSample<M> {
     pub a: DMatrix<f64>,
     /// `df/du`.
     pub b: DVector<f64>,
-    /// `dy/dx`.
-    pub c: RowDVector<f64>,
-    /// `dy/du`.
-    pub d: f64,
+    /// `dy/dx`, `p x dim`.
+    pub c: DMatrix<f64>,
+    /// `dy/du`, length `p`.
+    pub d: DVector<f64>,
 }
 
 /// The LTP model of a hybrid system about its limit cycle.
@@ -93,20 +98,22 @@ const GL_WEIGHTS: [f64; 8] = [
 ];
 
 fn sample_at<S: InputOutput>(sys: &S, mode: S::Mode, t: f64, x: &[f64]) -> LinearSample<S::Mode> {
-    let n = sys.dim();
+    let (n, p) = (sys.dim(), sys.num_outputs());
     let a = vector_field_jacobian(sys, mode, t, x);
     let mut b = vec![0.0; n];
-    let mut c = vec![0.0; n];
+    let mut c = vec![0.0; p * n];
+    let mut d = vec![0.0; p];
     sys.input_gain(mode, t, x, &mut b);
     sys.output_gain(mode, t, x, &mut c);
+    sys.feedthrough(mode, t, x, &mut d);
     LinearSample {
         t,
         mode,
         state: x.to_vec(),
         a,
         b: DVector::from_vec(b),
-        c: RowDVector::from_vec(c),
-        d: sys.feedthrough(mode, t, x),
+        c: DMatrix::from_row_slice(p, n, &c),
+        d: DVector::from_vec(d),
     }
 }
 
@@ -114,7 +121,9 @@ fn sample_at<S: InputOutput>(sys: &S, mode: S::Mode, t: f64, x: &[f64]) -> Linea
 ///
 /// `samples` equally spaced samples of `A(t), B(t), C(t), D(t)` are kept for inspection and
 /// FFT-based Fourier analysis; the piecewise-LTI model averages each chart's matrices over its
-/// interval with 8-point Gauss-Legendre quadrature.
+/// interval with 8-point Gauss-Legendre quadrature. The model has one input and
+/// [`InputOutput::num_outputs`] outputs (`C` is `p x n`, `D` is `p x 1`); select a SISO channel
+/// with [`PiecewiseLti::channel`].
 pub fn linearise<S: InputOutput>(
     sys: &S,
     cycle: &LimitCycle<S::Mode>,
@@ -178,7 +187,7 @@ pub fn linearise<S: InputOutput>(
     .map_err(|e: HybridError| LtpError::Integration(e.to_string()))?;
     let lookup = |t: f64| -> usize { grid.partition_point(|&g| g < t).min(grid.len() - 1) };
 
-    let n = sys.dim();
+    let (n, p) = (sys.dim(), sys.num_outputs());
     let mut pieces = Vec::with_capacity(starts.len());
     for (i, &a_time) in starts.iter().enumerate() {
         let b_time = starts.get(i + 1).copied().unwrap_or(starts[0] + period);
@@ -186,8 +195,8 @@ pub fn linearise<S: InputOutput>(
         let (mut a, mut b, mut c, mut d) = (
             DMatrix::zeros(n, n),
             DVector::zeros(n),
-            RowDVector::zeros(n),
-            0.0,
+            DMatrix::zeros(p, n),
+            DVector::zeros(p),
         );
         // The chart of the piece: the one the switch opening it enters.
         let mode = switches.get(i).map_or(cycle.mode0, |s| s.to);
@@ -207,9 +216,11 @@ pub fn linearise<S: InputOutput>(
             a += s.a * (0.5 * weight);
             b += s.b * (0.5 * weight);
             c += s.c * (0.5 * weight);
-            d += s.d * 0.5 * weight;
+            d += s.d * (0.5 * weight);
         }
-        let mut piece = Piece::siso(b_time - a_time, a, b, c, d);
+        let b = DMatrix::from_column_slice(n, 1, b.as_slice());
+        let d = DMatrix::from_column_slice(p, 1, d.as_slice());
+        let mut piece = Piece::new(b_time - a_time, a, b, c, d);
         if let Some(sw) = switches.get(i) {
             if !sw.saltation.is_identity(1e-14) {
                 piece = piece.with_jump(sw.saltation.clone());
@@ -233,4 +244,72 @@ pub fn linearise<S: InputOutput>(
         samples,
         piecewise,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use htfid_orbit::{find_limit_cycle, ShootingOptions};
+
+    /// `x' = -(1 + x^2) x + cos t + u`, outputs `y = (x, x^2 + 3 u)`: two outputs, feedthrough on
+    /// the second, `A` and `C` varying along the orbit.
+    struct TwoOutputs;
+
+    impl HybridSystem for TwoOutputs {
+        type Mode = ();
+        fn dim(&self) -> usize {
+            1
+        }
+        fn vector_field(&self, _: (), t: f64, x: &[f64], dx: &mut [f64]) {
+            dx[0] = -(1.0 + x[0] * x[0]) * x[0] + t.cos();
+        }
+    }
+
+    impl InputOutput for TwoOutputs {
+        fn input_gain(&self, _: (), _t: f64, _x: &[f64], b: &mut [f64]) {
+            b[0] = 1.0;
+        }
+        fn num_outputs(&self) -> usize {
+            2
+        }
+        fn output_gain(&self, _: (), _t: f64, x: &[f64], c: &mut [f64]) {
+            c[0] = 1.0;
+            c[1] = 2.0 * x[0];
+        }
+        fn feedthrough(&self, _: (), _t: f64, _x: &[f64], d: &mut [f64]) {
+            d[0] = 0.0;
+            d[1] = 3.0;
+        }
+    }
+
+    #[test]
+    fn several_outputs_give_a_multi_output_model() {
+        let opts = Options::default();
+        let cycle = find_limit_cycle(
+            &TwoOutputs,
+            (),
+            0.0,
+            &[0.0],
+            std::f64::consts::TAU,
+            &ShootingOptions::default(),
+            &opts,
+        )
+        .unwrap();
+        let lin = linearise(&TwoOutputs, &cycle, 8, &opts).unwrap();
+        let lti = &lin.piecewise;
+        assert_eq!((lti.n_inputs(), lti.n_outputs()), (1, 2));
+        let s = &lin.samples[3];
+        assert_eq!((s.c.shape(), s.d.len()), ((2, 1), 2));
+        assert!((s.c[(1, 0)] - 2.0 * s.state[0]).abs() < 1e-15);
+        assert!((s.a[(0, 0)] + 1.0 + 3.0 * s.state[0] * s.state[0]).abs() < 1e-8);
+        let piece = &lti.pieces()[0];
+        assert!((piece.d()[(1, 0)] - 3.0).abs() < 1e-14);
+        assert!(piece.d()[(0, 0)].abs() < 1e-15);
+        // The chart average of C_2 = 2 x over the orbit, by the samples' trapezoid rule.
+        let mean_x = lin.samples.iter().map(|s| s.state[0]).sum::<f64>() / 8.0;
+        assert!((piece.c()[(1, 0)] - 2.0 * mean_x).abs() < 1e-3);
+        let ch = lti.channel(1, 0).unwrap();
+        assert_eq!(ch.n_outputs(), 1);
+        assert!((ch.pieces()[0].d()[(0, 0)] - 3.0).abs() < 1e-14);
+    }
 }

@@ -300,7 +300,7 @@ impl htfid_ltp::InputOutput for Hopper {
         }
     }
 
-    /// The output is the position: `C = [1, 0]`.
+    /// One output, the position: `C = [1, 0]` (or `[1, 0, 0]`).
     fn output_gain(&self, _mode: HopperMode, _t: f64, _x: &[f64], c: &mut [f64]) {
         c.iter_mut().for_each(|v| *v = 0.0);
         c[0] = 1.0;

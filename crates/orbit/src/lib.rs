@@ -16,8 +16,15 @@
 //! a perturbation `dx` just before the event maps to `S dx` just after it, where
 //!
 //! ```text
-//! S = DR + (f_b(x+) - DR f_a(x-)) grad(h)^T / (grad(h) . f_a(x-) + dh/dt)
+//! S = DR + (f_b(x+) - DR f_a(x-) - dR/dt) grad(h)^T / (grad(h) . f_a(x-) + dh/dt)
 //! ```
+//!
+//! `dh/dt` and `dR/dt` are partial derivatives in time at fixed `x`: zero unless the guard or
+//! the reset moves with time (a ball hitting a vibrating table `h = y - A sin(w t)`, whose reset
+//! reads the table's velocity). `dh/dt` comes from
+//! [`HybridSystem::guard_time_derivative`](htfid_hybrid::HybridSystem::guard_time_derivative)
+//! where the system supplies it, `dR/dt` and every other missing derivative from central
+//! finite differences ([`guard_gradient`], [`reset_jacobian`]).
 //!
 //! With the identity reset and a vector field that is continuous across the switching surface
 //! (the hopper's damper force `c xd` vanishes on `xd = 0`), `f_b = f_a` there and `S = I`.

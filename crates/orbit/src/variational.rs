@@ -43,7 +43,9 @@ pub fn vector_field_jacobian<S: HybridSystem>(
 }
 
 /// Gradient of guard `index` of `mode` with respect to `x`, and its partial derivative with
-/// respect to time (always by finite differences).
+/// respect to time at fixed `x`: the system's own [`HybridSystem::guard_gradient`] and
+/// [`HybridSystem::guard_time_derivative`] where it supplies them, central finite differences
+/// otherwise.
 pub fn guard_gradient<S: HybridSystem>(
     sys: &S,
     mode: S::Mode,
@@ -65,8 +67,12 @@ pub fn guard_gradient<S: HybridSystem>(
             grad[j] = (gp - gm) / (2.0 * h);
         }
     }
-    let ht = fd_step(t);
-    let dhdt = (sys.guard(mode, index, t + ht, x) - sys.guard(mode, index, t - ht, x)) / (2.0 * ht);
+    let dhdt = sys
+        .guard_time_derivative(mode, index, t, x)
+        .unwrap_or_else(|| {
+            let ht = fd_step(t);
+            (sys.guard(mode, index, t + ht, x) - sys.guard(mode, index, t - ht, x)) / (2.0 * ht)
+        });
     (DVector::from_vec(grad), dhdt)
 }
 
@@ -100,10 +106,31 @@ pub fn reset_jacobian<S: HybridSystem>(
     out
 }
 
+/// `dR/dt` at fixed `x` by central differences: exactly zero when the reset ignores `t`.
+fn reset_time_derivative<S: HybridSystem>(
+    sys: &S,
+    mode: S::Mode,
+    index: usize,
+    t: f64,
+    x: &[f64],
+) -> DVector<f64> {
+    let h = fd_step(t);
+    let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
+    sys.transition(mode, index, t + h, &mut xp);
+    sys.transition(mode, index, t - h, &mut xm);
+    DVector::from_iterator(
+        x.len(),
+        xp.iter().zip(&xm).map(|(p, m)| (p - m) / (2.0 * h)),
+    )
+}
+
 /// The saltation matrix of the transition through guard `index` from chart `from` at time `t`,
 /// pre-event state `x_minus`. Returns the matrix and the post-event chart.
 ///
-/// `S = DR + (f_to(x+) - DR f_from(x-)) grad(h)^T / (grad(h) . f_from(x-) + dh/dt)`.
+/// `S = DR + (f_to(x+) - DR f_from(x-) - dR/dt) grad(h)^T / (grad(h) . f_from(x-) + dh/dt)`.
+/// `dR/dt` is the partial derivative of the reset with respect to time at fixed `x` (a reset
+/// that involves a moving surface's velocity, as for a ball hitting a vibrating table); it is
+/// taken by central differences in `t`, which give exactly zero for resets that do not read `t`.
 /// A transversality failure (denominator zero: a grazing trajectory) gives non-finite entries;
 /// callers see them through the `NonFiniteState` check of the integrator.
 pub fn saltation<S: HybridSystem>(
@@ -125,7 +152,7 @@ pub fn saltation<S: HybridSystem>(
     let f_plus = DVector::from_vec(f_plus);
     let (grad, dhdt) = guard_gradient(sys, from, index, t, x_minus);
     let denom = grad.dot(&f_minus) + dhdt;
-    let jump = &f_plus - &dr * &f_minus;
+    let jump = &f_plus - &dr * &f_minus - reset_time_derivative(sys, from, index, t, x_minus);
     let s = &dr + (jump * grad.transpose()) / denom;
     (s, to)
 }

@@ -76,6 +76,50 @@ pub enum TheoryError {
         /// The disagreeing period.
         second: f64,
     },
+    /// The limit cycle's state has the wrong length for the system.
+    #[error("the cycle's state has {found} entries, the system {expected} states")]
+    StateDimension {
+        /// The system's state dimension.
+        expected: usize,
+        /// Length of the cycle's state.
+        found: usize,
+    },
+    /// HTFs need at least one output.
+    #[error("the system has no outputs")]
+    NoOutputs,
+    /// A requested output does not exist.
+    #[error("output {output} out of range for a system with {n_outputs} outputs")]
+    OutputOutOfRange {
+        /// Requested output index.
+        output: usize,
+        /// Number of outputs of the system.
+        n_outputs: usize,
+    },
+    /// Integrating the variational equations over the limit cycle failed.
+    #[error("integration over the limit cycle failed: {0}")]
+    Orbit(String),
+    /// The limit cycle does not return to its start under the HTF's integrator options.
+    #[error("the cycle is not a periodic orbit of this system: |P(x0) - x0| = {residual:e} exceeds {tolerance:e} (a cycle of another system, or computed with the input on?)")]
+    NotPeriodic {
+        /// `|P(x0) - x0|_inf` over one period.
+        residual: f64,
+        /// The accepted residual.
+        tolerance: f64,
+    },
+    /// A frequency must be finite.
+    #[error("frequency must be finite (got {w})")]
+    InvalidFrequency {
+        /// The rejected frequency (rad per time unit).
+        w: f64,
+    },
+    /// Integrating the steady-state response to one input frequency failed.
+    #[error("integration of the response to input frequency {w_in} failed: {reason}")]
+    Integration {
+        /// Input frequency (rad per time unit).
+        w_in: f64,
+        /// The integrator's message.
+        reason: String,
+    },
     /// The truncation order is too large to build the harmonic state space.
     #[error("truncation order {harmonics} is too large (harmonic state space of size {size} exceeds {max})")]
     TruncationTooLarge {

@@ -1,0 +1,622 @@
+//! The compiled model: one type for simulation, orbits, linearisation and fits.
+
+use std::fmt;
+use std::path::Path;
+use std::sync::Arc;
+
+use htfid_expr::{Expr, Program};
+use htfid_hybrid::{Crossing, HybridSystem, Options};
+use htfid_orbit::{find_limit_cycle, LimitCycle, ShootingOptions};
+
+use crate::build::{build, ModelDef, Output, Parameter, State};
+use crate::error::ModelError;
+use crate::read::read;
+
+/// A time-varying input `u(t)` (absolute time).
+pub type InputFn = Arc<dyn Fn(f64) -> f64 + Send + Sync>;
+
+/// A mode (chart) of a model: an index into [`Model::modes`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Mode(pub(crate) u32);
+
+impl Mode {
+    /// Its index into [`Model::modes`].
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// The programs of a model for one set of parameter values (parameters folded in as
+/// constants). Every program reads the variables `[t, x_1..x_n, u]`.
+#[derive(Debug)]
+struct Compiled {
+    /// Per mode: `f` (n values).
+    flow: Vec<Program>,
+    /// Per mode: `df/dx` (n x n row-major) then `df/du` (n).
+    linear: Vec<Program>,
+    /// Per guard: `h`.
+    guard: Vec<Program>,
+    /// Per guard: `dh/dx` (n) then `dh/dt`.
+    guard_linear: Vec<Program>,
+    /// Per guard: the reset (n values) and its Jacobian (n x n), or `None` for the identity.
+    reset: Vec<Option<(Program, Program)>>,
+    /// Outputs (p values).
+    output: Program,
+    /// `dy/dx` (p x n row-major) then `dy/du` (p).
+    output_linear: Program,
+    period: Option<f64>,
+    /// `A, B, C, D` are constant within every mode (no dependence on `t` or the state).
+    piecewise_constant: bool,
+}
+
+/// A hybrid model written in the model language (or built in code), compiled for one set of
+/// parameter values. Cheap to clone; [`Model::with_parameters`] recompiles.
+#[derive(Clone)]
+pub struct Model {
+    def: Arc<ModelDef>,
+    values: Vec<f64>,
+    compiled: Arc<Compiled>,
+    input: Option<InputFn>,
+}
+
+impl fmt::Debug for Model {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Model")
+            .field("name", &self.def.name)
+            .field("states", &self.def.states)
+            .field("modes", &self.def.modes)
+            .field("parameters", &self.values)
+            .field("input", &self.input.as_ref().map(|_| "<fn>"))
+            .finish()
+    }
+}
+
+/// Variables of every program: `[t, x..., u]`, on the stack for small models.
+const STACK_VARS: usize = 32;
+
+fn with_vars<R>(t: f64, x: &[f64], u: f64, f: impl FnOnce(&[f64]) -> R) -> R {
+    let n = x.len();
+    if n + 2 <= STACK_VARS {
+        let mut buf = [0.0; STACK_VARS];
+        buf[0] = t;
+        buf[1..=n].copy_from_slice(x);
+        buf[n + 1] = u;
+        f(&buf[..n + 2])
+    } else {
+        let mut buf = Vec::with_capacity(n + 2);
+        buf.push(t);
+        buf.extend_from_slice(x);
+        buf.push(u);
+        f(&buf)
+    }
+}
+
+/// Evaluates a program with more outputs than the caller wants, into a stack buffer.
+fn with_outputs<R>(p: &Program, vars: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+    const STACK_OUT: usize = 256;
+    if p.len() <= STACK_OUT {
+        let mut buf = [0.0; STACK_OUT];
+        p.eval(vars, &mut buf[..p.len()]);
+        f(&buf[..p.len()])
+    } else {
+        let mut buf = vec![0.0; p.len()];
+        p.eval(vars, &mut buf);
+        f(&buf)
+    }
+}
+
+fn fold(e: &Expr, params: &[Parameter], values: &[f64]) -> Expr {
+    let mut out = e.clone();
+    for (p, &v) in params.iter().zip(values) {
+        if out.depends_on(&p.name) {
+            out = out.substitute(&p.name, &Expr::constant(v));
+        }
+    }
+    out.simplify()
+}
+
+fn constant_in_mode(exprs: &[Expr], vars: &[&str], input: &str) -> bool {
+    // Constant within a mode: no time, no state; an input term is linear-affine and its
+    // derivative no longer depends on it only if it does not appear.
+    exprs.iter().all(|e| {
+        !e.depends_on("t") && !e.depends_on(input) && vars.iter().all(|v| !e.depends_on(v))
+    })
+}
+
+impl Compiled {
+    fn new(def: &ModelDef, values: &[f64]) -> Result<Compiled, ModelError> {
+        let n = def.states.len();
+        let names: Vec<&str> = std::iter::once("t")
+            .chain(def.states.iter().map(|s| s.name.as_str()))
+            .chain(std::iter::once(def.input.as_str()))
+            .collect();
+        let state_names: Vec<&str> = def.states.iter().map(|s| s.name.as_str()).collect();
+        let p = &def.params;
+        let compile = |exprs: &[Expr]| -> Result<Program, ModelError> {
+            Program::compile(exprs, &names).map_err(|e| ModelError::Invalid {
+                location: Default::default(),
+                key: def.name.clone(),
+                message: format!("internal: a resolved expression failed to compile: {e}"),
+            })
+        };
+        let mut piecewise_constant = true;
+        let (mut flow, mut linear) = (Vec::new(), Vec::new());
+        for f in &def.flows {
+            let folded: Vec<Expr> = f.iter().map(|e| fold(e, p, values)).collect();
+            let mut lin = Vec::with_capacity(n * n + n);
+            for fi in &folded {
+                for s in &state_names {
+                    lin.push(fi.derivative(s));
+                }
+            }
+            for fi in &folded {
+                lin.push(fi.derivative(&def.input));
+            }
+            piecewise_constant &= constant_in_mode(&lin, &state_names, &def.input);
+            flow.push(compile(&folded)?);
+            linear.push(compile(&lin)?);
+        }
+        let (mut guard, mut guard_linear, mut reset) = (Vec::new(), Vec::new(), Vec::new());
+        for g in &def.guards {
+            let h = fold(&g.when, p, values);
+            let mut lin: Vec<Expr> = state_names.iter().map(|s| h.derivative(s)).collect();
+            lin.push(h.derivative("t"));
+            guard.push(compile(std::slice::from_ref(&h))?);
+            guard_linear.push(compile(&lin)?);
+            reset.push(match &g.reset {
+                None => None,
+                Some(r) => {
+                    let folded: Vec<Expr> = r.iter().map(|e| fold(e, p, values)).collect();
+                    let mut jac = Vec::with_capacity(n * n);
+                    for ri in &folded {
+                        for s in &state_names {
+                            jac.push(ri.derivative(s));
+                        }
+                    }
+                    Some((compile(&folded)?, compile(&jac)?))
+                }
+            });
+        }
+        let outs: Vec<Expr> = def
+            .outputs
+            .iter()
+            .map(|o| fold(&o.expr, p, values))
+            .collect();
+        let mut olin = Vec::with_capacity(outs.len() * (n + 1));
+        for o in &outs {
+            for s in &state_names {
+                olin.push(o.derivative(s));
+            }
+        }
+        for o in &outs {
+            olin.push(o.derivative(&def.input));
+        }
+        piecewise_constant &= constant_in_mode(&olin, &state_names, &def.input);
+        let period = match &def.period {
+            Some(e) => {
+                let v = fold(e, p, values).as_constant().unwrap_or(f64::NAN);
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(ModelError::Invalid {
+                        location: Default::default(),
+                        key: "forcing.period".into(),
+                        message: format!("must be > 0 and finite (got {v})"),
+                    });
+                }
+                Some(v)
+            }
+            None => None,
+        };
+        Ok(Compiled {
+            flow,
+            linear,
+            guard,
+            guard_linear,
+            reset,
+            output: compile(&outs)?,
+            output_linear: compile(&olin)?,
+            period,
+            piecewise_constant,
+        })
+    }
+}
+
+impl Model {
+    /// Reads a model file (its whole document is the model).
+    pub fn from_file(path: &Path) -> Result<Model, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ModelError::Io {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Model::from_document(&text, Some(path), &[])
+    }
+
+    /// Reads a model from TOML text (the whole document is the model).
+    pub fn parse(text: &str) -> Result<Model, ModelError> {
+        Model::from_document(text, None, &[])
+    }
+
+    /// Reads the model held in the table at `table_path` of a TOML document (for example
+    /// `["model"]` for a model written inline in an experiment config). `path` only labels
+    /// error messages.
+    pub fn from_document(
+        text: &str,
+        path: Option<&Path>,
+        table_path: &[&str],
+    ) -> Result<Model, ModelError> {
+        let (spec, src) = read(text, path, table_path)?;
+        let def = build(&spec, &src)?;
+        let values: Vec<f64> = def.params.iter().map(|p| p.value).collect();
+        let compiled = Compiled::new(&def, &values)?;
+        let model = Model {
+            def: Arc::new(def),
+            values,
+            compiled: Arc::new(compiled),
+            input: None,
+        };
+        model.check_signals_periodic(&src)?;
+        Ok(model)
+    }
+
+    fn check_signals_periodic(&self, src: &crate::read::Source) -> Result<(), ModelError> {
+        let Some(period) = self.compiled.period else {
+            return Ok(());
+        };
+        for (name, e) in &self.def.signals {
+            let folded = fold(e, &self.def.params, &self.values);
+            let program = Program::compile(std::slice::from_ref(&folded), &["t"]).map_err(|e| {
+                src.invalid(None, &format!("forcing.signals.{name}"), e.to_string())
+            })?;
+            for i in 0..7 {
+                let t = period * (0.137 + 0.711 * i as f64);
+                let (a, b) = (
+                    program.eval_one(0, &[t]),
+                    program.eval_one(0, &[t + period]),
+                );
+                if (a - b).abs() > 1e-9 * (1.0 + a.abs().max(b.abs())) {
+                    return Err(src.invalid(
+                        None,
+                        &format!("forcing.signals.{name}"),
+                        format!(
+                            "is not periodic with the forcing period {period}: \
+                             {name}({t:.4}) = {a:.6e} but {name}({:.4}) = {b:.6e}",
+                            t + period
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The model's name.
+    pub fn name(&self) -> &str {
+        &self.def.name
+    }
+
+    /// Its description, when given.
+    pub fn description(&self) -> Option<&str> {
+        self.def.description.as_deref()
+    }
+
+    /// The states, in order.
+    pub fn states(&self) -> &[State] {
+        &self.def.states
+    }
+
+    /// The parameters as declared (their declared values; see [`Model::values`]).
+    pub fn parameters(&self) -> &[Parameter] {
+        &self.def.params
+    }
+
+    /// The current parameter values, in the order of [`Model::parameters`].
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// The index of parameter `name`.
+    pub fn parameter_index(&self, name: &str) -> Option<usize> {
+        self.def.params.iter().position(|p| p.name == name)
+    }
+
+    /// The current value of parameter `name`.
+    pub fn parameter(&self, name: &str) -> Option<f64> {
+        self.parameter_index(name).map(|i| self.values[i])
+    }
+
+    /// The same model with some parameters changed (checked against their bounds) and
+    /// recompiled.
+    pub fn with_parameters(&self, changes: &[(&str, f64)]) -> Result<Model, ModelError> {
+        let mut values = self.values.clone();
+        for &(name, v) in changes {
+            let Some(i) = self.parameter_index(name) else {
+                let names: Vec<&str> = self.def.params.iter().map(|p| p.name.as_str()).collect();
+                return Err(ModelError::Parameter {
+                    name: name.to_string(),
+                    message: format!(
+                        "the model has no such parameter{}; parameters: {}",
+                        crate::read::suggestion(name, names.iter().copied()),
+                        names.join(", ")
+                    ),
+                });
+            };
+            values[i] = v;
+        }
+        self.with_values(&values)
+    }
+
+    /// The same model with all parameter values replaced (in the order of
+    /// [`Model::parameters`]), checked against their bounds.
+    pub fn with_values(&self, values: &[f64]) -> Result<Model, ModelError> {
+        if values.len() != self.def.params.len() {
+            return Err(ModelError::Parameter {
+                name: "*".into(),
+                message: format!(
+                    "expected {} values, got {}",
+                    self.def.params.len(),
+                    values.len()
+                ),
+            });
+        }
+        for (p, &v) in self.def.params.iter().zip(values) {
+            if !v.is_finite() || v < p.min || v > p.max {
+                return Err(ModelError::Parameter {
+                    name: p.name.clone(),
+                    message: format!(
+                        "value {v} is outside its bounds [{}, {}] or not finite",
+                        p.min, p.max
+                    ),
+                });
+            }
+        }
+        let compiled = Compiled::new(&self.def, values)?;
+        Ok(Model {
+            def: self.def.clone(),
+            values: values.to_vec(),
+            compiled: Arc::new(compiled),
+            input: self.input.clone(),
+        })
+    }
+
+    /// The same model driven by `u(t)` (`None`: no input).
+    pub fn with_input(&self, input: Option<InputFn>) -> Model {
+        Model {
+            input,
+            ..self.clone()
+        }
+    }
+
+    /// The input's name in expressions (`u` unless declared otherwise).
+    pub fn input_name(&self) -> &str {
+        &self.def.input
+    }
+
+    /// The input's unit, when declared.
+    pub fn input_unit(&self) -> Option<&str> {
+        self.def.input_unit.as_deref()
+    }
+
+    /// The mode names; [`Mode::index`] indexes this list.
+    pub fn modes(&self) -> &[String] {
+        &self.def.modes
+    }
+
+    /// The mode named `name`.
+    pub fn mode(&self, name: &str) -> Option<Mode> {
+        self.def
+            .modes
+            .iter()
+            .position(|m| m == name)
+            .map(|i| Mode(i as u32))
+    }
+
+    /// The name of a mode.
+    pub fn mode_name(&self, mode: Mode) -> &str {
+        &self.def.modes[mode.index()]
+    }
+
+    /// The guards' names, in declaration order.
+    pub fn guard_names(&self) -> Vec<&str> {
+        self.def.guards.iter().map(|g| g.name.as_str()).collect()
+    }
+
+    /// The name of guard `index` of `mode` (the index the integrator reports in events).
+    pub fn guard_name(&self, mode: Mode, index: usize) -> &str {
+        &self.def.guards[self.def.guards_of[mode.index()][index]].name
+    }
+
+    /// The outputs.
+    pub fn outputs(&self) -> &[Output] {
+        &self.def.outputs
+    }
+
+    /// The forcing period, when the model declares `[forcing]`.
+    pub fn period(&self) -> Option<f64> {
+        self.compiled.period
+    }
+
+    /// The starting mode for orbit searches (`[initial] mode`, else the first mode).
+    pub fn initial_mode(&self) -> Mode {
+        Mode(self.def.initial_mode as u32)
+    }
+
+    /// The starting state for orbit searches (`[initial]`, zeros elsewhere).
+    pub fn initial_state(&self) -> &[f64] {
+        &self.def.initial_state
+    }
+
+    /// Whether the linearisation `A, B, C, D` is constant within every mode, so that the
+    /// exact piecewise-LTI HTF applies (the hopper); otherwise the general periodic-response
+    /// HTF is needed.
+    pub fn is_piecewise_constant(&self) -> bool {
+        self.compiled.piecewise_constant
+    }
+
+    fn u(&self, t: f64) -> f64 {
+        self.input.as_ref().map_or(0.0, |u| u(t))
+    }
+
+    /// The outputs `y` at `(mode, t, x)` with input value `u`, into `y` (length p).
+    pub fn eval_outputs(&self, _mode: Mode, t: f64, x: &[f64], u: f64, y: &mut [f64]) {
+        with_vars(t, x, u, |v| self.compiled.output.eval(v, y));
+    }
+
+    /// Settles onto the forced periodic orbit with the input off and refines it by Newton
+    /// shooting, starting from [`Model::initial_state`] in [`Model::initial_mode`].
+    pub fn limit_cycle(
+        &self,
+        shooting: &ShootingOptions,
+        opts: &Options,
+    ) -> Result<LimitCycle<Mode>, ModelError> {
+        self.limit_cycle_from(self.initial_mode(), self.initial_state(), shooting, opts)
+    }
+
+    /// As [`Model::limit_cycle`] from a given mode and state (for example a nearby orbit).
+    pub fn limit_cycle_from(
+        &self,
+        mode: Mode,
+        x0: &[f64],
+        shooting: &ShootingOptions,
+        opts: &Options,
+    ) -> Result<LimitCycle<Mode>, ModelError> {
+        let period = self.period().ok_or(ModelError::NoPeriod)?;
+        let unforced = self.with_input(None);
+        Ok(find_limit_cycle(
+            &unforced, mode, 0.0, x0, period, shooting, opts,
+        )?)
+    }
+}
+
+impl HybridSystem for Model {
+    type Mode = Mode;
+
+    fn dim(&self) -> usize {
+        self.def.states.len()
+    }
+
+    fn vector_field(&self, mode: Mode, t: f64, x: &[f64], dxdt: &mut [f64]) {
+        let u = self.u(t);
+        with_vars(t, x, u, |v| self.compiled.flow[mode.index()].eval(v, dxdt));
+    }
+
+    fn num_guards(&self, mode: Mode) -> usize {
+        self.def.guards_of[mode.index()].len()
+    }
+
+    fn guard(&self, mode: Mode, index: usize, t: f64, x: &[f64]) -> f64 {
+        let g = self.def.guards_of[mode.index()][index];
+        let u = self.u(t);
+        with_vars(t, x, u, |v| self.compiled.guard[g].eval_one(0, v))
+    }
+
+    fn guard_direction(&self, mode: Mode, index: usize) -> Crossing {
+        self.def.guards[self.def.guards_of[mode.index()][index]].direction
+    }
+
+    fn transition(&self, mode: Mode, index: usize, t: f64, x: &mut [f64]) -> Mode {
+        let g = self.def.guards_of[mode.index()][index];
+        if let Some((reset, _)) = &self.compiled.reset[g] {
+            let u = self.u(t);
+            let n = x.len();
+            let mut out = [0.0; STACK_VARS];
+            if n <= STACK_VARS {
+                with_vars(t, x, u, |v| reset.eval(v, &mut out[..n]));
+                x.copy_from_slice(&out[..n]);
+            } else {
+                let mut out = vec![0.0; n];
+                with_vars(t, x, u, |v| reset.eval(v, &mut out));
+                x.copy_from_slice(&out);
+            }
+        }
+        Mode(self.def.guards[g].to as u32)
+    }
+
+    fn jacobian(&self, mode: Mode, t: f64, x: &[f64], jac: &mut [f64]) -> bool {
+        let n = x.len();
+        let u = self.u(t);
+        with_vars(t, x, u, |v| {
+            with_outputs(&self.compiled.linear[mode.index()], v, |out| {
+                jac.copy_from_slice(&out[..n * n]);
+            })
+        });
+        true
+    }
+
+    fn guard_gradient(
+        &self,
+        mode: Mode,
+        index: usize,
+        t: f64,
+        x: &[f64],
+        grad: &mut [f64],
+    ) -> bool {
+        let g = self.def.guards_of[mode.index()][index];
+        let n = x.len();
+        let u = self.u(t);
+        with_vars(t, x, u, |v| {
+            with_outputs(&self.compiled.guard_linear[g], v, |out| {
+                grad.copy_from_slice(&out[..n]);
+            })
+        });
+        true
+    }
+
+    fn guard_time_derivative(&self, mode: Mode, index: usize, t: f64, x: &[f64]) -> Option<f64> {
+        let g = self.def.guards_of[mode.index()][index];
+        let n = x.len();
+        let u = self.u(t);
+        Some(with_vars(t, x, u, |v| {
+            self.compiled.guard_linear[g].eval_one(n, v)
+        }))
+    }
+
+    fn reset_jacobian(&self, mode: Mode, index: usize, t: f64, x: &[f64], jac: &mut [f64]) -> bool {
+        let g = self.def.guards_of[mode.index()][index];
+        let n = x.len();
+        match &self.compiled.reset[g] {
+            None => {
+                jac.iter_mut().for_each(|v| *v = 0.0);
+                for i in 0..n {
+                    jac[i * n + i] = 1.0;
+                }
+            }
+            Some((_, rj)) => {
+                let u = self.u(t);
+                with_vars(t, x, u, |v| rj.eval(v, jac));
+            }
+        }
+        true
+    }
+}
+
+impl htfid_ltp::InputOutput for Model {
+    fn input_gain(&self, mode: Mode, t: f64, x: &[f64], b: &mut [f64]) {
+        let n = x.len();
+        with_vars(t, x, 0.0, |v| {
+            with_outputs(&self.compiled.linear[mode.index()], v, |out| {
+                b.copy_from_slice(&out[n * n..n * n + n]);
+            })
+        });
+    }
+
+    fn num_outputs(&self) -> usize {
+        self.def.outputs.len()
+    }
+
+    fn output_gain(&self, _mode: Mode, t: f64, x: &[f64], c: &mut [f64]) {
+        let (n, p) = (x.len(), self.def.outputs.len());
+        with_vars(t, x, 0.0, |v| {
+            with_outputs(&self.compiled.output_linear, v, |out| {
+                c.copy_from_slice(&out[..p * n]);
+            })
+        });
+    }
+
+    fn feedthrough(&self, _mode: Mode, t: f64, x: &[f64], d: &mut [f64]) {
+        let (n, p) = (x.len(), self.def.outputs.len());
+        with_vars(t, x, 0.0, |v| {
+            with_outputs(&self.compiled.output_linear, v, |out| {
+                d.copy_from_slice(&out[p * n..p * n + p]);
+            })
+        });
+    }
+}
