@@ -74,6 +74,22 @@ pub trait HybridSystem {
         None
     }
 
+    /// Partial derivative `dR/dt` (at fixed `x`) of the reset map of guard `index` of `mode`,
+    /// written into `out` (length `dim`). Returns `false` (the default) when not provided;
+    /// `htfid-orbit` then takes a central difference in `t`, exactly zero for resets that do
+    /// not read `t`. A reset that reads a moving surface's velocity (a ball hitting a vibrating
+    /// table) needs it in its saltation matrix. The integrator itself never calls it.
+    fn reset_time_derivative(
+        &self,
+        _mode: Self::Mode,
+        _index: usize,
+        _t: f64,
+        _x: &[f64],
+        _out: &mut [f64],
+    ) -> bool {
+        false
+    }
+
     /// Crossing direction of guard `index` of `mode`.
     fn guard_direction(&self, _mode: Self::Mode, _index: usize) -> Crossing {
         Crossing::Either

@@ -38,7 +38,8 @@ struct Compiled {
     guard: Vec<Program>,
     /// Per guard: `dh/dx` (n) then `dh/dt`.
     guard_linear: Vec<Program>,
-    /// Per guard: the reset (n values) and its Jacobian (n x n), or `None` for the identity.
+    /// Per guard: the reset (n values) and its Jacobian (n x n) followed by its time
+    /// derivative (n), or `None` for the identity.
     reset: Vec<Option<(Program, Program)>>,
     /// Outputs (p values).
     output: Program,
@@ -172,6 +173,9 @@ impl Compiled {
                         for s in &state_names {
                             jac.push(ri.derivative(s));
                         }
+                    }
+                    for ri in &folded {
+                        jac.push(ri.derivative("t"));
                     }
                     Some((compile(&folded)?, compile(&jac)?))
                 }
@@ -581,7 +585,31 @@ impl HybridSystem for Model {
             }
             Some((_, rj)) => {
                 let u = self.u(t);
-                with_vars(t, x, u, |v| rj.eval(v, jac));
+                with_vars(t, x, u, |v| {
+                    with_outputs(rj, v, |out| jac.copy_from_slice(&out[..n * n]))
+                });
+            }
+        }
+        true
+    }
+
+    fn reset_time_derivative(
+        &self,
+        mode: Mode,
+        index: usize,
+        t: f64,
+        x: &[f64],
+        out: &mut [f64],
+    ) -> bool {
+        let g = self.def.guards_of[mode.index()][index];
+        let n = x.len();
+        match &self.compiled.reset[g] {
+            None => out.iter_mut().for_each(|v| *v = 0.0),
+            Some((_, rj)) => {
+                let u = self.u(t);
+                with_vars(t, x, u, |v| {
+                    with_outputs(rj, v, |all| out.copy_from_slice(&all[n * n..n * n + n]))
+                });
             }
         }
         true

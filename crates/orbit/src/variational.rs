@@ -106,7 +106,8 @@ pub fn reset_jacobian<S: HybridSystem>(
     out
 }
 
-/// `dR/dt` at fixed `x` by central differences: exactly zero when the reset ignores `t`.
+/// `dR/dt` at fixed `x`: the system's own where it supplies it, else central differences
+/// (exactly zero when the reset ignores `t`).
 fn reset_time_derivative<S: HybridSystem>(
     sys: &S,
     mode: S::Mode,
@@ -114,6 +115,10 @@ fn reset_time_derivative<S: HybridSystem>(
     t: f64,
     x: &[f64],
 ) -> DVector<f64> {
+    let mut exact = vec![0.0; x.len()];
+    if sys.reset_time_derivative(mode, index, t, x, &mut exact) {
+        return DVector::from_vec(exact);
+    }
     let h = fd_step(t);
     let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
     sys.transition(mode, index, t + h, &mut xp);
