@@ -588,6 +588,10 @@ fn every_shipped_config_is_run_by_a_test() {
         "hopper-truth.toml",
         "diagnose-hopper.toml",
         "silverbox.toml",
+        "bouncing-ball.toml",
+        "flight-hopper.toml",
+        "two-dof.toml",
+        "closed-loop-friction.toml",
     ];
     let this = fs::read_to_string(root().join("tests/cli.rs")).unwrap();
     for entry in fs::read_dir(root().join("configs")).unwrap() {
@@ -751,4 +755,207 @@ fn theory_truncate_converges_to_exact() {
     let s = summary(&tmp.path().join("t10"));
     assert_eq!(s["htf"]["method"], "truncated");
     assert_eq!(s["htf"]["truncation"], 10);
+}
+
+/// Reads a theory CSV (`omega,n,re,im`) into `(omega, n) -> G`.
+fn theory_rows(path: &Path) -> Vec<(f64, i32, f64, f64)> {
+    let text = fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("omega,n,re,im"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1] as i32, v[2], v[3])
+        })
+        .collect()
+}
+
+/// Every model-language config simulates and gives its HTFs; the HTFs of every output agree
+/// with the independent oracle of `tests/oracle/models` (numpy/scipy, written from the
+/// equations alone) at its frequencies, to 1e-7 of max |G| (both are exact up to integrator
+/// error; the oracle's own methods agree to about 1e-10).
+#[test]
+fn model_configs_simulate_and_match_the_oracle_htfs() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (config, oracle, outputs) in [
+        (
+            "configs/bouncing-ball.toml",
+            "bouncing_ball.json",
+            &["y"][..],
+        ),
+        (
+            "configs/flight-hopper.toml",
+            "flight_hopper.json",
+            &["y"][..],
+        ),
+        ("configs/two-dof.toml", "two_dof.json", &["x1", "x2"][..]),
+        (
+            "configs/closed-loop-friction.toml",
+            "closed_loop_friction.json",
+            &["x"][..],
+        ),
+    ] {
+        let sim = tmp.path().join("sim");
+        htfid_ok(&[
+            "simulate",
+            config,
+            "--out",
+            sim.to_str().unwrap(),
+            "--force",
+        ]);
+        let s = summary(&sim);
+        assert!(
+            s["simulation"]["samples"].as_u64().unwrap() > 10_000,
+            "{config}"
+        );
+        let header = fs::read_to_string(sim.join("timeseries.csv")).unwrap();
+        let header = header.lines().next().unwrap().to_string();
+        for o in outputs {
+            assert!(header.split(',').any(|c| c == *o), "{config}: {header}");
+        }
+
+        let reference: serde_json::Value = serde_json::from_str(
+            &fs::read_to_string(root().join("tests/oracle/models").join(oracle)).unwrap(),
+        )
+        .unwrap();
+        let rows = reference["htf"].as_array().unwrap();
+        let mut omegas: Vec<f64> = rows.iter().map(|r| r["omega"].as_f64().unwrap()).collect();
+        omegas.sort_by(f64::total_cmp);
+        omegas.dedup();
+        let list: Vec<String> = omegas.iter().map(|w| format!("{w:.17e}")).collect();
+        let th = tmp.path().join("theory");
+        htfid_ok(&[
+            "theory",
+            config,
+            "--omega",
+            &list.join(","),
+            "--out",
+            th.to_str().unwrap(),
+            "--force",
+            "--no-plots",
+        ]);
+        for (k, name) in outputs.iter().enumerate() {
+            let file = if outputs.len() > 1 {
+                th.join(format!("theory_{name}.csv"))
+            } else {
+                th.join("theory.csv")
+            };
+            let ours = theory_rows(&file);
+            let want: Vec<&serde_json::Value> = rows
+                .iter()
+                .filter(|r| r["output"].as_u64() == Some(k as u64))
+                .collect();
+            let scale = want
+                .iter()
+                .map(|r| r["re"].as_f64().unwrap().hypot(r["im"].as_f64().unwrap()))
+                .fold(0.0, f64::max);
+            for r in want {
+                let (w, n) = (
+                    r["omega"].as_f64().unwrap(),
+                    r["n"].as_i64().unwrap() as i32,
+                );
+                let row = ours
+                    .iter()
+                    .find(|x| x.1 == n && (x.0 - w).abs() < 1e-12 * w)
+                    .unwrap_or_else(|| panic!("{config}: no row for w {w}, n {n}"));
+                let err =
+                    (row.2 - r["re"].as_f64().unwrap()).hypot(row.3 - r["im"].as_f64().unwrap());
+                assert!(
+                    err < 1e-7 * scale,
+                    "{config} {name} w {w} n {n}: {err:e} of {scale:e}"
+                );
+            }
+        }
+    }
+}
+
+/// Mistakes in a config that names a model file are located; nothing is written.
+#[test]
+fn model_config_errors_are_located() {
+    let tmp = tempfile::tempdir().unwrap();
+    let base = fs::read_to_string(root().join("configs/two-dof.toml")).unwrap();
+    let models = root().join("models");
+    let base = base.replace(
+        "file = \"../models/two-dof.toml\"",
+        &format!("file = {:?}", models.join("two-dof.toml").to_str().unwrap()),
+    );
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "[simulation]",
+            "[model.parameters]\nk99 = 1.0\n\n[simulation]",
+            &["model.parameters", "k99", "no such parameter"],
+        ),
+        (
+            "[simulation]",
+            "[model.parameters]\nc1 = -2.0\n\n[simulation]",
+            &["model.parameters", "c1", "outside its bounds"],
+        ),
+        (
+            "# [model.parameters]",
+            "k = 3.0\n# [model.parameters]",
+            &["model.k", "is not used with a model-language model"],
+        ),
+        (
+            "[simulation]",
+            "[forcing]\namplitude = 1.0\nperiod = 1.0\n\n[simulation]",
+            &["forcing", "part of the model"],
+        ),
+    ];
+    for (from, to, needles) in cases {
+        let path = tmp.path().join("edited.toml");
+        fs::write(&path, base.replacen(from, to, 1)).unwrap();
+        let out = tmp.path().join("out");
+        let o = htfid(&[
+            "simulate",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{to}");
+        let err = stderr(&o);
+        for n in *needles {
+            assert!(err.contains(n), "{to}: {err}");
+        }
+        assert!(!out.exists() || fs::read_dir(&out).unwrap().next().is_none());
+    }
+    // A mistake inside the model file is reported at its line and column there.
+    let model = fs::read_to_string(models.join("two-dof.toml"))
+        .unwrap()
+        .replace("- c1 * v1 + f0", "- c1 * vv1 + f0");
+    let model_path = tmp.path().join("broken-model.toml");
+    fs::write(&model_path, &model).unwrap();
+    let path = tmp.path().join("edited.toml");
+    fs::write(
+        &path,
+        base.replace(
+            &format!("{:?}", models.join("two-dof.toml").to_str().unwrap()),
+            &format!("{:?}", model_path.to_str().unwrap()),
+        ),
+    )
+    .unwrap();
+    let o = htfid(&[
+        "simulate",
+        path.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o2").to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    let line = line_of(&model_path, "vv1");
+    assert!(
+        err.contains(&format!("broken-model.toml:{line}:")) && err.contains("unknown name `vv1`"),
+        "{err}"
+    );
+    // `run` says plainly that it takes the built-in hopper only for now.
+    let o = htfid(&[
+        "run",
+        "configs/two-dof.toml",
+        "--out",
+        tmp.path().join("o3").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("`htfid run` takes the built-in hopper"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -19,7 +19,7 @@ type OptNum = Option<Spanned<f64>>;
 pub struct RawConfig {
     pub name: Option<Spanned<String>>,
     pub model: RawModel,
-    pub forcing: RawForcing,
+    pub forcing: Option<RawForcing>,
     #[serde(default)]
     pub simulation: RawSimulation,
     pub excitation: Option<RawExcitation>,
@@ -120,12 +120,41 @@ pub struct RawEstimation {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RawModel {
-    pub m: Num,
-    pub k: Num,
-    pub c: Num,
-    pub g: Num,
-    pub x0: Num,
+    // The built-in hopper.
+    pub m: OptNum,
+    pub k: OptNum,
+    pub c: OptNum,
+    pub g: OptNum,
+    pub x0: OptNum,
     pub damper: Option<Spanned<String>>,
+    // A model-language model: a file (relative to the config) with parameter overrides, or
+    // the model written inline (read by htfid-lang, which locates its own errors).
+    pub file: Option<Spanned<String>>,
+    pub parameters: Option<Spanned<toml::Table>>,
+    pub name: Option<toml::Value>,
+    pub description: Option<toml::Value>,
+    pub states: Option<toml::Value>,
+    pub input: Option<toml::Value>,
+    pub forcing: Option<toml::Value>,
+    pub definitions: Option<toml::Value>,
+    pub flow: Option<toml::Value>,
+    pub modes: Option<toml::Value>,
+    pub guards: Option<toml::Value>,
+    pub outputs: Option<toml::Value>,
+    pub initial: Option<toml::Value>,
+}
+
+/// The system an experiment is about.
+#[derive(Debug, Clone)]
+pub enum System {
+    /// The built-in hopper (`[model] m = ..., k = ...` with `[forcing]`).
+    Hopper {
+        params: HopperParams,
+        damper: DamperLaw,
+        effects: Effects,
+    },
+    /// A model written in the model language (`[model] file = "..."`, or inline).
+    Model(Box<htfid_lang::Model>),
 }
 
 #[derive(Debug, Deserialize)]
@@ -182,9 +211,9 @@ pub struct RawTheory {
 pub struct Settings {
     pub name: String,
     pub path: PathBuf,
-    pub params: HopperParams,
-    pub damper: DamperLaw,
-    pub effects: Effects,
+    pub system: System,
+    /// The forcing period, s.
+    pub period: f64,
     pub settle_periods: usize,
     pub sample_rate: f64,
     pub integrator: Options,
@@ -352,22 +381,16 @@ impl Settings {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "experiment".into()),
         };
-        let m = &raw.model;
-        let params = HopperParams {
-            m: src.positive(&m.m, "model.m")?,
-            k: src.positive(&m.k, "model.k")?,
-            c: src.non_negative(&m.c, "model.c")?,
-            g: src.finite(&m.g, "model.g")?,
-            x0: src.finite(&m.x0, "model.x0")?,
-            forcing_amplitude: src.finite(&raw.forcing.amplitude, "forcing.amplitude")?,
-            period: src.positive(&raw.forcing.period, "forcing.period")?,
-        };
-        let damper = match &m.damper {
-            None => DamperLaw::Switching,
-            Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
-                "always_on" => DamperLaw::AlwaysOn,
-                _ => DamperLaw::Switching,
-            },
+        let system = resolve_system(src, &raw)?;
+        let period = match &system {
+            System::Hopper { params, .. } => params.period,
+            System::Model(model) => model.period().ok_or_else(|| {
+                src.error(
+                    None,
+                    "model",
+                    "the model has no [forcing] with a period: an experiment needs a forced orbit",
+                )
+            })?,
         };
         let s = &raw.simulation;
         let settle_periods = match &s.settle_periods {
@@ -397,7 +420,7 @@ impl Settings {
         }
         let excitation = match &raw.excitation {
             None => Excitation::None,
-            Some(e) => resolve_excitation(src, e, params.period)?,
+            Some(e) => resolve_excitation(src, e, period)?,
         };
         let theory = resolve_theory(src, raw.theory.as_ref())?;
         let noise = match &raw.noise {
@@ -414,9 +437,8 @@ impl Settings {
         Ok(Settings {
             name,
             path: src.path.clone(),
-            params,
-            damper,
-            effects: resolve_effects(src, raw.effects.as_ref(), "effects")?,
+            system,
+            period,
             settle_periods,
             sample_rate,
             integrator,
@@ -429,7 +451,168 @@ impl Settings {
 
     /// Time at which the excitation starts (end of settling), s.
     pub fn settle_time(&self) -> f64 {
-        self.settle_periods as f64 * self.params.period
+        self.settle_periods as f64 * self.period
+    }
+
+    /// The built-in hopper's settings, or an error for a command that does not take
+    /// model-language configs yet.
+    pub fn hopper(&self, command: &str) -> Result<(HopperParams, DamperLaw, Effects), ConfigError> {
+        match &self.system {
+            System::Hopper {
+                params,
+                damper,
+                effects,
+            } => Ok((*params, *damper, *effects)),
+            System::Model(_) => Err(ConfigError {
+                path: self.path.clone(),
+                line: None,
+                key: "model".into(),
+                message: format!(
+                    "`htfid {command}` takes the built-in hopper ([model] m, k, c, g, x0) only so \
+                     far; `htfid simulate` and `htfid theory` take model files"
+                ),
+            }),
+        }
+    }
+}
+
+/// Reads `[model]` (and `[forcing]`, `[effects]` for the built-in hopper).
+fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> {
+    let m = &raw.model;
+    let language = m.file.is_some() || m.states.is_some();
+    if !language {
+        let why = "for the built-in hopper (or give model.file = \"models/NAME.toml\")";
+        let forcing = raw
+            .forcing
+            .as_ref()
+            .ok_or_else(|| src.error(None, "forcing", format!("is required {why}")))?;
+        for (v, key) in [
+            (&m.parameters.is_some(), "model.parameters"),
+            (&m.inline_keys().is_some(), "model"),
+        ] {
+            if *v {
+                return Err(src.error(
+                    None,
+                    key,
+                    "model-language keys need model.file or model.states (see docs/models.md)",
+                ));
+            }
+        }
+        let params = HopperParams {
+            m: src.positive(src.require(&m.m, "model.m", why)?, "model.m")?,
+            k: src.positive(src.require(&m.k, "model.k", why)?, "model.k")?,
+            c: src.non_negative(src.require(&m.c, "model.c", why)?, "model.c")?,
+            g: src.finite(src.require(&m.g, "model.g", why)?, "model.g")?,
+            x0: src.finite(src.require(&m.x0, "model.x0", why)?, "model.x0")?,
+            forcing_amplitude: src.finite(&forcing.amplitude, "forcing.amplitude")?,
+            period: src.positive(&forcing.period, "forcing.period")?,
+        };
+        let damper = match &m.damper {
+            None => DamperLaw::Switching,
+            Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
+                "always_on" => DamperLaw::AlwaysOn,
+                _ => DamperLaw::Switching,
+            },
+        };
+        return Ok(System::Hopper {
+            params,
+            damper,
+            effects: resolve_effects(src, raw.effects.as_ref(), "effects")?,
+        });
+    }
+    let why = "with a model-language model (its parameters are in [model.parameters])";
+    for (v, key) in [
+        (&m.m, "model.m"),
+        (&m.k, "model.k"),
+        (&m.c, "model.c"),
+        (&m.g, "model.g"),
+        (&m.x0, "model.x0"),
+    ] {
+        src.forbid(v, key, why)?;
+    }
+    src.forbid(&m.damper, "model.damper", why)?;
+    if let Some(f) = &raw.forcing {
+        return Err(src.error(
+            Some(&f.period.span()),
+            "forcing",
+            "is not used with a model-language model: its [forcing] is part of the model",
+        ));
+    }
+    if raw.effects.is_some() {
+        return Err(src.error(
+            None,
+            "effects",
+            "is not used with a model-language model: write the effect into the model",
+        ));
+    }
+    let lang_error = |e: htfid_lang::ModelError| ConfigError {
+        path: src.path.clone(),
+        line: None,
+        key: "model".into(),
+        message: e.to_string(),
+    };
+    let model = match &m.file {
+        Some(file) => {
+            if let Some(key) = m.inline_keys() {
+                return Err(src.error(
+                    Some(&file.span()),
+                    &format!("model.{key}"),
+                    "give the model either in model.file or inline, not both",
+                ));
+            }
+            let dir = src.path.parent().unwrap_or(Path::new("."));
+            let path = dir.join(file.get_ref());
+            let model = htfid_lang::Model::from_file(&path).map_err(lang_error)?;
+            match &m.parameters {
+                None => model,
+                Some(table) => {
+                    let mut changes = Vec::new();
+                    for (name, value) in table.get_ref() {
+                        let key = format!("model.parameters.{name}");
+                        let v = match value {
+                            toml::Value::Float(f) => *f,
+                            toml::Value::Integer(i) => *i as f64,
+                            _ => {
+                                return Err(src.error(
+                                    Some(&table.span()),
+                                    &key,
+                                    "must be a number (a new value for the model's parameter)",
+                                ))
+                            }
+                        };
+                        changes.push((name.as_str(), v));
+                    }
+                    model.with_parameters(&changes).map_err(|e| {
+                        src.error(Some(&table.span()), "model.parameters", e.to_string())
+                    })?
+                }
+            }
+        }
+        None => htfid_lang::Model::from_document(&src.text, Some(&src.path), &["model"])
+            .map_err(lang_error)?,
+    };
+    Ok(System::Model(Box::new(model)))
+}
+
+impl RawModel {
+    /// The first inline model-language key present, if any.
+    fn inline_keys(&self) -> Option<&'static str> {
+        [
+            (self.name.is_some(), "name"),
+            (self.description.is_some(), "description"),
+            (self.states.is_some(), "states"),
+            (self.input.is_some(), "input"),
+            (self.forcing.is_some(), "forcing"),
+            (self.definitions.is_some(), "definitions"),
+            (self.flow.is_some(), "flow"),
+            (self.modes.is_some(), "modes"),
+            (self.guards.is_some(), "guards"),
+            (self.outputs.is_some(), "outputs"),
+            (self.initial.is_some(), "initial"),
+        ]
+        .into_iter()
+        .find(|(present, _)| *present)
+        .map(|(_, k)| k)
     }
 }
 

@@ -53,7 +53,7 @@ pub fn build(settings: &Settings) -> Result<Built> {
             max_record,
         } => {
             let design = design_htf_multisine(DesignSpec {
-                period: settings.params.period,
+                period: settings.period,
                 max_harmonic: *max_harmonic,
                 omega_lo: *omega_min,
                 omega_hi: *omega_max,
@@ -106,7 +106,7 @@ pub fn build(settings: &Settings) -> Result<Built> {
                 TrainLayout {
                     duration: *duration,
                     copies: *copies,
-                    period: settings.params.period,
+                    period: settings.period,
                     start,
                     min_gap: 0.0,
                 },

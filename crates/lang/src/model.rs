@@ -617,6 +617,10 @@ impl HybridSystem for Model {
 }
 
 impl htfid_ltp::InputOutput for Model {
+    fn is_piecewise_constant(&self) -> bool {
+        self.compiled.piecewise_constant
+    }
+
     fn input_gain(&self, mode: Mode, t: f64, x: &[f64], b: &mut [f64]) {
         let n = x.len();
         with_vars(t, x, 0.0, |v| {

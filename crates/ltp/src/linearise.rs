@@ -24,6 +24,12 @@ pub trait InputOutput: HybridSystem {
     fn feedthrough(&self, _mode: Self::Mode, _t: f64, _x: &[f64], d: &mut [f64]) {
         d.iter_mut().for_each(|v| *v = 0.0)
     }
+    /// Whether `A, B, C, D` are constant within every mode along any orbit, so that the
+    /// chart-averaged piecewise-LTI model of [`linearise`] is exact. `false` by default: only
+    /// a system that knows it (for instance from symbolic Jacobians) says `true`.
+    fn is_piecewise_constant(&self) -> bool {
+        false
+    }
 }
 
 /// A transition on the orbit with its saltation matrix.

@@ -230,6 +230,7 @@
 //! that is 0.4 to 0.5 ms per value at the default tolerance, against 0.2 us
 //! for [`ExactHtf`] (`cargo bench -p htfid-theory --bench orbit_htf`), so
 //! prefer [`ExactHtf`] where the linearisation is piecewise-LTI exactly.
+mod about_orbit;
 mod coefficients;
 mod error;
 mod exact;
@@ -238,6 +239,7 @@ mod kernels;
 mod orbit;
 mod truncated;
 
+pub use about_orbit::{HtfMethod, LinearisedHtf};
 pub use coefficients::{FourierCoefficients, FourierLtp};
 pub use error::TheoryError;
 pub use exact::{ExactHtf, ExactMethod};

@@ -27,6 +27,7 @@ use crate::settings::{AlphaSetting, Estimator, Excitation, Settings};
 
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> Result<()> {
     let settings = Settings::from_file(config)?;
+    settings.hopper("run")?;
     if settings.excitation == Excitation::None {
         bail!(
             "{}: [excitation] kind = \"none\": there is nothing to estimate from; \
@@ -120,7 +121,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     });
     stages.run("write outputs", || -> Result<()> {
         crate::commands::simulate::write_limit_cycle(&settings, &sim, &mut outdir)?;
-        write_theory_csv(&mut outdir, &grid)?;
+        write_theory_csv(&mut outdir, "theory.csv", &grid)?;
         for (est, e) in &estimates {
             let mut csv = outdir.csv(
                 &format!("estimate_{}.csv", est.name()),
@@ -166,7 +167,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
 /// estimators see).
 fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
     // When the sample grid repeats every period, one period of the orbit is tiled.
-    let period = settings.params.period;
+    let period = settings.period;
     let per_period = settings.sample_rate * period;
     if (per_period - per_period.round()).abs() < 1e-9 && per_period >= 1.0 {
         let m = per_period.round() as usize;
@@ -250,7 +251,7 @@ fn estimate(
     y: &[f64],
     est: Estimator,
 ) -> Result<HtfEstimate> {
-    let period = settings.params.period;
+    let period = settings.period;
     let harmonics = &settings.estimation.harmonics;
     let band = settings.estimation.band;
     let t_start = settings.settle_time();
@@ -427,7 +428,7 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
             1.0 / s
         })
         .collect();
-    let nominal = settings.params;
+    let (nominal, damper, effects) = settings.hopper("run")?;
     let p0: Vec<f64> = names.iter().map(|n| param(&nominal, n)).collect();
     let x_start = sim.orbit.cycle.state0.clone();
     let shooting = ShootingOptions {
@@ -440,8 +441,7 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
         for (name, v) in names.iter().zip(p) {
             set_param(&mut params, name, *v);
         }
-        let hopper = Hopper::with_effects(params, settings.damper, settings.effects)
-            .map_err(|e| e.to_string())?;
+        let hopper = Hopper::with_effects(params, damper, effects).map_err(|e| e.to_string())?;
         let orbit = hopper
             .limit_cycle_from(&x_start, &shooting, &opts)
             .map_err(|e| e.to_string())?;

@@ -13,7 +13,7 @@ use serde_json::{json, Value};
 
 use crate::output::{json_text, open, resolve_dir};
 use crate::progress::Stages;
-use crate::settings::Settings;
+use crate::settings::{Settings, System};
 use crate::signals::{self, Built};
 
 /// Samples of the orbit written to `limit_cycle.csv`.
@@ -35,6 +35,9 @@ pub struct Simulated {
 
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
     let settings = Settings::from_file(config)?;
+    if let System::Model(model) = &settings.system {
+        return crate::commands::models::simulate_model(&settings, model, out, force);
+    }
     let dir = resolve_dir(out, &settings.name);
     let mut outdir = open(
         &dir,
@@ -56,7 +59,8 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
 
 /// The configured hopper and its limit cycle (settling plus Newton shooting).
 pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hopper, HopperOrbit)> {
-    let hopper = Hopper::with_effects(settings.params, settings.damper, settings.effects)
+    let (params, damper, effects) = settings.hopper("simulate")?;
+    let hopper = Hopper::with_effects(params, damper, effects)
         .with_context(|| format!("{}: invalid model", settings.path.display()))?;
     let shooting = ShootingOptions {
         settle_periods: settings.settle_periods.max(30),
@@ -79,7 +83,7 @@ pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hop
 pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
     let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
     let excitation = signals::build(settings)?;
-    let period = settings.params.period;
+    let period = settings.period;
     // The record ends on a whole number of periods after the settling, so the estimators can
     // use all of it.
     let start = settings.settle_time();

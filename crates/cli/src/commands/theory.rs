@@ -14,7 +14,7 @@ use crate::commands::simulate::{hopper_and_orbit, limit_cycle_json, report_writt
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
-use crate::settings::Settings;
+use crate::settings::{Settings, System};
 
 /// Samples of `A(t)` kept along the orbit (the piecewise model uses quadrature, not these).
 const LINEAR_SAMPLES: usize = 256;
@@ -125,9 +125,9 @@ fn parse_omegas(list: &str) -> Result<Vec<f64>> {
     Ok(out)
 }
 
-/// Writes `theory.csv` rows `omega,n,re,im`.
-pub fn write_theory_csv(out: &mut htfid_data::OutputDir, grid: &HtfGrid) -> Result<()> {
-    let mut csv = out.csv("theory.csv", &["omega", "n", "re", "im"])?;
+/// Writes a theory CSV (`theory.csv`): rows `omega,n,re,im`.
+pub fn write_theory_csv(out: &mut htfid_data::OutputDir, name: &str, grid: &HtfGrid) -> Result<()> {
+    let mut csv = out.csv(name, &["omega", "n", "re", "im"])?;
     for (i, &w) in grid.omegas.iter().enumerate() {
         for (j, &n) in grid.harmonics.iter().enumerate() {
             let g = grid.values[i * grid.harmonics.len() + j];
@@ -151,6 +151,14 @@ pub fn run(
         Some(list) => parse_omegas(list)?,
         None => settings.theory.omegas.clone(),
     };
+    if let System::Model(model) = &settings.system {
+        if truncate.is_some() {
+            bail!("--truncate: model-language models use their exact HTF (no truncation)");
+        }
+        return crate::commands::models::theory_model(
+            &settings, model, &omegas, out, force, no_plots,
+        );
+    }
     if let Some(n) = truncate {
         if n > 200 {
             bail!("--truncate {n}: at most 200 harmonics (the exact HTF needs no truncation)");
@@ -186,7 +194,9 @@ pub fn run(
             )
         }
     };
-    stages.run("write outputs", || write_theory_csv(&mut outdir, &grid))?;
+    stages.run("write outputs", || {
+        write_theory_csv(&mut outdir, "theory.csv", &grid)
+    })?;
     if !no_plots {
         stages.run("plots", || theory_plots(&mut outdir, &settings, &grid))?;
     }
@@ -219,7 +229,7 @@ fn column(grid: &HtfGrid, n: i32) -> Vec<Complex64> {
         .collect()
 }
 
-fn theory_plots(
+pub fn theory_plots(
     out: &mut htfid_data::OutputDir,
     settings: &Settings,
     grid: &HtfGrid,
