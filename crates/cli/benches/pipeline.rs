@@ -128,6 +128,10 @@ fn main() {
             "htfid run configs/paper.toml --no-plots",
         ),
         (
+            "configs/paper-model.toml",
+            "htfid run configs/paper-model.toml --no-plots (the hopper as models/hopper.toml)",
+        ),
+        (
             "configs/paper-improved.toml",
             "htfid run configs/paper-improved.toml --no-plots",
         ),

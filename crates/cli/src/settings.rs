@@ -9,7 +9,7 @@ use htfid_model::{DamperLaw, Effects, HopperParams};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::config::{load, ConfigError, Kind, Source};
+use crate::config::{load, quote_list, ConfigError, Kind, Source};
 
 type Num = Spanned<f64>;
 type OptNum = Option<Spanned<f64>>;
@@ -258,7 +258,7 @@ pub struct EstimationSettings {
     pub band: (f64, f64),
     pub estimators: Vec<Estimator>,
     pub alpha: AlphaSetting,
-    /// Model parameters fitted to the estimates: names among "k", "c", "m".
+    /// Model parameters fitted to the estimates (names checked against the system's).
     pub fit: Vec<String>,
     pub fit_harmonics: Vec<i32>,
 }
@@ -433,7 +433,7 @@ impl Settings {
                 },
             }),
         };
-        let estimation = resolve_estimation(src, raw.estimation.as_ref(), &excitation)?;
+        let estimation = resolve_estimation(src, raw.estimation.as_ref(), &excitation, &system)?;
         Ok(Settings {
             name,
             path: src.path.clone(),
@@ -468,8 +468,8 @@ impl Settings {
                 line: None,
                 key: "model".into(),
                 message: format!(
-                    "`htfid {command}` takes the built-in hopper ([model] m, k, c, g, x0) only so \
-                     far; `htfid simulate` and `htfid theory` take model files"
+                    "this part of `htfid {command}` takes the built-in hopper ([model] m, k, c, \
+                     g, x0) only"
                 ),
             }),
         }
@@ -858,10 +858,25 @@ pub fn log_grid(lo: f64, hi: f64, points: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The parameters fitted when `estimation.fit` is not given: `k` and `c` of the hopper, the
+/// parameters a model file marks `free`.
+fn default_fit(system: &System) -> Vec<String> {
+    match system {
+        System::Hopper { .. } => vec!["k".into(), "c".into()],
+        System::Model(model) => model
+            .parameters()
+            .iter()
+            .filter(|p| p.free)
+            .map(|p| p.name.clone())
+            .collect(),
+    }
+}
+
 fn resolve_estimation(
     src: &Source,
     e: Option<&RawEstimation>,
     excitation: &Excitation,
+    system: &System,
 ) -> Result<EstimationSettings, ConfigError> {
     let default_estimators = match excitation {
         Excitation::MultisineDesign { .. } => vec![Estimator::Lines],
@@ -874,7 +889,7 @@ fn resolve_estimation(
             band: (1.0, 40.0),
             estimators: default_estimators,
             alpha: AlphaSetting::Fixed(1e-3),
-            fit: vec!["k".into(), "c".into()],
+            fit: default_fit(system),
             fit_harmonics: vec![-1, 0, 1],
         });
     };
@@ -955,16 +970,40 @@ fn resolve_estimation(
         },
     };
     let fit = match &e.fit {
-        None => vec!["k".to_string(), "c".to_string()],
+        None => default_fit(system),
         Some(list) => {
-            for name in list.get_ref() {
-                if !["k", "c", "m"].contains(&name.as_str()) {
+            let known: Vec<&str> = match system {
+                System::Hopper { .. } => vec!["k", "c", "m"],
+                System::Model(model) => {
+                    model.parameters().iter().map(|p| p.name.as_str()).collect()
+                }
+            };
+            if list.get_ref().is_empty() {
+                return Err(src.error(
+                    Some(&list.span()),
+                    "estimation.fit",
+                    format!(
+                        "must name at least one parameter, among {}",
+                        quote_list(&known)
+                    ),
+                ));
+            }
+            for (i, name) in list.get_ref().iter().enumerate() {
+                if !known.contains(&name.as_str()) {
                     return Err(src.error(
                         Some(&list.span()),
                         "estimation.fit",
                         format!(
-                            "unknown parameter \"{name}\"; expected any of \"k\", \"c\", \"m\""
+                            "unknown parameter \"{name}\"; expected any of {}",
+                            quote_list(&known)
                         ),
+                    ));
+                }
+                if list.get_ref()[..i].contains(name) {
+                    return Err(src.error(
+                        Some(&list.span()),
+                        "estimation.fit",
+                        format!("parameter \"{name}\" is listed twice"),
                     ));
                 }
             }

@@ -7,9 +7,9 @@ use num_complex::Complex64;
 
 use crate::{ExactHtf, HarmonicTransferFunction, HtfGrid, OrbitHtf, TheoryError};
 
-/// Samples of `A(t)` kept by the linearisation for inspection (the piecewise model itself
-/// uses Gauss-Legendre quadrature per chart).
-const LINEAR_SAMPLES: usize = 256;
+/// Samples of `A(t)` kept by the linearisation for inspection only: the piecewise model uses
+/// Gauss-Legendre quadrature per chart, and fits build this object many times.
+const LINEAR_SAMPLES: usize = 8;
 
 /// How [`LinearisedHtf`] computes the HTFs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -128,6 +128,55 @@ impl<'a, S: InputOutput> LinearisedHtf<'a, S> {
                 .map(|c| c.grid(harmonics, omegas))
                 .collect()),
             Inner::Orbit(o) => o.grids(harmonics, omegas),
+        }
+    }
+}
+
+impl<'a, S: InputOutput> LinearisedHtf<'a, S> {
+    /// Output `output` as a [`HarmonicTransferFunction`] (for point evaluations and grids).
+    ///
+    /// # Errors
+    /// [`TheoryError::OutputOutOfRange`].
+    pub fn channel(&self, output: usize) -> Result<HtfChannel<'_, 'a, S>, TheoryError> {
+        let n_outputs = self.n_outputs();
+        if output >= n_outputs {
+            return Err(TheoryError::OutputOutOfRange { output, n_outputs });
+        }
+        Ok(match &self.inner {
+            Inner::Exact { channels, .. } => HtfChannel::Exact(&channels[output]),
+            Inner::Orbit(o) => HtfChannel::Orbit(Box::new(o.channel(output)?)),
+        })
+    }
+}
+
+/// One output of a [`LinearisedHtf`].
+#[derive(Debug)]
+pub enum HtfChannel<'h, 'a, S: InputOutput> {
+    /// The closed-form exact HTF of one output.
+    Exact(&'h ExactHtf),
+    /// The periodic-response HTF with this output selected.
+    Orbit(Box<OrbitHtf<'a, S>>),
+}
+
+impl<S: InputOutput> HarmonicTransferFunction for HtfChannel<'_, '_, S> {
+    fn pumping_frequency(&self) -> f64 {
+        match self {
+            HtfChannel::Exact(e) => e.pumping_frequency(),
+            HtfChannel::Orbit(o) => o.pumping_frequency(),
+        }
+    }
+
+    fn g(&self, n: i32, w: f64) -> Complex64 {
+        match self {
+            HtfChannel::Exact(e) => e.g(n, w),
+            HtfChannel::Orbit(o) => o.g(n, w),
+        }
+    }
+
+    fn grid(&self, harmonics: &[i32], omegas: &[f64]) -> HtfGrid {
+        match self {
+            HtfChannel::Exact(e) => e.grid(harmonics, omegas),
+            HtfChannel::Orbit(o) => o.grid(harmonics, omegas),
         }
     }
 }

@@ -239,7 +239,7 @@ mod kernels;
 mod orbit;
 mod truncated;
 
-pub use about_orbit::{HtfMethod, LinearisedHtf};
+pub use about_orbit::{HtfChannel, HtfMethod, LinearisedHtf};
 pub use coefficients::{FourierCoefficients, FourierLtp};
 pub use error::TheoryError;
 pub use exact::{ExactHtf, ExactMethod};

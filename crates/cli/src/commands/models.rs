@@ -1,23 +1,28 @@
-//! `simulate` and `theory` for models written in the model language: reading the config,
+//! `simulate`, `theory` and `run` for models written in the model language: reading the config,
 //! calling the libraries, writing files. The science is in `htfid-lang` (the model),
 //! `htfid-orbit` (the limit cycle) and `htfid-theory` ([`LinearisedHtf`]).
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
+use htfid_estimate::{levenberg_marquardt, HtfEstimate, LmOptions};
 use htfid_hybrid::{simulate, EventKind, HybridSystem};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{saltation, LimitCycle, ShootingOptions};
-use htfid_theory::{HtfGrid, LinearisedHtf};
+use htfid_theory::{HarmonicTransferFunction, HtfChannel, HtfGrid, HtfMethod, LinearisedHtf};
+use num_complex::Complex64;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
+use crate::commands::run::{
+    aliasing, estimate, harmonic_errors, run_plots, FIT_POINTS_PER_HARMONIC,
+};
 use crate::commands::simulate::report_written;
 use crate::commands::theory::{theory_plots, write_theory_csv};
 use crate::output::{json_text, open, resolve_dir};
 use crate::progress::Stages;
-use crate::settings::Settings;
+use crate::settings::{Estimator, Settings};
 use crate::signals;
 
 /// Samples of the orbit written to `limit_cycle.csv`.
@@ -97,21 +102,26 @@ fn cycle_json(model: &Model, cycle: &LimitCycle<Mode>) -> Value {
     })
 }
 
-/// `htfid simulate` for a model-language model.
-pub fn simulate_model(
+/// The configured experiment simulated from the orbit: every output, every state.
+pub struct ModelRecord {
+    pub t: Vec<f64>,
+    pub u: Vec<f64>,
+    /// Per output, with measurement noise when configured.
+    pub outputs: Vec<Vec<f64>>,
+    /// Per state.
+    pub states: Vec<Vec<f64>>,
+    pub modes: Vec<f64>,
+    pub excitation: signals::Built,
+    pub stats: htfid_hybrid::Stats,
+    pub switches: usize,
+}
+
+fn simulate_record(
     settings: &Settings,
     model: &Model,
-    out: Option<PathBuf>,
-    force: bool,
-) -> Result<()> {
-    let dir = resolve_dir(out, &settings.name);
-    let mut outdir = open(
-        &dir,
-        force,
-        &["timeseries.csv", "limit_cycle.csv", "summary.json"],
-    )?;
-    let mut stages = Stages::new(false);
-    let cycle = limit_cycle(settings, model, &mut stages)?;
+    cycle: &LimitCycle<Mode>,
+    stages: &mut Stages,
+) -> Result<ModelRecord> {
     let excitation = signals::build(settings)?;
     let period = settings.period;
     let start = settings.settle_time();
@@ -138,15 +148,7 @@ pub fn simulate_model(
         Some(s) => s.sample(&grid),
         None => vec![0.0; n],
     };
-    let p = model.outputs().len();
-    let mut outputs = vec![vec![0.0; n]; p];
-    let mut y = vec![0.0; p];
-    for i in 0..n {
-        model.eval_outputs(traj.modes[i], grid[i], traj.state(i), u[i], &mut y);
-        for (column, v) in outputs.iter_mut().zip(&y) {
-            column[i] = *v;
-        }
-    }
+    let mut outputs = outputs_along(model, &traj, &u);
     if let Some(noise) = settings.noise {
         if noise.output_std > 0.0 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(noise.seed);
@@ -158,53 +160,131 @@ pub fn simulate_model(
             }
         }
     }
-    let dim = model.dim();
-    let states: Vec<Vec<f64>> = (0..dim)
+    let states: Vec<Vec<f64>> = (0..model.dim())
         .map(|j| (0..n).map(|i| traj.state(i)[j]).collect())
         .collect();
-    let modes: Vec<f64> = traj.modes.iter().map(|m| m.index() as f64).collect();
-    let state_names: Vec<String> = model
+    Ok(ModelRecord {
+        modes: traj.modes.iter().map(|m| m.index() as f64).collect(),
+        switches: traj.transitions().count(),
+        stats: traj.stats,
+        t: grid,
+        u,
+        outputs,
+        states,
+        excitation,
+    })
+}
+
+/// Every output of `model` along a trajectory, with input values `u` at its grid times.
+fn outputs_along(model: &Model, traj: &htfid_hybrid::Trajectory<Mode>, u: &[f64]) -> Vec<Vec<f64>> {
+    let n = traj.times.len();
+    let p = model.outputs().len();
+    let mut outputs = vec![vec![0.0; n]; p];
+    let mut y = vec![0.0; p];
+    for i in 0..n {
+        model.eval_outputs(traj.modes[i], traj.times[i], traj.state(i), u[i], &mut y);
+        for (column, v) in outputs.iter_mut().zip(&y) {
+            column[i] = *v;
+        }
+    }
+    outputs
+}
+
+fn state_columns(model: &Model) -> Vec<String> {
+    model
         .states()
         .iter()
         .map(|s| format!("state.{}", s.name))
+        .collect()
+}
+
+/// `timeseries.csv` to an already registered path (so it can be written on another thread).
+fn write_timeseries(path: &std::path::Path, model: &Model, rec: &ModelRecord) -> Result<()> {
+    let state_names = state_columns(model);
+    let mut columns: Vec<(&str, &[f64])> = vec![("u", &rec.u)];
+    for (o, column) in model.outputs().iter().zip(&rec.outputs) {
+        columns.push((&o.name, column));
+    }
+    for (name, column) in state_names.iter().zip(&rec.states) {
+        columns.push((name, column));
+    }
+    columns.push(("mode", &rec.modes));
+    htfid_data::write_timeseries_csv(path, &rec.t, &columns)?;
+    Ok(())
+}
+
+/// `limit_cycle.csv`: one period of the orbit, input off.
+fn write_limit_cycle(
+    settings: &Settings,
+    model: &Model,
+    cycle: &LimitCycle<Mode>,
+    outdir: &mut htfid_data::OutputDir,
+) -> Result<()> {
+    let state_names = state_columns(model);
+    let period = settings.period;
+    let phases: Vec<f64> = (0..ORBIT_SAMPLES)
+        .map(|i| period * i as f64 / ORBIT_SAMPLES as f64)
         .collect();
+    let orbit = simulate(
+        model,
+        cycle.mode0,
+        0.0,
+        &cycle.state0,
+        period,
+        &phases,
+        &settings.integrator,
+    )?;
+    let mut header = vec!["phase"];
+    header.extend(state_names.iter().map(String::as_str));
+    header.push("mode");
+    let mut csv = outdir.csv("limit_cycle.csv", &header)?;
+    let mut row = Vec::with_capacity(model.dim() + 2);
+    for i in 0..ORBIT_SAMPLES {
+        row.clear();
+        row.push(phases[i]);
+        row.extend_from_slice(orbit.state(i));
+        row.push(orbit.modes[i].index() as f64);
+        csv.write_row(&row)?;
+    }
+    csv.finish()?;
+    Ok(())
+}
+
+fn simulation_json(settings: &Settings, rec: &ModelRecord) -> Value {
+    json!({
+        "t_end": rec.t.last().copied().unwrap_or(0.0),
+        "samples": rec.t.len(),
+        "sample_rate": settings.sample_rate,
+        "switches": rec.switches,
+        "steps": rec.stats.steps,
+        "rejected_steps": rec.stats.rejected,
+        "rhs_evaluations": rec.stats.rhs_evals,
+        "excitation_segments": rec.excitation.segments.iter().map(|s| json!({
+            "index": s.index, "start": s.start, "end": s.end, "phase": s.delay,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// `htfid simulate` for a model-language model.
+pub fn simulate_model(
+    settings: &Settings,
+    model: &Model,
+    out: Option<PathBuf>,
+    force: bool,
+) -> Result<()> {
+    let dir = resolve_dir(out, &settings.name);
+    let mut outdir = open(
+        &dir,
+        force,
+        &["timeseries.csv", "limit_cycle.csv", "summary.json"],
+    )?;
+    let mut stages = Stages::new(false);
+    let cycle = limit_cycle(settings, model, &mut stages)?;
+    let rec = simulate_record(settings, model, &cycle, &mut stages)?;
     stages.run("write outputs", || -> Result<()> {
-        let mut columns: Vec<(&str, &[f64])> = vec![("u", &u)];
-        for (o, column) in model.outputs().iter().zip(&outputs) {
-            columns.push((&o.name, column));
-        }
-        for (name, column) in state_names.iter().zip(&states) {
-            columns.push((name, column));
-        }
-        columns.push(("mode", &modes));
-        outdir.write_timeseries_csv("timeseries.csv", &grid, &columns)?;
-        // One period of the orbit, input off.
-        let phases: Vec<f64> = (0..ORBIT_SAMPLES)
-            .map(|i| period * i as f64 / ORBIT_SAMPLES as f64)
-            .collect();
-        let orbit = simulate(
-            model,
-            cycle.mode0,
-            0.0,
-            &cycle.state0,
-            period,
-            &phases,
-            &settings.integrator,
-        )?;
-        let mut header = vec!["phase"];
-        header.extend(state_names.iter().map(String::as_str));
-        header.push("mode");
-        let mut csv = outdir.csv("limit_cycle.csv", &header)?;
-        let mut row = Vec::with_capacity(dim + 2);
-        for i in 0..ORBIT_SAMPLES {
-            row.clear();
-            row.push(phases[i]);
-            row.extend_from_slice(orbit.state(i));
-            row.push(orbit.modes[i].index() as f64);
-            csv.write_row(&row)?;
-        }
-        csv.finish()?;
-        Ok(())
+        let path = outdir.path_for("timeseries.csv")?;
+        write_timeseries(&path, model, &rec)?;
+        write_limit_cycle(settings, model, &cycle, &mut outdir)
     })?;
     let summary = json!({
         "name": settings.name,
@@ -212,18 +292,7 @@ pub fn simulate_model(
         "htfid_version": env!("CARGO_PKG_VERSION"),
         "model": model_json(model),
         "limit_cycle": cycle_json(model, &cycle),
-        "simulation": {
-            "t_end": end,
-            "samples": n,
-            "sample_rate": settings.sample_rate,
-            "switches": traj.transitions().count(),
-            "steps": traj.stats.steps,
-            "rejected_steps": traj.stats.rejected,
-            "rhs_evaluations": traj.stats.rhs_evals,
-            "excitation_segments": excitation.segments.iter().map(|s| json!({
-                "index": s.index, "start": s.start, "end": s.end, "phase": s.delay,
-            })).collect::<Vec<_>>(),
-        },
+        "simulation": simulation_json(settings, &rec),
         "timings_ms": stages.to_json(),
     });
     outdir.write_text("summary.json", &json_text(&summary))?;
@@ -298,4 +367,361 @@ pub fn theory_model(
     outdir.write_text("summary.json", &json_text(&summary))?;
     report_written(&outdir.commit()?);
     Ok(())
+}
+
+/// At most this many estimates per output and harmonic enter the parametric fit when the HTF
+/// is the periodic response (each point costs two integrations over a period).
+const FIT_POINTS_PERIODIC: usize = 40;
+
+/// `htfid run` for a model-language model: simulate, estimate the HTFs of every output, fit
+/// the configured parameters, compare with the exact theory.
+pub fn run_model(
+    settings: &Settings,
+    model: &Model,
+    out: Option<PathBuf>,
+    force: bool,
+    no_plots: bool,
+) -> Result<()> {
+    let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
+    let mut names: Vec<String> = [
+        "timeseries.csv",
+        "limit_cycle.csv",
+        "theory.csv",
+        "summary.json",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    for o in &outputs[1..] {
+        names.push(format!("theory_{o}.csv"));
+    }
+    for est in &settings.estimation.estimators {
+        for o in 0..outputs.len() {
+            names.push(format!(
+                "estimate_{}{}.csv",
+                est.name(),
+                suffix(&outputs, o)
+            ));
+        }
+    }
+    if !no_plots {
+        for stem in ["htf_g0", "htf_harmonics"] {
+            names.push(format!("{stem}.svg"));
+            names.push(format!("{stem}.png"));
+        }
+    }
+    let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let dir = resolve_dir(out, &settings.name);
+    let mut outdir = open(&dir, force, &name_refs)?;
+    let mut stages = Stages::new(false);
+
+    let cycle = limit_cycle(settings, model, &mut stages)?;
+    let rec = simulate_record(settings, model, &cycle, &mut stages)?;
+    let deviation = stages.run("orbit deviation", || {
+        orbit_deviation(settings, model, &cycle, &rec)
+    })?;
+    let htf = stages
+        .run("linearise", || {
+            LinearisedHtf::new(model, &cycle, &settings.integrator)
+        })
+        .context("linearisation about the orbit failed")?;
+    let channels = (0..outputs.len())
+        .map(|o| htf.channel(o))
+        .collect::<Result<Vec<_>, _>>()?;
+
+    // The time series is the largest file; it is written on the second core while the
+    // estimators and fits run.
+    let ts_path = outdir.path_for("timeseries.csv")?;
+    let rec_ref = &rec;
+    let found = std::thread::scope(|scope| -> Result<_> {
+        let writer = scope.spawn(move || write_timeseries(&ts_path, model, rec_ref));
+        let found = estimate_and_fit(
+            settings,
+            model,
+            (&cycle, htf.method()),
+            &channels,
+            rec_ref,
+            &deviation,
+            &mut stages,
+        );
+        writer.join().expect("the CSV writer does not panic")?;
+        found
+    })?;
+    let (estimates, errors, fits) = found;
+    let grids = stages
+        .run("theory grid", || {
+            htf.grids(&settings.theory.harmonics, &settings.theory.omegas)
+        })
+        .context("harmonic transfer functions")?;
+    stages.run("write outputs", || -> Result<()> {
+        write_limit_cycle(settings, model, &cycle, &mut outdir)?;
+        write_theory_csv(&mut outdir, "theory.csv", &grids[0])?;
+        for (o, grid) in outputs.iter().zip(&grids).skip(1) {
+            write_theory_csv(&mut outdir, &format!("theory_{o}.csv"), grid)?;
+        }
+        for (o, per) in estimates.iter().enumerate() {
+            for (est, e) in per {
+                let mut csv = outdir.csv(
+                    &format!("estimate_{}{}.csv", est.name(), suffix(&outputs, o)),
+                    &["omega", "n", "re", "im", "stderr"],
+                )?;
+                for r in e.rows() {
+                    csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
+                }
+                csv.finish()?;
+            }
+        }
+        Ok(())
+    })?;
+    if !no_plots {
+        stages.run("plots", || {
+            run_plots(&mut outdir, settings, &channels[0], &estimates[0])
+        })?;
+    }
+    let mut summary = json!({
+        "name": settings.name,
+        "config": settings.path.display().to_string(),
+        "htfid_version": env!("CARGO_PKG_VERSION"),
+        "model": model_json(model),
+        "limit_cycle": cycle_json(model, &cycle),
+        "simulation": simulation_json(settings, &rec),
+        "ltp": {
+            "floquet_multipliers": htf.floquet_multipliers().iter().map(|m| [m.re, m.im]).collect::<Vec<_>>(),
+        },
+        "htf": {"method": htf.method().name(), "outputs": outputs},
+        "fit": Value::Object(fits),
+        "errors": Value::Object(errors),
+        "estimation": {
+            "harmonics": settings.estimation.harmonics,
+            "band": [settings.estimation.band.0, settings.estimation.band.1],
+            "estimators": settings.estimation.estimators.iter().map(|e| e.name()).collect::<Vec<_>>(),
+            "noise_output_std": settings.noise.map_or(0.0, |n| n.output_std),
+        },
+    });
+    if let Some(a) = aliasing(settings, &channels[0])? {
+        summary["aliasing"] = a;
+    }
+    if let Some(d) = &rec.excitation.design {
+        summary["design"] = serde_json::to_value(d.report())?;
+    }
+    summary["timings_ms"] = stages.to_json();
+    outdir.write_text("summary.json", &json_text(&summary))?;
+    report_written(&outdir.commit()?);
+    Ok(())
+}
+
+/// The first output keeps the single-output file names; others get their name appended.
+fn suffix(outputs: &[String], o: usize) -> String {
+    if o == 0 {
+        String::new()
+    } else {
+        format!("_{}", outputs[o])
+    }
+}
+
+/// What the estimators see: each output minus its value on the unexcited orbit.
+fn orbit_deviation(
+    settings: &Settings,
+    model: &Model,
+    cycle: &LimitCycle<Mode>,
+    rec: &ModelRecord,
+) -> Result<Vec<Vec<f64>>> {
+    // When the sample grid repeats every period, one period of the orbit is tiled.
+    let per_period = settings.sample_rate * settings.period;
+    let m = per_period.round() as usize;
+    let tiled = (per_period - per_period.round()).abs() < 1e-9 && m >= 1 && rec.t.len() >= m;
+    let (grid, end) = if tiled {
+        (&rec.t[..m], settings.period)
+    } else {
+        (&rec.t[..], *rec.t.last().unwrap_or(&0.0))
+    };
+    let free = simulate(
+        model,
+        cycle.mode0,
+        0.0,
+        &cycle.state0,
+        end,
+        grid,
+        &settings.integrator,
+    )
+    .context("simulation of the unexcited orbit failed")?;
+    let one = outputs_along(model, &free, &vec![0.0; grid.len()]);
+    Ok(rec
+        .outputs
+        .iter()
+        .zip(&one)
+        .map(|(y, y0)| {
+            y.iter()
+                .enumerate()
+                .map(|(i, v)| v - y0[i % grid.len()])
+                .collect()
+        })
+        .collect())
+}
+
+type Estimates = Vec<Vec<(Estimator, HtfEstimate)>>;
+type JsonMap = serde_json::Map<String, Value>;
+
+/// Estimates per output and estimator, their errors against the theory, and the fits (one
+/// per estimator, to the estimates of every output together).
+fn estimate_and_fit(
+    settings: &Settings,
+    model: &Model,
+    (cycle, method): (&LimitCycle<Mode>, HtfMethod),
+    channels: &[HtfChannel<'_, '_, Model>],
+    rec: &ModelRecord,
+    deviation: &[Vec<f64>],
+    stages: &mut Stages,
+) -> Result<(Estimates, JsonMap, JsonMap)> {
+    let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
+    let mut estimates: Estimates = Vec::new();
+    for (o, y) in deviation.iter().enumerate() {
+        let mut per = Vec::new();
+        for &est in &settings.estimation.estimators {
+            let e = stages
+                .run(
+                    &format!("estimate ({}, {})", est.name(), outputs[o]),
+                    || estimate(settings, (&rec.t, &rec.u), &rec.excitation, y, est),
+                )
+                .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
+            per.push((est, e));
+        }
+        estimates.push(per);
+    }
+    let mut errors = JsonMap::new();
+    for (o, per) in estimates.iter().enumerate() {
+        for (est, e) in per {
+            errors.insert(
+                format!("{}{}", est.name(), suffix(&outputs, o)),
+                harmonic_errors(settings, &channels[o], e),
+            );
+        }
+    }
+    let mut fits = JsonMap::new();
+    for (i, &est) in settings.estimation.estimators.iter().enumerate() {
+        let of_est: Vec<(usize, &HtfEstimate)> = estimates
+            .iter()
+            .enumerate()
+            .map(|(o, per)| (o, &per[i].1))
+            .collect();
+        let fit = stages
+            .run(&format!("fit ({})", est.name()), || {
+                fit_model(settings, model, cycle, method, &of_est)
+            })
+            .with_context(|| {
+                format!("parametric fit to the \"{}\" estimates failed", est.name())
+            })?;
+        fits.insert(est.name().into(), fit);
+    }
+    Ok((estimates, errors, fits))
+}
+
+/// Levenberg-Marquardt fit of the configured parameters to the estimates of every output,
+/// through the exact HTF of the model's linearisation about its own limit cycle (re-found for
+/// every trial parameter set).
+fn fit_model(
+    settings: &Settings,
+    model: &Model,
+    cycle: &LimitCycle<Mode>,
+    method: HtfMethod,
+    estimates: &[(usize, &HtfEstimate)],
+) -> Result<Value> {
+    let names = &settings.estimation.fit;
+    let (lo, hi) = settings.estimation.band;
+    let per_harmonic = match method {
+        HtfMethod::ExactPiecewise => FIT_POINTS_PER_HARMONIC,
+        HtfMethod::PeriodicResponse => FIT_POINTS_PERIODIC,
+    };
+    // (output, n, omega, value, weight)
+    let mut rows: Vec<(usize, i32, f64, Complex64, f64)> = Vec::new();
+    for &(o, e) in estimates {
+        for &n in &settings.estimation.fit_harmonics {
+            let of_n: Vec<_> = e
+                .rows()
+                .filter(|r| r.n == n && r.omega >= lo && r.omega <= hi)
+                .filter(|r| r.value.re.is_finite() && r.value.im.is_finite())
+                .collect();
+            let largest = of_n.iter().map(|r| r.value.norm()).fold(0.0, f64::max);
+            // Weights 1 / stderr, floored at 1e-6 of the harmonic's largest estimate so that
+            // noise-free estimates do not get infinite weight.
+            let floor = 1e-6 * largest;
+            let stride = of_n.len().div_ceil(per_harmonic).max(1);
+            for r in of_n.into_iter().step_by(stride) {
+                let s = if r.stderr.is_finite() {
+                    r.stderr.max(floor)
+                } else {
+                    floor
+                };
+                rows.push((o, n, r.omega, r.value, 1.0 / s));
+            }
+        }
+    }
+    if rows.len() < names.len() {
+        bail!(
+            "only {} estimates in the band for the fitted harmonics",
+            rows.len()
+        );
+    }
+    let params = model.parameters();
+    let index: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            model
+                .parameter_index(n)
+                .with_context(|| format!("estimation.fit: the model has no parameter {n}"))
+        })
+        .collect::<Result<_>>()?;
+    let p0: Vec<f64> = index.iter().map(|&i| model.values()[i]).collect();
+    let shooting = ShootingOptions {
+        settle_periods: 0,
+        ..ShootingOptions::default()
+    };
+    let opts = settings.integrator.clone();
+    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+        let changes: Vec<(&str, f64)> = names
+            .iter()
+            .map(String::as_str)
+            .zip(p.iter().copied())
+            .collect();
+        let trial = model.with_parameters(&changes).map_err(|e| e.to_string())?;
+        let cyc = trial
+            .limit_cycle_from(cycle.mode0, &cycle.state0, &shooting, &opts)
+            .map_err(|e| e.to_string())?;
+        let htf = LinearisedHtf::new(&trial, &cyc, &opts).map_err(|e| e.to_string())?;
+        let channels = (0..htf.n_outputs())
+            .map(|o| htf.channel(o))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| e.to_string())?;
+        for (i, &(o, n, w, value, weight)) in rows.iter().enumerate() {
+            let d = (value - channels[o].g(n, w)) * weight;
+            r[2 * i] = d.re;
+            r[2 * i + 1] = d.im;
+        }
+        Ok(())
+    };
+    let lm = LmOptions {
+        scales: Some(p0.iter().map(|v| v.abs().max(1e-3)).collect()),
+        bounds: Some(
+            index
+                .iter()
+                .map(|&i| (params[i].min, params[i].max))
+                .collect(),
+        ),
+        ..LmOptions::default()
+    };
+    let fit = levenberg_marquardt(residuals, &p0, 2 * rows.len(), &lm)?;
+    let mut out = serde_json::Map::new();
+    for (i, name) in names.iter().enumerate() {
+        out.insert(name.clone(), json!(fit.params[i]));
+        out.insert(
+            format!("{name}_stderr"),
+            json!(fit.stderr.as_ref().map_or(f64::NAN, |s| s[i])),
+        );
+    }
+    out.insert("harmonics".into(), json!(settings.estimation.fit_harmonics));
+    out.insert("points".into(), json!(rows.len()));
+    out.insert("iterations".into(), json!(fit.iterations));
+    out.insert("cost".into(), json!(fit.cost));
+    out.insert("stop".into(), json!(format!("{:?}", fit.stop)));
+    Ok(Value::Object(out))
 }
