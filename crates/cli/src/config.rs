@@ -191,11 +191,13 @@ pub fn load<T: for<'de> Deserialize<'de>>(
     Ok((raw, source))
 }
 
-/// The two kinds of config: experiments (`simulate`, `theory`, `run`) and diagnoses.
+/// The kinds of config: experiments (`simulate`, `theory`, `run`), diagnoses, and
+/// model-free estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
     Experiment,
     Diagnosis,
+    Estimate,
 }
 
 /// A clear message when a config of the other kind is given to a command.
@@ -215,7 +217,19 @@ fn check_kind(source: &Source, kind: Kind) -> Result<(), ConfigError> {
     ]
     .iter()
     .find(|k| table.contains_key(**k));
+    let is_estimate = has_data && table.contains_key("period") && !table.contains_key("model");
     let message = match (kind, has_data, experiment_only) {
+        (Kind::Experiment | Kind::Diagnosis, true, _) if is_estimate => {
+            "this is an estimate config (it has [data] and [period], no [model]); run it with \
+             `htfid estimate`"
+                .to_string()
+        }
+        (Kind::Estimate, _, _) if !is_estimate => {
+            "`htfid estimate` needs a config with [data] and [period] and no [model] \
+             (see configs/estimate-hopper.toml)"
+                .to_string()
+        }
+        (Kind::Estimate, _, _) => return Ok(()),
         (Kind::Experiment, true, _) => {
             "this is a diagnosis config (it has [data]); run it with `htfid diagnose`".to_string()
         }

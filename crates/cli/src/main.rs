@@ -4,6 +4,7 @@
 //! - `htfid simulate CONFIG`: limit cycle and the excited time series;
 //! - `htfid theory CONFIG`: linearisation about the orbit and the harmonic transfer functions;
 //! - `htfid run CONFIG`: the whole pipeline: simulate, estimate, fit, compare with theory;
+//! - `htfid estimate CONFIG`: HTFs from measured data alone;
 //! - `htfid diagnose CONFIG`: measured data against the model: what is wrong and why.
 
 use std::path::PathBuf;
@@ -13,6 +14,7 @@ use clap::{Parser, Subcommand};
 
 mod commands;
 mod config;
+mod estimate_config;
 mod output;
 mod plots;
 mod progress;
@@ -75,6 +77,16 @@ enum Command {
         #[command(flatten)]
         out: OutArgs,
     },
+    /// Estimate HTFs from measured data alone (no model): period, orbit, estimates, checks.
+    Estimate {
+        /// Estimate config (TOML).
+        config: PathBuf,
+        /// Measured data (CSV), overriding the config's data file.
+        #[arg(long, value_name = "CSV")]
+        data: Option<PathBuf>,
+        #[command(flatten)]
+        out: OutArgs,
+    },
     /// Compare measured data with the model: what is wrong, the cause, the extended model.
     Diagnose {
         /// Diagnosis config (TOML).
@@ -103,6 +115,9 @@ fn main() -> ExitCode {
             no_plots,
             out,
         } => commands::run::run(&config, out.out, out.force, no_plots),
+        Command::Estimate { config, data, out } => {
+            commands::estimate::run(&config, data, out.out, out.force)
+        }
         Command::Diagnose { config, data, out } => {
             commands::diagnose::run(&config, data, out.out, out.force)
         }

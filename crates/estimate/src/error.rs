@@ -9,6 +9,9 @@ use thiserror::Error;
 #[derive(Debug, Clone, Error)]
 #[non_exhaustive]
 pub enum Error {
+    /// No periodic component stands out of the record's spectrum.
+    #[error("no periodic component stands out of the output's spectrum (no peak 30 times above its median); give the period")]
+    NoPeriodicComponent,
     /// Input and output of a record have different lengths.
     #[error("input has {input} samples but output has {output}; a record needs one output sample per input sample")]
     LengthMismatch {

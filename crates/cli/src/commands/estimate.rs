@@ -1,0 +1,383 @@
+//! `htfid estimate CONFIG [--data FILE]`: HTFs from measured data alone, no model. The period
+//! is given or estimated, the orbit is the period average of the record (input and outputs),
+//! and Siddiqi's estimator takes the deviations. The science is in `htfid-estimate`
+//! (`estimate_period`, `split_periodic`, `siddiqi`); this file reads, checks, writes.
+
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use htfid_data::{read_csv, CsvSpec, TimeSeries};
+use htfid_estimate::{estimate_period, siddiqi, split_periodic, Alpha, HtfEstimate, Record};
+use htfid_plot::Style;
+use num_complex::Complex64;
+use serde_json::{json, Value};
+
+use crate::commands::simulate::report_written;
+use crate::estimate_config::{EstimateSettings, PeriodSetting};
+use crate::output::{json_text, open, resolve_dir};
+use crate::plots::{self, Curve};
+use crate::progress::Stages;
+
+/// Fewer periods than this and the estimate is called short in the checks.
+const MIN_PERIODS: usize = 20;
+
+fn read(settings: &EstimateSettings, output: &str) -> Result<TimeSeries> {
+    let mut spec = CsvSpec::default()
+        .with_columns(settings.input.clone(), output.to_string())
+        .with_min_samples(64)
+        .with_time_tolerance(settings.time_tolerance);
+    spec = match (&settings.time, settings.sample_rate) {
+        (Some(t), _) => spec.with_time_column(t.clone()),
+        (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
+        (None, None) => spec,
+    };
+    read_csv(&settings.file, &spec).with_context(|| {
+        format!(
+            "{}: [data] file (a non-uniform time step can be allowed with data.time_tolerance, \
+             now {:e})",
+            settings.path.display(),
+            settings.time_tolerance
+        )
+    })
+}
+
+pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
+    let settings = EstimateSettings::from_file(config, data)?;
+    let outputs = &settings.outputs;
+    let suffix = |o: usize| {
+        if o == 0 {
+            String::new()
+        } else {
+            format!("_{}", outputs[o])
+        }
+    };
+    let mut names: Vec<String> = vec!["summary.json".into(), "orbit.csv".into()];
+    for o in 0..outputs.len() {
+        names.push(format!("estimate_siddiqi{}.csv", suffix(o)));
+        names.push(format!("estimate_harmonics{}.svg", suffix(o)));
+        names.push(format!("estimate_harmonics{}.png", suffix(o)));
+    }
+    let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let dir = resolve_dir(out, &settings.name);
+    let mut outdir = open(&dir, force, &name_refs)?;
+    let mut stages = Stages::new(false);
+
+    let series: Vec<TimeSeries> = stages.run("read data", || {
+        outputs
+            .iter()
+            .map(|o| read(&settings, o))
+            .collect::<Result<Vec<_>>>()
+    })?;
+    let first = &series[0];
+    let dt = first.dt();
+    let i0 = first.time().partition_point(|&t| t < settings.start);
+    if first.len() - i0 < 64 {
+        bail!(
+            "{}: data.start = {} leaves {} samples; at least 64 are needed",
+            settings.path.display(),
+            settings.start,
+            first.len() - i0
+        );
+    }
+
+    // The period: given, or estimated from the first output and snapped to a whole number of
+    // samples (the split and the estimator need N dt = P T exactly).
+    let (period, estimated) = match settings.period {
+        PeriodSetting::Given(t) => (t, None),
+        PeriodSetting::Estimate => {
+            let est = stages
+                .run("estimate period", || {
+                    estimate_period(&first.output()[i0..], dt)
+                })
+                .context("the period could not be estimated from the first output")?;
+            let per = est.period / dt;
+            let snapped = per.round();
+            // The estimate is far better than a hundredth of a sample on any record with a
+            // clear orbit; a larger offset means the sampling is not locked to the period.
+            if (per - snapped).abs() > 0.01 {
+                bail!(
+                    "{}: the estimated period {:.9} s is {per:.4} samples, not a whole number; \
+                     give period.value (s), or resample the data so that a period holds a whole \
+                     number of samples",
+                    settings.path.display(),
+                    est.period
+                );
+            }
+            (snapped * dt, Some(est))
+        }
+    };
+    let per_period = (period / dt).round() as usize;
+    let available = first.len() - i0;
+    let periods = available / per_period.max(1);
+    if periods < 2 {
+        bail!(
+            "{}: the record after data.start holds {periods} period(s) of {period} s; at least \
+             2 are needed (and {MIN_PERIODS} for a usable estimate)",
+            settings.path.display()
+        );
+    }
+    let n = periods * per_period;
+    let t_start = first.time()[i0];
+
+    let u_split = split_periodic(&first.input()[i0..i0 + n], dt, t_start, period, 5)
+        .context("input: period average")?;
+    let mut estimates: Vec<HtfEstimate> = Vec::new();
+    let mut orbits = Vec::new();
+    for (o, s) in series.iter().enumerate() {
+        let y_split = split_periodic(&s.output()[i0..i0 + n], dt, t_start, period, 10)
+            .with_context(|| format!("output {}: period average", outputs[o]))?;
+        let record = Record::new(
+            u_split.deviation.clone(),
+            y_split.deviation.clone(),
+            dt,
+            t_start,
+        )?;
+        let alpha = settings.alpha.map_or(Alpha::Gcv, Alpha::Fixed);
+        let e = stages
+            .run(&format!("estimate ({})", outputs[o]), || {
+                siddiqi(&record, period, &settings.harmonics, settings.band, alpha)
+            })
+            .with_context(|| format!("Siddiqi's estimator on output {}", outputs[o]))?;
+        estimates.push(e);
+        orbits.push(y_split);
+    }
+
+    // What the experiment allows.
+    let wp = 2.0 * PI / period;
+    let nyquist = PI / dt;
+    let resolution = 2.0 * PI / (n as f64 * dt);
+    let excited = excited_band(&u_split.deviation, dt);
+    let mut notes: Vec<String> = Vec::new();
+    if periods < MIN_PERIODS {
+        notes.push(format!(
+            "only {periods} periods: the estimate has few degrees of freedom per bin"
+        ));
+    }
+    let (lo, hi) = settings.band;
+    if let Some((a, b)) = excited {
+        if a > lo * 1.05 || b < hi * 0.95 {
+            notes.push(format!(
+                "the input excites {a:.3}-{b:.3} rad/s (within 40 dB of its peak), not the whole \
+                 band {lo}-{hi} rad/s: outside it the estimates rest on regularisation alone"
+            ));
+        }
+    } else {
+        notes.push("the input has no broadband content apart from its periodic part".into());
+    }
+    let unresolved: Vec<i32> = settings
+        .harmonics
+        .iter()
+        .copied()
+        .filter(|&k| hi - f64::from(k) * wp > nyquist || lo - f64::from(k) * wp < -nyquist)
+        .collect();
+    if !unresolved.is_empty() {
+        notes.push(format!(
+            "harmonics {unresolved:?} map part of the band past the Nyquist frequency \
+             ({nyquist:.1} rad/s): they alias and cannot be resolved at this sample rate"
+        ));
+    }
+    if hi > nyquist {
+        notes.push(format!(
+            "estimation.omega_max = {hi} rad/s is above the Nyquist frequency {nyquist:.1} rad/s"
+        ));
+    }
+
+    stages.run("write outputs", || -> Result<()> {
+        for (o, e) in estimates.iter().enumerate() {
+            let mut csv = outdir.csv(
+                &format!("estimate_siddiqi{}.csv", suffix(o)),
+                &["omega", "n", "re", "im", "stderr"],
+            )?;
+            for r in e.rows() {
+                csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
+            }
+            csv.finish()?;
+        }
+        // One period of the measured orbit (the periodic part), from its harmonics.
+        let mut header = vec!["phase".to_string(), settings.input.clone()];
+        header.extend(outputs.iter().cloned());
+        let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
+        let mut csv = outdir.csv("orbit.csv", &header_refs)?;
+        let eval = |c: &[Complex64], t: f64| {
+            c.iter().enumerate().fold(0.0, |acc, (k, ck)| {
+                let z = ck * Complex64::from_polar(1.0, k as f64 * wp * t);
+                acc + if k == 0 { z.re } else { 2.0 * z.re }
+            })
+        };
+        let samples = 200;
+        for i in 0..samples {
+            let t = period * i as f64 / samples as f64;
+            let mut row = vec![t, eval(&u_split.harmonics, t)];
+            row.extend(orbits.iter().map(|y| eval(&y.harmonics, t)));
+            csv.write_row(&row)?;
+        }
+        csv.finish()?;
+        for (o, e) in estimates.iter().enumerate() {
+            let fig = figure(&settings, &outputs[o], e);
+            plots::write(
+                &mut outdir,
+                &format!("estimate_harmonics{}", suffix(o)),
+                &fig,
+            )?;
+        }
+        Ok(())
+    })?;
+
+    let per_output: Vec<Value> = estimates
+        .iter()
+        .zip(outputs)
+        .map(|(e, name)| {
+            let by_n: serde_json::Map<String, Value> = settings
+                .harmonics
+                .iter()
+                .map(|&k| {
+                    let rows: Vec<_> = e.rows().filter(|r| r.n == k).collect();
+                    let max = rows.iter().map(|r| r.value.norm()).fold(0.0, f64::max);
+                    let mut snr: Vec<f64> = rows
+                        .iter()
+                        .filter(|r| r.stderr > 0.0)
+                        .map(|r| r.value.norm() / r.stderr)
+                        .collect();
+                    snr.sort_by(f64::total_cmp);
+                    let significant = snr.iter().filter(|&&s| s > 2.0).count();
+                    (
+                        k.to_string(),
+                        json!({
+                            "max_abs_g": max,
+                            "median_abs_g_over_stderr": snr.get(snr.len() / 2).copied().unwrap_or(f64::NAN),
+                            "significant_points": significant,
+                            "points": rows.len(),
+                        }),
+                    )
+                })
+                .collect();
+            json!({"output": name, "alpha": e.alpha(), "alpha_effective": e.alpha_effective(), "harmonics": by_n})
+        })
+        .collect();
+    let summary = json!({
+        "name": settings.name,
+        "config": settings.path.display().to_string(),
+        "data": settings.file.display().to_string(),
+        "htfid_version": env!("CARGO_PKG_VERSION"),
+        "period": {
+            "value": period,
+            "source": if estimated.is_some() { "estimated" } else { "given" },
+            "estimated": estimated.map(|e| e.period),
+            "periodic_share": estimated.map(|e| e.periodic_share),
+            "pumping_frequency": wp,
+        },
+        "record": {
+            "start": t_start,
+            "samples": n,
+            "sample_rate": 1.0 / dt,
+            "duration": n as f64 * dt,
+            "periods": periods,
+            "frequency_resolution": resolution,
+            "nyquist": nyquist,
+        },
+        "checks": {
+            "excited_band": excited.map(|(a, b)| [a, b]),
+            "notes": notes,
+        },
+        "estimation": {
+            "estimator": "siddiqi",
+            "harmonics": settings.harmonics,
+            "band": [lo, hi],
+        },
+        "estimates": per_output,
+        "timings_ms": stages.to_json(),
+    });
+    outdir.write_text("summary.json", &json_text(&summary))?;
+    for note in &notes {
+        eprintln!("[htfid] note: {note}");
+    }
+    report_written(&outdir.commit()?);
+    Ok(())
+}
+
+/// The band (rad/s) where the input's spectrum lies within 40 dB of its peak, smoothed over
+/// 1 % of the bins; `None` for an input without content.
+fn excited_band(u: &[f64], dt: f64) -> Option<(f64, f64)> {
+    let n = u.len();
+    let mut buf: Vec<Complex64> = u.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(n)
+        .process(&mut buf);
+    let power: Vec<f64> = buf[1..n / 2].iter().map(|z| z.norm_sqr()).collect();
+    let w = (power.len() / 100).max(1);
+    let smooth: Vec<f64> = (0..power.len())
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(w), (i + w + 1).min(power.len()));
+            power[a..b].iter().sum::<f64>() / (b - a) as f64
+        })
+        .collect();
+    let peak = smooth.iter().copied().fold(0.0, f64::max);
+    if peak.is_nan() || peak <= 0.0 {
+        return None;
+    }
+    let above: Vec<usize> = (0..smooth.len())
+        .filter(|&i| smooth[i] >= 1e-4 * peak)
+        .collect();
+    let bin = 2.0 * PI / (n as f64 * dt);
+    Some((
+        (above[0] + 1) as f64 * bin,
+        (*above.last()? + 1) as f64 * bin,
+    ))
+}
+
+/// `|G_n|` of one output with its 95 % confidence bounds (`|G| +- 1.96 stderr`) dashed.
+fn figure(settings: &EstimateSettings, output: &str, e: &HtfEstimate) -> htfid_plot::Figure {
+    type Series = (Vec<f64>, Vec<Complex64>, Vec<Complex64>, Vec<Complex64>);
+    let series: Vec<(i32, Series)> = settings
+        .harmonics
+        .iter()
+        .map(|&k| {
+            let rows: Vec<_> = e.rows().filter(|r| r.n == k).collect();
+            let w = rows.iter().map(|r| r.omega).collect();
+            let g = rows.iter().map(|r| r.value).collect();
+            // Bounds on the magnitude, drawn as real values.
+            let up = rows
+                .iter()
+                .map(|r| Complex64::new(r.value.norm() + 1.96 * r.stderr, 0.0))
+                .collect();
+            let low = rows
+                .iter()
+                .map(|r| Complex64::new((r.value.norm() - 1.96 * r.stderr).max(0.0), 0.0))
+                .collect();
+            (k, (w, g, up, low))
+        })
+        .collect();
+    let per: Vec<(i32, Vec<Curve<'_>>)> = series
+        .iter()
+        .map(|(k, (w, g, up, low))| {
+            (
+                *k,
+                vec![
+                    Curve {
+                        label: "estimate",
+                        omega: w,
+                        values: g,
+                        style: Style::Line,
+                    },
+                    Curve {
+                        label: "upper 95 % bound",
+                        omega: w,
+                        values: up,
+                        style: Style::Dashed,
+                    },
+                    Curve {
+                        label: "lower 95 % bound (absent: not significant)",
+                        omega: w,
+                        values: low,
+                        style: Style::Dashed,
+                    },
+                ],
+            )
+        })
+        .collect();
+    plots::harmonics(
+        &format!("{}: |G_n| of {output} from data (Siddiqi)", settings.name),
+        &per,
+    )
+}
