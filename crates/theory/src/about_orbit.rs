@@ -123,10 +123,9 @@ impl<'a, S: InputOutput> LinearisedHtf<'a, S> {
     /// [`TheoryError::Integration`] when the periodic-response integration fails.
     pub fn grids(&self, harmonics: &[i32], omegas: &[f64]) -> Result<Vec<HtfGrid>, TheoryError> {
         match &self.inner {
-            Inner::Exact { channels, .. } => Ok(channels
-                .iter()
-                .map(|c| c.grid(harmonics, omegas))
-                .collect()),
+            Inner::Exact { channels, .. } => {
+                Ok(channels.iter().map(|c| c.grid(harmonics, omegas)).collect())
+            }
             Inner::Orbit(o) => o.grids(harmonics, omegas),
         }
     }
