@@ -54,6 +54,15 @@ pub enum HybridError {
         /// The window length (s).
         window: f64,
     },
+    /// More transitions within one fixed step than the fixed-step integrator resolves: the
+    /// motion chatters between charts (a sliding mode, or a step far too long).
+    #[error("chattering at t = {time} s: {events} transitions within one fixed step")]
+    Chattering {
+        /// Time of the last transition (s).
+        time: f64,
+        /// Transitions within the step.
+        events: usize,
+    },
     /// A state vector does not have the system's dimension.
     #[error("state has dimension {found}, the system has dimension {expected}")]
     DimensionMismatch {

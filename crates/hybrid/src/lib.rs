@@ -153,6 +153,7 @@
 //! bench_events` are recorded in that example's documentation.
 
 mod error;
+mod fixed;
 mod integrator;
 mod options;
 mod rk;
@@ -162,6 +163,7 @@ mod tableau;
 mod trajectory;
 
 pub use error::HybridError;
+pub use fixed::{simulate_fixed_step, FIXED_STEP_MAX_DIM};
 pub use integrator::{simulate, Integrator, StopReason};
 pub use options::{Method, Options};
 pub use system::{Crossing, HybridSystem};
