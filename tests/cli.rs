@@ -1188,3 +1188,53 @@ fn estimate_config_errors_are_clear() {
         stderr(&o)
     );
 }
+
+/// Times printed with few digits (as float32 timestamps are) break the default 1e-6 step
+/// tolerance: the message names the key that allows them, and with that key the record is read
+/// and diagnosed.
+#[test]
+fn coarse_timestamps_are_allowed_by_data_time_tolerance() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = fs::read_to_string(root().join("data/hopper-protocol.csv")).unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        match line.split_once(',') {
+            Some((t, rest)) if t.parse::<f64>().is_ok() => {
+                let t: f64 = t.parse().unwrap();
+                out.push_str(&format!("{:.8e},{rest}\n", t as f32));
+            }
+            _ => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    let data = tmp.path().join("coarse.csv");
+    fs::write(&data, out).unwrap();
+    let config = tmp.path().join("d.toml");
+    let base = fs::read_to_string(root().join("configs/diagnose-hopper.toml")).unwrap();
+    fs::write(&config, &base).unwrap();
+    let o = htfid(&[
+        "diagnose",
+        config.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o1").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("data.time_tolerance"), "{}", stderr(&o));
+    fs::write(
+        &config,
+        base.replacen("output = \"x\"", "output = \"x\"\ntime_tolerance = 1e-2", 1),
+    )
+    .unwrap();
+    htfid_ok(&[
+        "diagnose",
+        config.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o2").to_str().unwrap(),
+    ]);
+}

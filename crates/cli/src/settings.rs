@@ -1070,6 +1070,7 @@ pub struct RawData {
     pub fit: Option<Spanned<Vec<[i64; 2]>>>,
     pub validation: Option<Spanned<Vec<[i64; 2]>>>,
     pub test: Option<Spanned<Vec<[i64; 2]>>>,
+    pub time_tolerance: OptNum,
 }
 
 #[derive(Debug, Deserialize)]
@@ -1107,6 +1108,8 @@ pub struct DataSettings {
     pub validation: Vec<std::ops::Range<usize>>,
     /// Extra held-out ranges reported separately (for example a benchmark's test sections).
     pub test: Vec<std::ops::Range<usize>>,
+    /// Relative tolerance on the time step.
+    pub time_tolerance: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -1204,6 +1207,13 @@ impl DiagnoseSettings {
             fit: ranges(&src, &d.fit, "data.fit")?,
             validation: ranges(&src, &d.validation, "data.validation")?,
             test: ranges(&src, &d.test, "data.test")?,
+            time_tolerance: src.opt_number(
+                &d.time_tolerance,
+                htfid_data::DEFAULT_TIME_TOLERANCE,
+                "data.time_tolerance",
+                "in [0, 0.1]",
+                |v| (0.0..=0.1).contains(&v),
+            )?,
         };
         let m = &raw.model;
         let zero = |v: &Option<Num>, key: &str| -> Result<f64, ConfigError> {

@@ -79,11 +79,20 @@ impl Record {
     /// The record of a [`TimeSeries`](htfid_data::TimeSeries): its input is the force, its
     /// output the position.
     pub fn from_series(series: &htfid_data::TimeSeries) -> Result<Self, DiagnoseError> {
-        Record::new(
+        // The series was checked where it was read, with the tolerance its reader was given:
+        // checking again here with another tolerance would reject what the user allowed.
+        let (t, f, x) = (
             series.time().to_vec(),
             series.input().to_vec(),
             series.output().to_vec(),
-        )
+        );
+        check_columns(&t, &f, &x)?;
+        Ok(Record {
+            t,
+            f,
+            x,
+            dt: series.dt(),
+        })
     }
 
     /// Sample times (s).

@@ -121,13 +121,21 @@ fn read_series(settings: &DiagnoseSettings) -> Result<TimeSeries> {
     let d = &settings.data;
     let mut spec = CsvSpec::default()
         .with_columns(d.input.clone(), d.output.clone())
-        .with_min_samples(64);
+        .with_min_samples(64)
+        .with_time_tolerance(d.time_tolerance);
     spec = match (&d.time, d.sample_rate) {
         (Some(t), _) => spec.with_time_column(t.clone()),
         (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
         (None, None) => spec,
     };
-    read_csv(&d.file, &spec).with_context(|| format!("{}: [data] file", settings.path.display()))
+    read_csv(&d.file, &spec).with_context(|| {
+        format!(
+            "{}: [data] file (a non-uniform time step can be allowed with data.time_tolerance, \
+             now {:e})",
+            settings.path.display(),
+            d.time_tolerance
+        )
+    })
 }
 
 fn nominal_model(s: &DiagnoseSettings) -> Result<NominalModel> {
