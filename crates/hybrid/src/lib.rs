@@ -5,7 +5,9 @@
 //! [`Crossing`] direction, its reset map ([`HybridSystem::transition`]) is applied and the flow
 //! continues in the chart it returns. [`simulate`] integrates from `(t0, x0, mode0)` to `t_end`
 //! and returns a [`Trajectory`]: the states on a requested grid (from the dense output), every
-//! [`Event`], and work counters ([`Stats`]). [`Integrator`] is the stepping API underneath: each
+//! [`Event`], and work counters ([`Stats`]). [`simulate_fixed_step`] is the fixed-step
+//! alternative (RK4 on a uniform sample grid with located events), for fits whose cost must vary
+//! smoothly with the parameters. [`Integrator`] is the stepping API underneath: each
 //! call to [`Integrator::step_until`] takes at most one step and says why it stopped
 //! ([`StopReason`]). [`Options`] holds tolerances and event settings; errors are
 //! [`HybridError`].
