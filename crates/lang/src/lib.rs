@@ -57,4 +57,4 @@ mod read;
 
 pub use build::{Output, Parameter, State};
 pub use error::{Location, ModelError};
-pub use model::{InputFn, Mode, Model};
+pub use model::{InputFn, Mode, Model, ParameterSensitivity};

@@ -652,3 +652,123 @@ impl htfid_ltp::InputOutput for Model {
         });
     }
 }
+
+/// Exact derivatives of a model with respect to some of its parameters, at the model's
+/// current values: `df/dp` per mode, `dh/dp` per guard, `dR/dp` per reset, `dy/dp` of the
+/// outputs. Symbolic, like every derivative of the model language; for the forward
+/// sensitivity equations of output-error fits (`dx/dp' = A dx/dp + df/dp`, with the
+/// saltation's parameter terms at the guards).
+#[derive(Debug, Clone)]
+pub struct ParameterSensitivity {
+    params: Vec<String>,
+    n: usize,
+    /// Per mode: `df/dp`, `n x k` row-major.
+    flow: Vec<Program>,
+    /// Per guard: `dh/dp` (k).
+    guard: Vec<Program>,
+    /// Per guard: `dR/dp` (`n x k`), `None` for the identity reset.
+    reset: Vec<Option<Program>>,
+    /// `dy/dp`, `p x k`.
+    output: Program,
+}
+
+impl Model {
+    /// The exact parameter derivatives for `params` (names of this model's parameters).
+    ///
+    /// # Errors
+    /// [`ModelError::Parameter`] for a name the model does not have.
+    pub fn parameter_sensitivity(
+        &self,
+        params: &[&str],
+    ) -> Result<ParameterSensitivity, ModelError> {
+        let def = &self.def;
+        for name in params {
+            if self.parameter_index(name).is_none() {
+                return Err(ModelError::Parameter {
+                    name: (*name).to_string(),
+                    message: "the model has no such parameter".into(),
+                });
+            }
+        }
+        let names: Vec<&str> = std::iter::once("t")
+            .chain(def.states.iter().map(|s| s.name.as_str()))
+            .chain(std::iter::once(def.input.as_str()))
+            .collect();
+        let compile = |exprs: Vec<Expr>| -> Result<Program, ModelError> {
+            let folded: Vec<Expr> = exprs
+                .iter()
+                .map(|e| fold(e, &def.params, &self.values))
+                .collect();
+            Program::compile(&folded, &names).map_err(|e| ModelError::Invalid {
+                location: Default::default(),
+                key: def.name.clone(),
+                message: format!("internal: a parameter derivative failed to compile: {e}"),
+            })
+        };
+        let jac = |exprs: &[Expr]| -> Vec<Expr> {
+            exprs
+                .iter()
+                .flat_map(|e| params.iter().map(move |p| e.derivative(p)))
+                .collect()
+        };
+        let flow = def
+            .flows
+            .iter()
+            .map(|f| compile(jac(f)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let guard = def
+            .guards
+            .iter()
+            .map(|g| compile(jac(std::slice::from_ref(&g.when))))
+            .collect::<Result<Vec<_>, _>>()?;
+        let reset = def
+            .guards
+            .iter()
+            .map(|g| g.reset.as_ref().map(|r| compile(jac(r))).transpose())
+            .collect::<Result<Vec<_>, _>>()?;
+        let outputs: Vec<Expr> = def.outputs.iter().map(|o| o.expr.clone()).collect();
+        let output = compile(jac(&outputs))?;
+        Ok(ParameterSensitivity {
+            params: params.iter().map(|p| (*p).to_string()).collect(),
+            n: def.states.len(),
+            flow,
+            guard,
+            reset,
+            output,
+        })
+    }
+}
+
+impl ParameterSensitivity {
+    /// The parameters, in the order of every column.
+    pub fn parameters(&self) -> &[String] {
+        &self.params
+    }
+
+    /// `df/dp` of `mode` at `(t, x, u)`, into `out` (`n x k` row-major).
+    pub fn flow(&self, mode: Mode, t: f64, x: &[f64], u: f64, out: &mut [f64]) {
+        with_vars(t, x, u, |v| self.flow[mode.index()].eval(v, out));
+    }
+
+    /// `dh/dp` of guard `index` (in the order the model declares its guards) at `(t, x, u)`,
+    /// into `out` (k).
+    pub fn guard(&self, index: usize, t: f64, x: &[f64], u: f64, out: &mut [f64]) {
+        with_vars(t, x, u, |v| self.guard[index].eval(v, out));
+    }
+
+    /// `dR/dp` of the reset of guard `index` at `(t, x, u)`, into `out` (`n x k`); zeros for
+    /// the identity reset.
+    pub fn reset(&self, index: usize, t: f64, x: &[f64], u: f64, out: &mut [f64]) {
+        match &self.reset[index] {
+            Some(p) => with_vars(t, x, u, |v| p.eval(v, out)),
+            None => out[..self.n * self.params.len()]
+                .iter_mut()
+                .for_each(|v| *v = 0.0),
+        }
+    }
+
+    /// `dy/dp` of the outputs at `(t, x, u)`, into `out` (`p x k`).
+    pub fn output(&self, t: f64, x: &[f64], u: f64, out: &mut [f64]) {
+        with_vars(t, x, u, |v| self.output.eval(v, out));
+    }
+}
