@@ -15,6 +15,7 @@ use clap::{Parser, Subcommand};
 mod commands;
 mod config;
 mod estimate_config;
+mod model_diagnose_config;
 mod output;
 mod plots;
 mod progress;

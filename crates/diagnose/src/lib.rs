@@ -154,6 +154,7 @@ mod effect;
 mod error;
 mod fit;
 mod interp;
+mod model_fit;
 mod noise;
 mod nominal;
 mod record;
@@ -167,6 +168,9 @@ pub use diagnose::{
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use interp::Interpolation;
+pub use model_fit::{
+    diagnose_model, ModelDiagnosis, ModelFitOptions, ModelRecord, ModelScore, ParameterChange,
+};
 pub use nominal::NominalModel;
 pub use record::Record;
 pub use sim::SimMethod;

@@ -32,6 +32,9 @@ const PLOTS: [&str; 3] = ["residual_time", "residual_spectrum", "orbit"];
 const HTF_HARMONICS: [i32; 5] = [-2, -1, 0, 1, 2];
 
 pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
+    if crate::model_diagnose_config::names_a_model_file(config) {
+        return crate::commands::diagnose_model::run(config, data, out, force);
+    }
     let mut settings = DiagnoseSettings::from_file(config)?;
     if let Some(d) = data {
         settings.data.file = d;

@@ -1,0 +1,219 @@
+//! Diagnosis configs whose `[model]` names a model file (the model language). Every key is
+//! documented in `docs/config.md`.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::config::{load, ConfigError, Kind, Source};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawModelDiagnoseConfig {
+    name: Option<Spanned<String>>,
+    data: RawData,
+    model: RawModelRef,
+    diagnose: Option<RawOptions>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawData {
+    file: Spanned<String>,
+    time: Option<Spanned<String>>,
+    sample_rate: Option<Spanned<f64>>,
+    input: Spanned<String>,
+    outputs: Spanned<Vec<String>>,
+    time_tolerance: Option<Spanned<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawModelRef {
+    file: Spanned<String>,
+    free: Option<Spanned<Vec<String>>>,
+    parameters: Option<Spanned<toml::Table>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawOptions {
+    fit_fraction: Option<Spanned<f64>>,
+    burn_in: Option<Spanned<f64>>,
+    significance_sigma: Option<Spanned<f64>>,
+    min_gain: Option<Spanned<f64>>,
+}
+
+/// Resolved settings of a model-file diagnosis.
+#[derive(Debug, Clone)]
+pub struct ModelDiagnoseSettings {
+    pub name: String,
+    pub path: PathBuf,
+    pub file: PathBuf,
+    pub time: Option<String>,
+    pub sample_rate: Option<f64>,
+    pub input: String,
+    pub outputs: Vec<String>,
+    pub time_tolerance: f64,
+    pub model: htfid_lang::Model,
+    pub options: htfid_diagnose::ModelFitOptions,
+}
+
+/// Whether the config at `path` names a model file in `[model]` (so it takes this path).
+pub fn names_a_model_file(path: &Path) -> bool {
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|t| t.parse::<toml::Table>().ok())
+        .and_then(|t| t.get("model").and_then(|m| m.as_table()).cloned())
+        .is_some_and(|m| m.contains_key("file"))
+}
+
+impl ModelDiagnoseSettings {
+    pub fn from_file(path: &Path, data: Option<PathBuf>) -> Result<Self, ConfigError> {
+        let (raw, src): (RawModelDiagnoseConfig, Source) = load(path, Kind::Diagnosis)?;
+        let name = match &raw.name {
+            Some(n) => n.get_ref().trim().to_string(),
+            None => path
+                .file_stem()
+                .map_or_else(|| "diagnosis".into(), |s| s.to_string_lossy().into_owned()),
+        };
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let d = &raw.data;
+        if d.time.is_some() == d.sample_rate.is_some() {
+            return Err(src.error(
+                Some(&d.file.span()),
+                "data",
+                "give exactly one of `time` (the time column) and `sample_rate` (Hz)",
+            ));
+        }
+        let model_path = dir.join(raw.model.file.get_ref());
+        let mut model = htfid_lang::Model::from_file(&model_path).map_err(|e| ConfigError {
+            path: src.path.clone(),
+            line: Some(src.line_of(&raw.model.file.span())),
+            key: "model.file".into(),
+            message: e.to_string(),
+        })?;
+        if let Some(table) = &raw.model.parameters {
+            let mut changes = Vec::new();
+            for (k, v) in table.get_ref() {
+                let value = match v {
+                    toml::Value::Float(f) => *f,
+                    toml::Value::Integer(i) => *i as f64,
+                    _ => {
+                        return Err(src.error(
+                            Some(&table.span()),
+                            &format!("model.parameters.{k}"),
+                            "must be a number",
+                        ))
+                    }
+                };
+                changes.push((k.as_str(), value));
+            }
+            model = model
+                .with_parameters(&changes)
+                .map_err(|e| src.error(Some(&table.span()), "model.parameters", e.to_string()))?;
+        }
+        let outputs = d.outputs.get_ref().clone();
+        if outputs.len() != model.outputs().len() {
+            return Err(src.error(
+                Some(&d.outputs.span()),
+                "data.outputs",
+                format!(
+                    "the model has {} output(s) ({}); name one measured column for each, in order",
+                    model.outputs().len(),
+                    model
+                        .outputs()
+                        .iter()
+                        .map(|o| o.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        if outputs.contains(d.input.get_ref()) {
+            return Err(src.error(
+                Some(&d.outputs.span()),
+                "data.outputs",
+                format!("\"{}\" is also the input column", d.input.get_ref()),
+            ));
+        }
+        let free = match &raw.model.free {
+            Some(list) => {
+                for (i, f) in list.get_ref().iter().enumerate() {
+                    if model.parameter_index(f).is_none() {
+                        return Err(src.error(
+                            Some(&list.span()),
+                            "model.free",
+                            format!(
+                                "the model has no parameter \"{f}\"; it has {}",
+                                model
+                                    .parameters()
+                                    .iter()
+                                    .map(|p| p.name.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ),
+                        ));
+                    }
+                    if list.get_ref()[..i].contains(f) {
+                        return Err(src.error(
+                            Some(&list.span()),
+                            "model.free",
+                            format!("\"{f}\" is listed twice"),
+                        ));
+                    }
+                }
+                list.get_ref().clone()
+            }
+            None => model
+                .parameters()
+                .iter()
+                .filter(|p| p.free)
+                .map(|p| p.name.clone())
+                .collect(),
+        };
+        let o = raw.diagnose.as_ref();
+        let mut options = htfid_diagnose::ModelFitOptions {
+            free,
+            ..Default::default()
+        };
+        if let Some(v) = o.and_then(|o| o.fit_fraction.as_ref()) {
+            options.fit_fraction =
+                src.number(v, "diagnose.fit_fraction", "in [0.1, 0.95]", |x| {
+                    (0.1..=0.95).contains(&x)
+                })?;
+        }
+        if let Some(v) = o.and_then(|o| o.burn_in.as_ref()) {
+            options.burn_in = src.non_negative(v, "diagnose.burn_in")?;
+        }
+        if let Some(v) = o.and_then(|o| o.significance_sigma.as_ref()) {
+            options.significance_sigma = src.positive(v, "diagnose.significance_sigma")?;
+        }
+        if let Some(v) = o.and_then(|o| o.min_gain.as_ref()) {
+            options.min_gain = src.number(v, "diagnose.min_gain", "in [0, 1)", |x| {
+                (0.0..1.0).contains(&x)
+            })?;
+        }
+        Ok(ModelDiagnoseSettings {
+            name,
+            path: path.to_path_buf(),
+            file: data.unwrap_or_else(|| dir.join(d.file.get_ref())),
+            time: d.time.as_ref().map(|t| t.get_ref().clone()),
+            sample_rate: match &d.sample_rate {
+                Some(v) => Some(src.positive(v, "data.sample_rate")?),
+                None => None,
+            },
+            input: d.input.get_ref().clone(),
+            outputs,
+            time_tolerance: match &d.time_tolerance {
+                Some(v) => src.number(v, "data.time_tolerance", "in [0, 0.1]", |x| {
+                    (0.0..=0.1).contains(&x)
+                })?,
+                None => htfid_data::DEFAULT_TIME_TOLERANCE,
+            },
+            model,
+            options,
+        })
+    }
+}
