@@ -1333,3 +1333,58 @@ fn diagnose_names_a_shifted_parameter_of_every_model() {
         );
     }
 }
+
+/// Values that parse but mean nothing are refused with the key named: a plotted harmonic that
+/// is not computed, the output column equal to the input column, a test range inside the fit
+/// range.
+#[test]
+fn meaningless_values_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let paper = fs::read_to_string(root().join("configs/paper.toml")).unwrap();
+    let path = tmp.path().join("p.toml");
+    fs::write(
+        &path,
+        paper.replacen("points = 400", "points = 400\nplot_harmonics = [9]", 1),
+    )
+    .unwrap();
+    let o = htfid(&[
+        "theory",
+        path.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("theory.plot_harmonics: harmonic 9 is not among theory.harmonics"),
+        "{}",
+        stderr(&o)
+    );
+    let diag = fs::read_to_string(root().join("configs/diagnose-hopper.toml"))
+        .unwrap()
+        .replace(
+            "\"../data/hopper-protocol.csv\"",
+            &format!("{:?}", root().join("data/hopper-protocol.csv")),
+        );
+    for (from, to, needle) in [
+        (
+            "output = \"x\"",
+            "output = \"f\"",
+            "data.output: \"f\" is also the input column",
+        ),
+        (
+            "output = \"x\"",
+            "output = \"x\"\nfit = [[0, 20000]]\ntest = [[100, 200]]",
+            "data.test: test range [100, 200) overlaps fit range [0, 20000)",
+        ),
+    ] {
+        fs::write(&path, diag.replacen(from, to, 1)).unwrap();
+        let o = htfid(&[
+            "diagnose",
+            path.to_str().unwrap(),
+            "--out",
+            tmp.path().join("o").to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{to}");
+        assert!(stderr(&o).contains(needle), "{to}: {}", stderr(&o));
+    }
+}

@@ -840,7 +840,17 @@ fn resolve_theory(src: &Source, t: Option<&RawTheory>) -> Result<TheorySettings,
         },
     };
     let plot_harmonics = match &t.plot_harmonics {
-        Some(h) => harmonics_list(src, h, "theory.plot_harmonics")?,
+        Some(h) => {
+            let list = harmonics_list(src, h, "theory.plot_harmonics")?;
+            if let Some(n) = list.iter().find(|n| !harmonics.contains(n)) {
+                return Err(src.error(
+                    Some(&h.span()),
+                    "theory.plot_harmonics",
+                    format!("harmonic {n} is not among theory.harmonics {harmonics:?}"),
+                ));
+            }
+            list
+        }
         None => harmonics.clone(),
     };
     Ok(TheorySettings {
@@ -1195,15 +1205,25 @@ impl DiagnoseSettings {
             (None, Some(_)) => None,
             (None, None) => Some("t".to_string()),
         };
+        let input = d.input.as_ref().map_or("f".into(), |v| v.get_ref().clone());
+        let output = d
+            .output
+            .as_ref()
+            .map_or("x".into(), |v| v.get_ref().clone());
+        if input == output {
+            let span = d.output.as_ref().or(d.input.as_ref()).map(|v| v.span());
+            return Err(src.error(
+                span.as_ref(),
+                "data.output",
+                format!("\"{output}\" is also the input column; the output must be another column"),
+            ));
+        }
         let data = DataSettings {
             file,
             time,
             sample_rate,
-            input: d.input.as_ref().map_or("f".into(), |v| v.get_ref().clone()),
-            output: d
-                .output
-                .as_ref()
-                .map_or("x".into(), |v| v.get_ref().clone()),
+            input,
+            output,
             fit: ranges(&src, &d.fit, "data.fit")?,
             validation: ranges(&src, &d.validation, "data.validation")?,
             test: ranges(&src, &d.test, "data.test")?,
@@ -1215,6 +1235,18 @@ impl DiagnoseSettings {
                 |v| (0.0..=0.1).contains(&v),
             )?,
         };
+        for t in &data.test {
+            if let Some(f) = data.fit.iter().find(|f| f.start < t.end && t.start < f.end) {
+                return Err(src.error(
+                    d.test.as_ref().map(|v| v.span()).as_ref(),
+                    "data.test",
+                    format!(
+                        "test range [{}, {}) overlaps fit range [{}, {}): held-out data must not be fitted",
+                        t.start, t.end, f.start, f.end
+                    ),
+                ));
+            }
+        }
         let m = &raw.model;
         let zero = |v: &Option<Num>, key: &str| -> Result<f64, ConfigError> {
             match v {
