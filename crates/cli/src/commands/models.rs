@@ -4,20 +4,18 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
-use htfid_estimate::{levenberg_marquardt, HtfEstimate, LmOptions};
+use anyhow::{Context, Result};
+use htfid_estimate::HtfEstimate;
 use htfid_hybrid::{simulate, EventKind, HybridSystem};
+use htfid_identify::{fit_to_htf, HtfFitSpec};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{saltation, LimitCycle, ShootingOptions};
-use htfid_theory::{HarmonicTransferFunction, HtfChannel, HtfGrid, HtfMethod, LinearisedHtf};
-use num_complex::Complex64;
+use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
-use crate::commands::run::{
-    aliasing, estimate, harmonic_errors, run_plots, FIT_POINTS_PER_HARMONIC,
-};
+use crate::commands::run::{aliasing, estimate, harmonic_errors, run_plots};
 use crate::commands::simulate::report_written;
 use crate::commands::theory::{theory_plots, write_theory_csv};
 use crate::output::{json_text, open, resolve_dir};
@@ -369,10 +367,6 @@ pub fn theory_model(
     Ok(())
 }
 
-/// At most this many estimates per output and harmonic enter the parametric fit when the HTF
-/// is the periodic response (each point costs two integrations over a period).
-const FIT_POINTS_PERIODIC: usize = 40;
-
 /// `htfid run` for a model-language model: simulate, estimate the HTFs of every output, fit
 /// the configured parameters, compare with the exact theory.
 pub fn run_model(
@@ -438,7 +432,7 @@ pub fn run_model(
         let found = estimate_and_fit(
             settings,
             model,
-            (&cycle, htf.method()),
+            &cycle,
             &channels,
             rec_ref,
             &deviation,
@@ -567,7 +561,7 @@ type JsonMap = serde_json::Map<String, Value>;
 fn estimate_and_fit(
     settings: &Settings,
     model: &Model,
-    (cycle, method): (&LimitCycle<Mode>, HtfMethod),
+    cycle: &LimitCycle<Mode>,
     channels: &[HtfChannel<'_, '_, Model>],
     rec: &ModelRecord,
     deviation: &[Vec<f64>],
@@ -606,7 +600,7 @@ fn estimate_and_fit(
             .collect();
         let fit = stages
             .run(&format!("fit ({})", est.name()), || {
-                fit_model(settings, model, cycle, method, &of_est)
+                fit_model(settings, model, cycle, &of_est)
             })
             .with_context(|| {
                 format!("parametric fit to the \"{}\" estimates failed", est.name())
@@ -616,112 +610,28 @@ fn estimate_and_fit(
     Ok((estimates, errors, fits))
 }
 
-/// Levenberg-Marquardt fit of the configured parameters to the estimates of every output,
-/// through the exact HTF of the model's linearisation about its own limit cycle (re-found for
-/// every trial parameter set).
+/// The configured parameters fitted to the estimates of every output (`htfid-identify`).
 fn fit_model(
     settings: &Settings,
     model: &Model,
     cycle: &LimitCycle<Mode>,
-    method: HtfMethod,
     estimates: &[(usize, &HtfEstimate)],
 ) -> Result<Value> {
-    let names = &settings.estimation.fit;
-    let (lo, hi) = settings.estimation.band;
-    let per_harmonic = match method {
-        HtfMethod::ExactPiecewise => FIT_POINTS_PER_HARMONIC,
-        HtfMethod::PeriodicResponse => FIT_POINTS_PERIODIC,
-    };
-    // (output, n, omega, value, weight)
-    let mut rows: Vec<(usize, i32, f64, Complex64, f64)> = Vec::new();
-    for &(o, e) in estimates {
-        for &n in &settings.estimation.fit_harmonics {
-            let of_n: Vec<_> = e
-                .rows()
-                .filter(|r| r.n == n && r.omega >= lo && r.omega <= hi)
-                .filter(|r| r.value.re.is_finite() && r.value.im.is_finite())
-                .collect();
-            let largest = of_n.iter().map(|r| r.value.norm()).fold(0.0, f64::max);
-            // Weights 1 / stderr, floored at 1e-6 of the harmonic's largest estimate so that
-            // noise-free estimates do not get infinite weight.
-            let floor = 1e-6 * largest;
-            let stride = of_n.len().div_ceil(per_harmonic).max(1);
-            for r in of_n.into_iter().step_by(stride) {
-                let s = if r.stderr.is_finite() {
-                    r.stderr.max(floor)
-                } else {
-                    floor
-                };
-                rows.push((o, n, r.omega, r.value, 1.0 / s));
-            }
-        }
-    }
-    if rows.len() < names.len() {
-        bail!(
-            "only {} estimates in the band for the fitted harmonics",
-            rows.len()
-        );
-    }
-    let params = model.parameters();
-    let index: Vec<usize> = names
-        .iter()
-        .map(|n| {
-            model
-                .parameter_index(n)
-                .with_context(|| format!("estimation.fit: the model has no parameter {n}"))
-        })
-        .collect::<Result<_>>()?;
-    let p0: Vec<f64> = index.iter().map(|&i| model.values()[i]).collect();
-    let shooting = ShootingOptions {
-        settle_periods: 0,
-        ..ShootingOptions::default()
-    };
-    let opts = settings.integrator.clone();
-    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
-        let changes: Vec<(&str, f64)> = names
-            .iter()
-            .map(String::as_str)
-            .zip(p.iter().copied())
-            .collect();
-        let trial = model.with_parameters(&changes).map_err(|e| e.to_string())?;
-        let cyc = trial
-            .limit_cycle_from(cycle.mode0, &cycle.state0, &shooting, &opts)
-            .map_err(|e| e.to_string())?;
-        let htf = LinearisedHtf::new(&trial, &cyc, &opts).map_err(|e| e.to_string())?;
-        let channels = (0..htf.n_outputs())
-            .map(|o| htf.channel(o))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| e.to_string())?;
-        for (i, &(o, n, w, value, weight)) in rows.iter().enumerate() {
-            let d = (value - channels[o].g(n, w)) * weight;
-            r[2 * i] = d.re;
-            r[2 * i + 1] = d.im;
-        }
-        Ok(())
-    };
-    let lm = LmOptions {
-        scales: Some(p0.iter().map(|v| v.abs().max(1e-3)).collect()),
-        bounds: Some(
-            index
-                .iter()
-                .map(|&i| (params[i].min, params[i].max))
-                .collect(),
-        ),
-        ..LmOptions::default()
-    };
-    let fit = levenberg_marquardt(residuals, &p0, 2 * rows.len(), &lm)?;
+    let spec = HtfFitSpec::new(
+        settings.estimation.fit.clone(),
+        settings.estimation.fit_harmonics.clone(),
+        settings.estimation.band,
+    );
+    let fit = fit_to_htf(model, cycle, estimates, &spec, &settings.integrator)?;
     let mut out = serde_json::Map::new();
-    for (i, name) in names.iter().enumerate() {
-        out.insert(name.clone(), json!(fit.params[i]));
-        out.insert(
-            format!("{name}_stderr"),
-            json!(fit.stderr.as_ref().map_or(f64::NAN, |s| s[i])),
-        );
+    for (i, name) in fit.parameters.iter().enumerate() {
+        out.insert(name.clone(), json!(fit.values[i]));
+        out.insert(format!("{name}_stderr"), json!(fit.stderr[i]));
     }
     out.insert("harmonics".into(), json!(settings.estimation.fit_harmonics));
-    out.insert("points".into(), json!(rows.len()));
+    out.insert("points".into(), json!(fit.points));
     out.insert("iterations".into(), json!(fit.iterations));
     out.insert("cost".into(), json!(fit.cost));
-    out.insert("stop".into(), json!(format!("{:?}", fit.stop)));
+    out.insert("stop".into(), json!(fit.stop));
     Ok(Value::Object(out))
 }

@@ -516,7 +516,7 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
 const MAX_MARKERS: usize = 120;
 
 /// At most this many estimates per harmonic enter the parametric fit.
-pub(crate) const FIT_POINTS_PER_HARMONIC: usize = 200;
+const FIT_POINTS_PER_HARMONIC: usize = 200;
 
 fn param(p: &HopperParams, name: &str) -> f64 {
     match name {

@@ -1,0 +1,192 @@
+//! Fitting named parameters to HTF estimates through the exact HTF of the model.
+
+use htfid_estimate::{levenberg_marquardt, HtfEstimate, LmOptions};
+use htfid_hybrid::Options;
+use htfid_lang::{Mode, Model};
+use htfid_orbit::{LimitCycle, ShootingOptions};
+use htfid_theory::{HarmonicTransferFunction, HtfMethod, LinearisedHtf};
+use num_complex::Complex64;
+use serde::Serialize;
+
+/// Errors of identification.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyError {
+    /// A parameter name the model does not have.
+    #[error("the model has no parameter {name}")]
+    UnknownParameter {
+        /// The name.
+        name: String,
+    },
+    /// Fewer estimates than parameters in the band.
+    #[error("only {points} estimates in the band for the fitted harmonics; {parameters} parameters need at least as many")]
+    TooFewPoints {
+        /// Estimates kept.
+        points: usize,
+        /// Parameters fitted.
+        parameters: usize,
+    },
+    /// The HTF of the starting model cannot be computed.
+    #[error(transparent)]
+    Theory(#[from] htfid_theory::TheoryError),
+    /// The optimiser failed.
+    #[error(transparent)]
+    Fit(#[from] htfid_estimate::Error),
+}
+
+/// What to fit.
+#[derive(Debug, Clone)]
+pub struct HtfFitSpec {
+    /// Parameters fitted (names of the model's parameters).
+    pub parameters: Vec<String>,
+    /// Harmonics `n` of `G_n` that enter the fit.
+    pub harmonics: Vec<i32>,
+    /// Output-frequency band (rad/s), edges included.
+    pub band: (f64, f64),
+    /// At most this many estimates per output and harmonic when the HTF is closed-form,
+    /// evenly spread (neighbouring bins of a regularised estimate carry little independent
+    /// information).
+    pub points_exact: usize,
+    /// The same when the HTF is the periodic response (each point costs two integrations).
+    pub points_periodic: usize,
+}
+
+impl HtfFitSpec {
+    /// A spec with the default point budgets (200 per harmonic closed-form, 40 periodic).
+    pub fn new(parameters: Vec<String>, harmonics: Vec<i32>, band: (f64, f64)) -> Self {
+        HtfFitSpec {
+            parameters,
+            harmonics,
+            band,
+            points_exact: 200,
+            points_periodic: 40,
+        }
+    }
+}
+
+/// A fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct HtfFit {
+    /// The parameters, in the order of the spec.
+    pub parameters: Vec<String>,
+    /// Their fitted values.
+    pub values: Vec<f64>,
+    /// Their standard errors from the weighted residuals (noise only); NaN when unavailable.
+    pub stderr: Vec<f64>,
+    /// Estimates used.
+    pub points: usize,
+    /// Levenberg-Marquardt iterations.
+    pub iterations: usize,
+    /// Final cost (half the sum of squared weighted residuals).
+    pub cost: f64,
+    /// Why it stopped.
+    pub stop: String,
+}
+
+/// Fits `spec.parameters` of `model` to `estimates` (`(output index, estimate)` pairs),
+/// starting from the model's current values and its limit cycle `cycle`. Weights are
+/// `1 / stderr`, floored at `1e-6` of the harmonic's largest estimate so that noise-free
+/// estimates do not get infinite weight; parameter bounds come from the model.
+///
+/// # Errors
+/// [`IdentifyError`].
+pub fn fit_to_htf(
+    model: &Model,
+    cycle: &LimitCycle<Mode>,
+    estimates: &[(usize, &HtfEstimate)],
+    spec: &HtfFitSpec,
+    opts: &Options,
+) -> Result<HtfFit, IdentifyError> {
+    let index: Vec<usize> = spec
+        .parameters
+        .iter()
+        .map(|n| {
+            model
+                .parameter_index(n)
+                .ok_or_else(|| IdentifyError::UnknownParameter { name: n.clone() })
+        })
+        .collect::<Result<_, _>>()?;
+    let method = LinearisedHtf::new(model, cycle, opts)?.method();
+    let per_harmonic = match method {
+        HtfMethod::ExactPiecewise => spec.points_exact,
+        HtfMethod::PeriodicResponse => spec.points_periodic,
+    }
+    .max(1);
+    let (lo, hi) = spec.band;
+    // (output, n, omega, value, weight)
+    let mut rows: Vec<(usize, i32, f64, Complex64, f64)> = Vec::new();
+    for &(o, e) in estimates {
+        for &n in &spec.harmonics {
+            let of_n: Vec<_> = e
+                .rows()
+                .filter(|r| r.n == n && r.omega >= lo && r.omega <= hi)
+                .filter(|r| r.value.re.is_finite() && r.value.im.is_finite())
+                .collect();
+            let largest = of_n.iter().map(|r| r.value.norm()).fold(0.0, f64::max);
+            let floor = 1e-6 * largest;
+            let stride = of_n.len().div_ceil(per_harmonic).max(1);
+            for r in of_n.into_iter().step_by(stride) {
+                let s = if r.stderr.is_finite() {
+                    r.stderr.max(floor)
+                } else {
+                    floor
+                };
+                rows.push((o, n, r.omega, r.value, 1.0 / s));
+            }
+        }
+    }
+    if rows.len() < index.len() {
+        return Err(IdentifyError::TooFewPoints {
+            points: rows.len(),
+            parameters: index.len(),
+        });
+    }
+    let p0: Vec<f64> = index.iter().map(|&i| model.values()[i]).collect();
+    let shooting = ShootingOptions {
+        settle_periods: 0,
+        ..ShootingOptions::default()
+    };
+    let names: Vec<&str> = spec.parameters.iter().map(String::as_str).collect();
+    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+        let changes: Vec<(&str, f64)> = names.iter().copied().zip(p.iter().copied()).collect();
+        let trial = model.with_parameters(&changes).map_err(|e| e.to_string())?;
+        let cyc = trial
+            .limit_cycle_from(cycle.mode0, &cycle.state0, &shooting, opts)
+            .map_err(|e| e.to_string())?;
+        let htf = LinearisedHtf::new(&trial, &cyc, opts).map_err(|e| e.to_string())?;
+        let channels = (0..htf.n_outputs())
+            .map(|o| htf.channel(o))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| e.to_string())?;
+        for (i, &(o, n, w, value, weight)) in rows.iter().enumerate() {
+            let d = (value - channels[o].g(n, w)) * weight;
+            r[2 * i] = d.re;
+            r[2 * i + 1] = d.im;
+        }
+        Ok(())
+    };
+    let params = model.parameters();
+    let lm = LmOptions {
+        scales: Some(p0.iter().map(|v| v.abs().max(1e-3)).collect()),
+        bounds: Some(
+            index
+                .iter()
+                .map(|&i| (params[i].min, params[i].max))
+                .collect(),
+        ),
+        ..LmOptions::default()
+    };
+    let fit = levenberg_marquardt(residuals, &p0, 2 * rows.len(), &lm)?;
+    Ok(HtfFit {
+        parameters: spec.parameters.clone(),
+        stderr: fit
+            .stderr
+            .clone()
+            .unwrap_or_else(|| vec![f64::NAN; index.len()]),
+        values: fit.params,
+        points: rows.len(),
+        iterations: fit.iterations,
+        cost: fit.cost,
+        stop: format!("{:?}", fit.stop),
+    })
+}

@@ -1,0 +1,44 @@
+//! Parametric identification of a model from its estimated harmonic transfer functions.
+//!
+//! [`fit_to_htf`] fits any named parameters of an [`htfid_lang::Model`] to HTF estimates of
+//! its outputs ([`htfid_estimate::HtfEstimate`]) by Levenberg-Marquardt: every trial parameter
+//! set is recompiled, its limit cycle re-found by Newton shooting from the previous orbit, and
+//! its exact HTFs evaluated by [`htfid_theory::LinearisedHtf`] (closed form for a linearisation
+//! constant within each mode, the periodic response otherwise). Residuals are the complex
+//! differences weighted by the estimates' standard errors. [`HtfFitSpec`] says which
+//! parameters, harmonics, band and how many points per harmonic; [`HtfFit`] holds the values,
+//! their standard errors and the optimiser's account.
+//!
+//! ```
+//! use htfid_hybrid::Options;
+//! use htfid_identify::{fit_to_htf, HtfFitSpec};
+//! use htfid_lang::Model;
+//! use htfid_orbit::ShootingOptions;
+//!
+//! // A forced linear oscillator; its G_0 "measured" at k = 5 is fitted from k = 4.
+//! let text = r#"
+//!     states = ["x", "v"]
+//!     parameters = { k = 4.0, c = 0.5 }
+//!     forcing = { period = 3.0, signals = { f = "cos(2*pi*t/3)" } }
+//!     flow = { x = "v", v = "-k*x - c*v + f + u" }
+//! "#;
+//! let model = Model::parse(text)?;
+//! let omegas: Vec<f64> = (1..40).map(|i| 0.1 * i as f64).collect();
+//! let truth = |w: f64| num_complex::Complex64::new(5.0 - w * w, 0.5 * w).inv();
+//! let estimate = htfid_estimate::HtfEstimate::new(
+//!     htfid_estimate::Method::Siddiqi,
+//!     vec![0],
+//!     vec![omegas.clone()],
+//!     vec![omegas.iter().map(|&w| truth(w)).collect()],
+//!     vec![vec![1e-3; omegas.len()]],
+//! )?;
+//! let cycle = model.limit_cycle(&ShootingOptions::default(), &Options::default())?;
+//! let spec = HtfFitSpec::new(vec!["k".into()], vec![0], (0.1, 4.0));
+//! let fit = fit_to_htf(&model, &cycle, &[(0, &estimate)], &spec, &Options::default())?;
+//! assert!((fit.values[0] - 5.0).abs() < 1e-6);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod htf_fit;
+
+pub use htf_fit::{fit_to_htf, HtfFit, HtfFitSpec, IdentifyError};
