@@ -1388,3 +1388,62 @@ fn meaningless_values_are_refused() {
         assert!(stderr(&o).contains(needle), "{to}: {}", stderr(&o));
     }
 }
+
+/// Separate estimation and validation files: the validation record (another experiment on the
+/// same system) is held out whole, and the shifted parameter is still found.
+#[test]
+fn diagnose_with_a_separate_validation_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let file = root().join("models/two-dof.toml");
+    let mut records = Vec::new();
+    for (i, (f_end, seed)) in [(6.0, 3), (4.0, 4)].into_iter().enumerate() {
+        let experiment = tmp.path().join(format!("e{i}.toml"));
+        fs::write(
+            &experiment,
+            format!(
+                "[model]\nfile = {file:?}\n\n[model.parameters]\nk1 = 206.0\n\n\
+                 [simulation]\nsettle_periods = 10\nsample_rate = 200.0\n\n\
+                 [excitation]\nkind = \"chirp_train\"\nwaveform = \"linear\"\nf_start_hz = 0.2\n\
+                 f_end_hz = {f_end}\nduration = 20.0\namplitude = 0.5\ncopies = 1\n\n\
+                 [noise]\noutput_std = 1e-6\nseed = {seed}\n"
+            ),
+        )
+        .unwrap();
+        let sim = tmp.path().join(format!("sim{i}"));
+        htfid_ok(&[
+            "simulate",
+            experiment.to_str().unwrap(),
+            "--out",
+            sim.to_str().unwrap(),
+        ]);
+        records.push(sim.join("timeseries.csv"));
+    }
+    let diagnosis = tmp.path().join("d.toml");
+    fs::write(
+        &diagnosis,
+        format!(
+            "[data]\nfile = {:?}\nvalidation = {:?}\ntime = \"t\"\ninput = \"u\"\n\
+             outputs = [\"x1\", \"x2\"]\n\n[model]\nfile = {file:?}\nfree = [\"k1\", \"c1\"]\n",
+            records[0], records[1]
+        ),
+    )
+    .unwrap();
+    let out = tmp.path().join("d");
+    htfid_ok(&[
+        "diagnose",
+        diagnosis.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let d: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.join("diagnosis.json")).unwrap()).unwrap();
+    assert_eq!(d["cause"], "parameter_error", "{d}");
+    let k1 = d["parameters"][0]["fitted"].as_f64().unwrap();
+    assert!((k1 / 206.0 - 1.0).abs() < 2e-3, "{k1}");
+    assert!(d["validation_data"]
+        .as_str()
+        .unwrap()
+        .ends_with("timeseries.csv"));
+    let report = fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("the separate record"), "{report}");
+}

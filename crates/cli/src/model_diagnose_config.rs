@@ -26,6 +26,7 @@ struct RawData {
     input: Spanned<String>,
     outputs: Spanned<Vec<String>>,
     time_tolerance: Option<Spanned<f64>>,
+    validation: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -51,6 +52,8 @@ pub struct ModelDiagnoseSettings {
     pub name: String,
     pub path: PathBuf,
     pub file: PathBuf,
+    /// A separate held-out record (same columns), when given.
+    pub validation: Option<PathBuf>,
     pub time: Option<String>,
     pub sample_rate: Option<f64>,
     pub input: String,
@@ -199,6 +202,7 @@ impl ModelDiagnoseSettings {
             name,
             path: path.to_path_buf(),
             file: data.unwrap_or_else(|| dir.join(d.file.get_ref())),
+            validation: d.validation.as_ref().map(|v| dir.join(v.get_ref())),
             time: d.time.as_ref().map(|t| t.get_ref().clone()),
             sample_rate: match &d.sample_rate {
                 Some(v) => Some(src.positive(v, "data.sample_rate")?),

@@ -182,35 +182,6 @@ fn simulate_outputs(
     Ok(out)
 }
 
-struct Split {
-    fit: std::ops::Range<usize>,
-    validation: std::ops::Range<usize>,
-    scale: Vec<f64>,
-}
-
-fn score(rec: &ModelRecord, split: &Split, sim: &[Vec<f64>]) -> ModelScore {
-    let rms = |o: usize, r: &std::ops::Range<usize>| {
-        let n = r.len().max(1) as f64;
-        (r.clone()
-            .map(|i| (sim[o][i] - rec.y[o][i]).powi(2))
-            .sum::<f64>()
-            / n)
-            .sqrt()
-    };
-    let outputs = 0..rec.y.len();
-    ModelScore {
-        nrmse_fit: outputs
-            .clone()
-            .map(|o| rms(o, &split.fit) / split.scale[o])
-            .collect(),
-        nrmse_validation: outputs
-            .clone()
-            .map(|o| rms(o, &split.validation) / split.scale[o])
-            .collect(),
-        rmse_validation: outputs.map(|o| rms(o, &split.validation)).collect(),
-    }
-}
-
 /// Inflation of least-squares standard errors for residuals correlated in time:
 /// `sqrt(1 + 2 sum_k (1 - k/L) rho_k)` with Bartlett weights up to lag `L = 4 n^(1/3)`.
 fn correlation_inflation(r: &[f64]) -> f64 {
@@ -235,8 +206,138 @@ fn correlation_inflation(r: &[f64]) -> f64 {
     s.max(1.0).sqrt()
 }
 
+/// One record prepared for output-error fits: its input as a function of time, the samples
+/// scored, the output scales, and the model's starting point.
+struct Prepared<'a> {
+    rec: &'a ModelRecord,
+    input: InputFn,
+    rows: std::ops::Range<usize>,
+    scale: Vec<f64>,
+    mode0: htfid_lang::Mode,
+    guess: Vec<f64>,
+    sim_opts: Options,
+}
+
+impl<'a> Prepared<'a> {
+    fn new(
+        model: &Model,
+        rec: &'a ModelRecord,
+        rows_end: usize,
+        opts: &ModelFitOptions,
+    ) -> Result<Self, DiagnoseError> {
+        let n = rec.t.len();
+        if n < 32 || rec.u.len() != n || rec.y.iter().any(|y| y.len() != n) {
+            return Err(DiagnoseError::TooShort { min: 32, found: n });
+        }
+        if rec.y.len() != model.outputs().len() {
+            return Err(DiagnoseError::InvalidOption {
+                name: "outputs",
+                expected: "one measured column per model output",
+                value: rec.y.len() as f64,
+            });
+        }
+        let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
+        let skip = ((opts.burn_in / dt).ceil() as usize).min(n / 4);
+        let rows = skip..rows_end.min(n);
+        let scale: Vec<f64> = rec
+            .y
+            .iter()
+            .map(|y| {
+                let part = &y[rows.clone()];
+                let m = part.iter().sum::<f64>() / part.len() as f64;
+                let v = part.iter().map(|v| (v - m).powi(2)).sum::<f64>() / part.len() as f64;
+                v.sqrt().max(f64::MIN_POSITIVE)
+            })
+            .collect();
+        let signal = Arc::new(SampledSignal::new(
+            rec.t[0],
+            dt,
+            &rec.u,
+            Interpolation::CubicSpline,
+        ));
+        let input: InputFn = Arc::new(move |t| signal.eval(t));
+        let sim_opts = Options {
+            rtol: opts.rtol,
+            atol: opts.rtol * 1e-2,
+            ..Options::default()
+        };
+        let (mode0, guess) = start_state(model, rec.t[0], &sim_opts)?;
+        Ok(Prepared {
+            rec,
+            input,
+            rows,
+            scale,
+            mode0,
+            guess,
+            sim_opts,
+        })
+    }
+
+    fn residual_len(&self) -> usize {
+        self.rec.y.len() * self.rows.len()
+    }
+
+    fn simulate(&self, model: &Model, x0: &[f64]) -> Result<Vec<Vec<f64>>, DiagnoseError> {
+        simulate_outputs(
+            model,
+            self.rec,
+            &self.input,
+            (self.mode0, x0),
+            &self.sim_opts,
+        )
+    }
+
+    fn fill(&self, sim: &[Vec<f64>], r: &mut [f64]) {
+        let rows = self.rows.len();
+        for o in 0..self.rec.y.len() {
+            for (j, i) in self.rows.clone().enumerate() {
+                r[o * rows + j] = (sim[o][i] - self.rec.y[o][i]) / self.scale[o];
+            }
+        }
+    }
+
+    /// The initial state that best fits the scored samples with `model`'s parameters fixed:
+    /// the record starts wherever the measured system was, so neither the configured nor the
+    /// refitted model is charged with a start nobody specified.
+    fn fit_state(&self, model: &Model, x0: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
+        let residuals = |z: &[f64], r: &mut [f64]| -> Result<(), String> {
+            let sim = self.simulate(model, z).map_err(|e| e.to_string())?;
+            self.fill(&sim, r);
+            Ok(())
+        };
+        let lm = LmOptions {
+            scales: Some(x0.iter().map(|v| v.abs().max(1e-3)).collect()),
+            ..LmOptions::default()
+        };
+        levenberg_marquardt(residuals, x0, self.residual_len(), &lm)
+            .map(|f| f.params)
+            .map_err(|e| DiagnoseError::NominalFit {
+                reason: format!("initial state: {e}"),
+            })
+    }
+
+    /// Per output: RMS error and RMS error over the output's scale, on `range`.
+    fn errors(&self, sim: &[Vec<f64>], range: std::ops::Range<usize>) -> (Vec<f64>, Vec<f64>) {
+        let n = range.len().max(1) as f64;
+        (0..self.rec.y.len())
+            .map(|o| {
+                let rms = (range
+                    .clone()
+                    .map(|i| (sim[o][i] - self.rec.y[o][i]).powi(2))
+                    .sum::<f64>()
+                    / n)
+                    .sqrt();
+                (rms, rms / self.scale[o])
+            })
+            .unzip()
+    }
+}
+
 /// Refits the free parameters of `model` to `rec` by output error and compares the configured
-/// and refitted simulations on the held-out part of the record.
+/// and refitted simulations on held-out data: the last `1 - fit_fraction` of `rec`, or the
+/// whole of `validation` when a separate validation record is given (then all of `rec` is
+/// fitted; on the validation record the initial state is fitted for each model with its
+/// parameters fixed, as a comparison of simulations from measured data does).
 ///
 /// # Errors
 /// [`DiagnoseError::InvalidOption`] for bad options or an unknown parameter,
@@ -245,19 +346,9 @@ fn correlation_inflation(r: &[f64]) -> f64 {
 pub fn diagnose_model(
     model: &Model,
     rec: &ModelRecord,
+    validation: Option<&ModelRecord>,
     opts: &ModelFitOptions,
 ) -> Result<ModelDiagnosis, DiagnoseError> {
-    let n = rec.t.len();
-    if n < 32 || rec.u.len() != n || rec.y.iter().any(|y| y.len() != n) {
-        return Err(DiagnoseError::TooShort { min: 32, found: n });
-    }
-    if rec.y.len() != model.outputs().len() {
-        return Err(DiagnoseError::InvalidOption {
-            name: "outputs",
-            expected: "one measured column per model output",
-            value: rec.y.len() as f64,
-        });
-    }
     if !(0.1..=0.95).contains(&opts.fit_fraction) {
         return Err(DiagnoseError::InvalidOption {
             name: "fit_fraction",
@@ -265,74 +356,44 @@ pub fn diagnose_model(
             value: opts.fit_fraction,
         });
     }
-    let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
-    let skip = ((opts.burn_in / dt).ceil() as usize).min(n / 4);
-    let cut = ((n as f64) * opts.fit_fraction) as usize;
-    let fit = skip..cut;
-    let validation = cut..n;
-    let scale: Vec<f64> = rec
-        .y
-        .iter()
-        .map(|y| {
-            let m = y[fit.clone()].iter().sum::<f64>() / fit.len() as f64;
-            let v = y[fit.clone()].iter().map(|v| (v - m).powi(2)).sum::<f64>() / fit.len() as f64;
-            v.sqrt().max(f64::MIN_POSITIVE)
-        })
-        .collect();
-    let split = Split {
-        fit,
-        validation,
-        scale,
+    let n = rec.t.len();
+    let cut = match validation {
+        Some(_) => n,
+        None => ((n as f64) * opts.fit_fraction) as usize,
     };
-    let signal = Arc::new(SampledSignal::new(
-        rec.t[0],
-        dt,
-        &rec.u,
-        Interpolation::CubicSpline,
-    ));
-    let input: InputFn = {
-        let s = signal.clone();
-        Arc::new(move |t| s.eval(t))
+    let est = Prepared::new(model, rec, cut, opts)?;
+    let val = match validation {
+        Some(v) => Some(Prepared::new(model, v, v.t.len(), opts)?),
+        None => None,
     };
-    let sim_opts = Options {
-        rtol: opts.rtol,
-        atol: opts.rtol * 1e-2,
-        ..Options::default()
-    };
-    // The record starts wherever the measured system was: its initial state is fitted with
-    // the parameters (from the model's own orbit as a first guess), for the configured model
-    // too, so the baseline is not charged with a start the configuration never specified.
-    let (mode0, guess) = start_state(model, rec.t[0], &sim_opts)?;
-    let dim = guess.len();
-    let rows = split.fit.len();
-    let outputs = rec.y.len();
-    let fill = |sim: &[Vec<f64>], r: &mut [f64]| {
-        for o in 0..outputs {
-            for (j, i) in split.fit.clone().enumerate() {
-                r[o * rows + j] = (sim[o][i] - rec.y[o][i]) / split.scale[o];
-            }
-        }
-    };
-    let state_fit = |m: &Model, x0: &[f64]| -> Result<Vec<f64>, DiagnoseError> {
-        let residuals = |z: &[f64], r: &mut [f64]| -> Result<(), String> {
-            let sim = simulate_outputs(m, rec, &input, (mode0, z), &sim_opts)
-                .map_err(|e| e.to_string())?;
-            fill(&sim, r);
-            Ok(())
+    // Score of a model with fitted state `x_est` on the estimation record.
+    let score_of =
+        |m: &Model, x_est: &[f64]| -> Result<(ModelScore, Vec<Vec<f64>>), DiagnoseError> {
+            let sim = est.simulate(m, x_est)?;
+            let (_, nrmse_fit) = est.errors(&sim, est.rows.clone());
+            let (rmse_validation, nrmse_validation, shown) = match &val {
+                None => {
+                    let (r, q) = est.errors(&sim, cut..n);
+                    (r, q, sim)
+                }
+                Some(v) => {
+                    let x = v.fit_state(m, &v.guess)?;
+                    let vsim = v.simulate(m, &x)?;
+                    let (r, q) = v.errors(&vsim, v.rows.clone());
+                    (r, q, vsim)
+                }
+            };
+            Ok((
+                ModelScore {
+                    nrmse_fit,
+                    nrmse_validation,
+                    rmse_validation,
+                },
+                shown,
+            ))
         };
-        let lm = LmOptions {
-            scales: Some(x0.iter().map(|v| v.abs().max(1e-3)).collect()),
-            ..LmOptions::default()
-        };
-        levenberg_marquardt(residuals, x0, rec.y.len() * split.fit.len(), &lm)
-            .map(|f| f.params)
-            .map_err(|e| DiagnoseError::NominalFit {
-                reason: format!("initial state: {e}"),
-            })
-    };
-    let x_configured = state_fit(model, &guess)?;
-    let configured_sim = simulate_outputs(model, rec, &input, (mode0, &x_configured), &sim_opts)?;
-    let configured = score(rec, &split, &configured_sim);
+    let x_configured = est.fit_state(model, &est.guess)?;
+    let (configured, configured_sim) = score_of(model, &x_configured)?;
 
     let index: Vec<usize> = opts
         .free
@@ -362,6 +423,7 @@ pub fn diagnose_model(
         });
     }
     let k = index.len();
+    let dim = est.guess.len();
     // Parameters first, then the initial state.
     let mut p0: Vec<f64> = index.iter().map(|&i| model.values()[i]).collect();
     p0.extend_from_slice(&x_configured);
@@ -369,9 +431,8 @@ pub fn diagnose_model(
     let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
         let changes: Vec<(&str, f64)> = names.iter().copied().zip(p.iter().copied()).collect();
         let trial = model.with_parameters(&changes).map_err(|e| e.to_string())?;
-        let sim = simulate_outputs(&trial, rec, &input, (mode0, &p[k..]), &sim_opts)
-            .map_err(|e| e.to_string())?;
-        fill(&sim, r);
+        let sim = est.simulate(&trial, &p[k..]).map_err(|e| e.to_string())?;
+        est.fill(&sim, r);
         Ok(())
     };
     let params = model.parameters();
@@ -385,7 +446,7 @@ pub fn diagnose_model(
         bounds: Some(bounds),
         ..LmOptions::default()
     };
-    let fit = levenberg_marquardt(residuals, &p0, outputs * rows, &lm).map_err(|e| {
+    let fit = levenberg_marquardt(residuals, &p0, est.residual_len(), &lm).map_err(|e| {
         DiagnoseError::NominalFit {
             reason: e.to_string(),
         }
@@ -401,14 +462,7 @@ pub fn diagnose_model(
             .map_err(|e| DiagnoseError::NominalFit {
                 reason: e.to_string(),
             })?;
-    let refitted_sim = simulate_outputs(
-        &refitted_model,
-        rec,
-        &input,
-        (mode0, &fit.params[k..]),
-        &sim_opts,
-    )?;
-    let refitted = score(rec, &split, &refitted_sim);
+    let (refitted, refitted_sim) = score_of(&refitted_model, &fit.params[k..])?;
     let inflation = correlation_inflation(&fit.residuals);
     let parameters: Vec<ParameterChange> = names
         .iter()

@@ -46,7 +46,7 @@ fn a_stiffer_spring_is_a_parameter_error() {
         record_s: 90.0,
         ..Scenario::default()
     };
-    let d = diagnose_model(&hopper(), &record(&scenario), &options()).unwrap();
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
     assert_eq!(d.cause, "parameter_error", "{d:?}");
     let k = &d.parameters[0];
     assert!((k.fitted / 206.0 - 1.0).abs() < 5e-3, "{k:?}");
@@ -64,7 +64,7 @@ fn the_nominal_hopper_gives_none() {
         record_s: 90.0,
         ..Scenario::default()
     };
-    let d = diagnose_model(&hopper(), &record(&scenario), &options()).unwrap();
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
     assert_eq!(d.cause, "none", "{d:?}");
     for p in &d.parameters {
         assert!(

@@ -30,47 +30,28 @@ pub fn run(
         force,
         &["diagnosis.json", "report.md", "compare.svg", "compare.png"],
     )?;
-    let mut y = Vec::new();
-    let mut t = Vec::new();
-    let mut u = Vec::new();
-    for (o, column) in s.outputs.iter().enumerate() {
-        let mut spec = CsvSpec::default()
-            .with_columns(s.input.clone(), column.clone())
-            .with_min_samples(64)
-            .with_time_tolerance(s.time_tolerance);
-        spec = match (&s.time, s.sample_rate) {
-            (Some(tc), _) => spec.with_time_column(tc.clone()),
-            (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
-            (None, None) => spec,
-        };
-        let series = read_csv(&s.file, &spec).with_context(|| {
-            format!(
-                "{}: [data] file (a non-uniform time step can be allowed with \
-                 data.time_tolerance, now {:e})",
-                s.path.display(),
-                s.time_tolerance
-            )
-        })?;
-        if o == 0 {
-            t = series.time().to_vec();
-            u = series.input().to_vec();
-        }
-        y.push(series.output().to_vec());
-    }
+    let record = read_record(&s, &s.file)?;
+    let validation = match &s.validation {
+        Some(path) => Some(read_record(&s, path)?),
+        None => None,
+    };
     eprintln!(
         "[htfid] diagnosing {} ({} samples) against model `{}`, refitting {:?}",
         s.file.display(),
-        t.len(),
+        record.t.len(),
         s.model.name(),
         s.options.free
     );
-    let record = ModelRecord { t, u, y };
-    let d = diagnose_model(&s.model, &record, &s.options).context("diagnosis failed")?;
+    let d = diagnose_model(&s.model, &record, validation.as_ref(), &s.options)
+        .context("diagnosis failed")?;
+    // The figure shows the held-out data: the validation record when there is one.
+    let shown = validation.as_ref().unwrap_or(&record);
 
     let json = json!({
         "name": s.name,
         "config": s.path.display().to_string(),
         "data": s.file.display().to_string(),
+        "validation_data": s.validation.as_ref().map(|p| p.display().to_string()),
         "model": s.model.name(),
         "cause": d.cause,
         "gain": d.gain,
@@ -91,8 +72,8 @@ pub fn run(
     outdir.write_text("diagnosis.json", &json_text(&json))?;
     outdir.write_text("report.md", &report(&s, &d))?;
     // The last WINDOW_S seconds of the held-out part: measured, configured, refitted.
-    let n = record.t.len();
-    let dt = (record.t[n - 1] - record.t[0]) / (n - 1) as f64;
+    let n = shown.t.len();
+    let dt = (shown.t[n - 1] - shown.t[0]) / (n - 1) as f64;
     let start = n.saturating_sub((WINDOW_S / dt) as usize);
     let mut panels: Vec<Panel> = Vec::new();
     for (o, name) in s.outputs.iter().enumerate() {
@@ -100,12 +81,12 @@ pub fn run(
             .unit
             .as_deref()
             .map_or(String::new(), |u| format!(" ({u})"));
-        let tw = record.t[start..].to_vec();
+        let tw = shown.t[start..].to_vec();
         let mut panel = time_panel(
             &format!("{name}: measured and simulated (held-out data)"),
             &format!("{name}{unit}"),
             &tw,
-            [("measured", &record.y[o][start..])],
+            [("measured", &shown.y[o][start..])],
         );
         panel.series.push(Series::new(
             "configured model",
@@ -121,7 +102,7 @@ pub fn run(
         ));
         panels.push(panel);
         let residual =
-            |sim: &[f64]| -> Vec<f64> { (start..n).map(|i| record.y[o][i] - sim[i]).collect() };
+            |sim: &[f64]| -> Vec<f64> { (start..n).map(|i| shown.y[o][i] - sim[i]).collect() };
         let mut panel = time_panel(
             &format!("{name}: residual, measured minus simulated"),
             &format!("residual{unit}"),
@@ -146,6 +127,35 @@ pub fn run(
     );
     report_written(&outdir.commit()?);
     Ok(())
+}
+
+fn read_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<ModelRecord> {
+    let (mut t, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
+    for (o, column) in s.outputs.iter().enumerate() {
+        let mut spec = CsvSpec::default()
+            .with_columns(s.input.clone(), column.clone())
+            .with_min_samples(64)
+            .with_time_tolerance(s.time_tolerance);
+        spec = match (&s.time, s.sample_rate) {
+            (Some(tc), _) => spec.with_time_column(tc.clone()),
+            (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
+            (None, None) => spec,
+        };
+        let series = read_csv(file, &spec).with_context(|| {
+            format!(
+                "{}: [data] (a non-uniform time step can be allowed with data.time_tolerance, \
+                 now {:e})",
+                s.path.display(),
+                s.time_tolerance
+            )
+        })?;
+        if o == 0 {
+            t = series.time().to_vec();
+            u = series.input().to_vec();
+        }
+        y.push(series.output().to_vec());
+    }
+    Ok(ModelRecord { t, u, y })
 }
 
 fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
@@ -182,8 +192,14 @@ fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
     let _ = writeln!(
         r,
         "NRMSE is the RMS error over the standard deviation of the measured output, in %; the \
-         held-out part is the last {:.0} % of the record.\n",
-        100.0 * (1.0 - s.options.fit_fraction)
+         held-out data are {}.\n",
+        match &s.validation {
+            Some(p) => format!("the separate record `{}`", p.display()),
+            None => format!(
+                "the last {:.0} % of the record",
+                100.0 * (1.0 - s.options.fit_fraction)
+            ),
+        }
     );
     let _ = writeln!(
         r,
