@@ -921,6 +921,29 @@ fn model_config_errors_are_located() {
         }
         assert!(!out.exists() || fs::read_dir(&out).unwrap().next().is_none());
     }
+    // An override naming no parameter is reported at its own line.
+    let path = tmp.path().join("edited.toml");
+    fs::write(
+        &path,
+        base.replacen(
+            "[simulation]",
+            "[model.parameters]\nk2 = 90.0\nk99 = 1.0\n\n[simulation]",
+            1,
+        ),
+    )
+    .unwrap();
+    let o = htfid(&[
+        "simulate",
+        path.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o9").to_str().unwrap(),
+    ]);
+    let line = line_of(&path, "k99 = 1.0");
+    assert!(
+        stderr(&o).contains(&format!("edited.toml:{line}: model.parameters")),
+        "{}",
+        stderr(&o)
+    );
     // A mistake inside the model file is reported at its line and column there.
     let model = fs::read_to_string(models.join("two-dof.toml"))
         .unwrap()

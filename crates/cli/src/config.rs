@@ -46,6 +46,30 @@ impl Source {
         self.text[..end].bytes().filter(|&b| b == b'\n').count() + 1
     }
 
+    /// Where `key = ...` is written inside the table that starts at `table_start` (a
+    /// `toml::Table` value keeps no spans of its own entries).
+    pub fn key_in_table(&self, table_start: usize, key: &str) -> Option<Range<usize>> {
+        let mut offset = table_start.min(self.text.len());
+        // From the line after the table's header, until the next header.
+        if let Some(nl) = self.text[offset..].find('\n') {
+            offset += nl + 1;
+        }
+        for line in self.text[offset..].split_inclusive('\n') {
+            let trimmed = line.trim_start();
+            if trimmed.starts_with('[') {
+                return None;
+            }
+            if let Some(rest) = trimmed.strip_prefix(key) {
+                if rest.trim_start().starts_with('=') {
+                    let at = offset + (line.len() - trimmed.len());
+                    return Some(at..at + key.len());
+                }
+            }
+            offset += line.len();
+        }
+        None
+    }
+
     pub fn error(
         &self,
         span: Option<&Range<usize>>,

@@ -113,9 +113,19 @@ impl ModelDiagnoseSettings {
                 };
                 changes.push((k.as_str(), value));
             }
-            model = model
-                .with_parameters(&changes)
-                .map_err(|e| src.error(Some(&table.span()), "model.parameters", e.to_string()))?;
+            model = model.with_parameters(&changes).map_err(|e| {
+                let span = match &e {
+                    htfid_lang::ModelError::Parameter { name, .. } => {
+                        src.key_in_table(table.span().start, name)
+                    }
+                    _ => None,
+                };
+                src.error(
+                    Some(&span.unwrap_or_else(|| table.span())),
+                    "model.parameters",
+                    e.to_string(),
+                )
+            })?;
         }
         let outputs = d.outputs.get_ref().clone();
         if outputs.len() != model.outputs().len() {

@@ -573,17 +573,30 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
                             toml::Value::Float(f) => *f,
                             toml::Value::Integer(i) => *i as f64,
                             _ => {
+                                let span = src
+                                    .key_in_table(table.span().start, name)
+                                    .unwrap_or_else(|| table.span());
                                 return Err(src.error(
-                                    Some(&table.span()),
+                                    Some(&span),
                                     &key,
                                     "must be a number (a new value for the model's parameter)",
-                                ))
+                                ));
                             }
                         };
                         changes.push((name.as_str(), v));
                     }
                     model.with_parameters(&changes).map_err(|e| {
-                        src.error(Some(&table.span()), "model.parameters", e.to_string())
+                        let span = match &e {
+                            htfid_lang::ModelError::Parameter { name, .. } => {
+                                src.key_in_table(table.span().start, name)
+                            }
+                            _ => None,
+                        };
+                        src.error(
+                            Some(&span.unwrap_or_else(|| table.span())),
+                            "model.parameters",
+                            e.to_string(),
+                        )
                     })?
                 }
             }

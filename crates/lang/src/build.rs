@@ -66,7 +66,8 @@ pub(crate) struct ModelDef {
     pub input: String,
     pub input_unit: Option<String>,
     pub period: Option<Expr>,
-    pub signals: Vec<(String, Expr)>,
+    /// Named forcing signals with where they are written.
+    pub signals: Vec<(String, Expr, Option<usize>)>,
     pub modes: Vec<String>,
     /// Per mode, one expression per state.
     pub flows: Vec<Vec<Expr>>,
@@ -266,7 +267,7 @@ pub(crate) fn build(spec: &Spec, src: &Source) -> Result<ModelDef, ModelError> {
         let value = r.resolve(e, &[Kind::Param, Kind::Signal], true)?;
         r.declare(name, Kind::Signal, &e.key, e.at)?;
         r.inline.push((name.clone(), value.clone()));
-        signals.push((name.clone(), value));
+        signals.push((name.clone(), value, e.at));
     }
     for (name, e) in &spec.definitions {
         let value = r.resolve(e, ALL, true)?;

@@ -265,11 +265,10 @@ impl Model {
         let Some(period) = self.compiled.period else {
             return Ok(());
         };
-        for (name, e) in &self.def.signals {
+        for (name, e, at) in &self.def.signals {
             let folded = fold(e, &self.def.params, &self.values);
-            let program = Program::compile(std::slice::from_ref(&folded), &["t"]).map_err(|e| {
-                src.invalid(None, &format!("forcing.signals.{name}"), e.to_string())
-            })?;
+            let program = Program::compile(std::slice::from_ref(&folded), &["t"])
+                .map_err(|e| src.invalid(*at, &format!("forcing.signals.{name}"), e.to_string()))?;
             for i in 0..7 {
                 let t = period * (0.137 + 0.711 * i as f64);
                 let (a, b) = (
@@ -278,7 +277,7 @@ impl Model {
                 );
                 if (a - b).abs() > 1e-9 * (1.0 + a.abs().max(b.abs())) {
                     return Err(src.invalid(
-                        None,
+                        *at,
                         &format!("forcing.signals.{name}"),
                         format!(
                             "is not periodic with the forcing period {period}: \

@@ -87,7 +87,9 @@ fn a_signal_that_is_not_periodic_is_rejected() {
     let text = GOOD.replace("cos(pi*t)", "cos(2*t)");
     let msg = error(&text);
     assert!(
-        msg.contains("forcing.signals.f: is not periodic with the forcing period 2"),
+        msg.starts_with(
+            "m.toml:9:18: forcing.signals.f: is not periodic with the forcing period 2"
+        ),
         "{msg}"
     );
 }

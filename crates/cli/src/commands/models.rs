@@ -386,8 +386,8 @@ pub fn run_model(
     .iter()
     .map(|s| s.to_string())
     .collect();
-    for o in &outputs[1..] {
-        names.push(format!("theory_{o}.csv"));
+    if outputs.len() > 1 {
+        names.extend(outputs.iter().map(|o| format!("theory_{o}.csv")));
     }
     for est in &settings.estimation.estimators {
         for o in 0..outputs.len() {
@@ -450,8 +450,10 @@ pub fn run_model(
     stages.run("write outputs", || -> Result<()> {
         write_limit_cycle(settings, model, &cycle, &mut outdir)?;
         write_theory_csv(&mut outdir, "theory.csv", &grids[0])?;
-        for (o, grid) in outputs.iter().zip(&grids).skip(1) {
-            write_theory_csv(&mut outdir, &format!("theory_{o}.csv"), grid)?;
+        if outputs.len() > 1 {
+            for (o, grid) in outputs.iter().zip(&grids) {
+                write_theory_csv(&mut outdir, &format!("theory_{o}.csv"), grid)?;
+            }
         }
         for (o, per) in estimates.iter().enumerate() {
             for (est, e) in per {
