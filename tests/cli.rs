@@ -1470,3 +1470,34 @@ fn diagnose_with_a_separate_validation_file() {
     let report = fs::read_to_string(out.join("report.md")).unwrap();
     assert!(report.contains("the separate record"), "{report}");
 }
+
+/// A sample rate in the wrong unit (1e300 Hz) made the diagnosis panic in a linear solve; now
+/// the record's time scale is checked against the nominal model's first, with a located hint.
+#[test]
+fn a_record_on_the_wrong_time_scale_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = tmp.path().join("d.toml");
+    let text = fs::read_to_string(root().join("configs/diagnose-hopper.toml"))
+        .unwrap()
+        .replace(
+            "\"../data/hopper-protocol.csv\"",
+            &format!("{:?}", root().join("data/hopper-protocol.csv")),
+        )
+        .replacen("time = \"t\"", "sample_rate = 1e300", 1);
+    fs::write(&config, text).unwrap();
+    let out = tmp.path().join("o");
+    let o = htfid(&[
+        "diagnose",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("shorter than one natural period"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stderr(&o).contains("data.sample_rate"), "{}", stderr(&o));
+    assert!(!out.exists());
+}

@@ -34,6 +34,10 @@ pub(crate) fn local_fit(
         s.powi(j as i32)
     });
     let y = DVector::from_iterator(m, x[lo..hi].iter().copied());
+    // nalgebra's SVD panics on non-finite entries: such data have no derivative.
+    if !y.iter().all(|v| v.is_finite()) {
+        return None;
+    }
     let coef = vander.svd(true, true).solve(&y, 1e-12).ok()?;
     let c1 = if p > 1 { coef[1] } else { 0.0 };
     let c2 = if p > 2 { coef[2] } else { 0.0 };

@@ -444,6 +444,10 @@ pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> V
         })
         .collect();
     let scaled = DMatrix::from_fn(p, p, |i, j| jtj[(i, j)] * d[i] * d[j]);
+    // nalgebra's SVD panics on non-finite entries: no finite standard errors then.
+    if !scaled.iter().all(|v| v.is_finite()) {
+        return vec![f64::INFINITY; p];
+    }
     let svd = scaled.svd(true, true);
     let tol = 1e-12 * p as f64;
     let Ok(b) = svd.pseudo_inverse(tol) else {

@@ -90,6 +90,10 @@ impl<'c, 'a> Screening<'c, 'a> {
             }
         }
         let yv = DVector::from_vec(y);
+        // nalgebra's SVD panics on non-finite entries: such a regression has no answer.
+        if !(x.iter().all(|v| v.is_finite()) && yv.iter().all(|v| v.is_finite())) {
+            return None;
+        }
         let beta = x.clone().svd(true, true).solve(&yv, 1e-12).ok()?;
         let rss = (&yv - &x * &beta).norm_squared();
         Some((beta.iter().copied().collect(), rss))

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use htfid_data::{read_csv, CsvSpec, OutputDir, TimeSeries};
 use htfid_diagnose::{
     diagnose_with_progress, simulate_record, DiagnoseOptions, DiagnosisReport, Effect,
@@ -55,6 +55,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     let started = Instant::now();
     let series = read_series(&settings)?;
     let record = Record::from_series(&series).context("measured data")?;
+    check_time_scale(&settings, &record)?;
     let nominal = nominal_model(&settings)?;
     let opts = options(&settings, record.len())?;
     eprintln!(
@@ -675,4 +676,36 @@ fn report_md(
         }
     }
     m
+}
+
+/// Refuses a record whose time scale cannot hold the model's dynamics: a record shorter than
+/// one natural period of the nominal model, or sampled below its natural frequency, usually
+/// means a sample rate or a time column in the wrong unit. Diagnosing it would fit noise.
+fn check_time_scale(settings: &DiagnoseSettings, record: &Record) -> Result<()> {
+    let p = &settings.params;
+    let wn = (p.k / p.m).sqrt();
+    let natural_period = 2.0 * std::f64::consts::PI / wn;
+    let duration = record.dt() * (record.len() - 1) as f64;
+    let nyquist = std::f64::consts::PI / record.dt();
+    let unit_hint = if settings.data.sample_rate.is_some() {
+        "check data.sample_rate (Hz)"
+    } else {
+        "check that the time column is in seconds"
+    };
+    if duration < natural_period {
+        bail!(
+            "{}: the record lasts {duration:.3e} s, shorter than one natural period of the \
+             nominal model ({natural_period:.3} s, sqrt(k/m) = {wn:.3} rad/s): {unit_hint}",
+            settings.path.display()
+        );
+    }
+    if nyquist < wn {
+        bail!(
+            "{}: the record is sampled every {:.3e} s, so its Nyquist frequency ({nyquist:.3e} \
+             rad/s) is below the nominal model's natural frequency ({wn:.3} rad/s): {unit_hint}",
+            settings.path.display(),
+            record.dt()
+        );
+    }
+    Ok(())
 }
