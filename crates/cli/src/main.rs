@@ -19,6 +19,7 @@ mod model_diagnose_config;
 mod output;
 mod plots;
 mod progress;
+mod records;
 mod settings;
 mod signals;
 

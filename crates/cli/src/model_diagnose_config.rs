@@ -98,34 +98,7 @@ impl ModelDiagnoseSettings {
             message: e.to_string(),
         })?;
         if let Some(table) = &raw.model.parameters {
-            let mut changes = Vec::new();
-            for (k, v) in table.get_ref() {
-                let value = match v {
-                    toml::Value::Float(f) => *f,
-                    toml::Value::Integer(i) => *i as f64,
-                    _ => {
-                        return Err(src.error(
-                            Some(&table.span()),
-                            &format!("model.parameters.{k}"),
-                            "must be a number",
-                        ))
-                    }
-                };
-                changes.push((k.as_str(), value));
-            }
-            model = model.with_parameters(&changes).map_err(|e| {
-                let span = match &e {
-                    htfid_lang::ModelError::Parameter { name, .. } => {
-                        src.key_in_table(table.span().start, name)
-                    }
-                    _ => None,
-                };
-                src.error(
-                    Some(&span.unwrap_or_else(|| table.span())),
-                    "model.parameters",
-                    e.to_string(),
-                )
-            })?;
+            model = crate::settings::with_overrides(&src, model, table)?;
         }
         let outputs = d.outputs.get_ref().clone();
         if outputs.len() != model.outputs().len() {

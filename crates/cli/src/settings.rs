@@ -454,6 +454,18 @@ impl Settings {
         self.settle_periods as f64 * self.period
     }
 
+    /// The sample grid of the experiment's record, from `t = 0` to its end: a whole number of
+    /// periods after the settling, covering an excitation that ends at `excitation_end`, so the
+    /// estimators can use all of it.
+    pub fn record_grid(&self, excitation_end: f64) -> (f64, Vec<f64>) {
+        let (start, period) = (self.settle_time(), self.period);
+        let end = start + ((excitation_end - start).max(0.0) / period - 1e-9).ceil() * period;
+        let end = end.max(period);
+        let dt = 1.0 / self.sample_rate;
+        let n = (end / dt + 1e-9).floor() as usize + 1;
+        (end, (0..n).map(|i| i as f64 * dt).collect())
+    }
+
     /// The built-in hopper's settings, or an error for a command that does not take
     /// model-language configs yet.
     pub fn hopper(&self, command: &str) -> Result<(HopperParams, DamperLaw, Effects), ConfigError> {
@@ -565,46 +577,48 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
             let model = htfid_lang::Model::from_file(&path).map_err(lang_error)?;
             match &m.parameters {
                 None => model,
-                Some(table) => {
-                    let mut changes = Vec::new();
-                    for (name, value) in table.get_ref() {
-                        let key = format!("model.parameters.{name}");
-                        let v = match value {
-                            toml::Value::Float(f) => *f,
-                            toml::Value::Integer(i) => *i as f64,
-                            _ => {
-                                let span = src
-                                    .key_in_table(table.span().start, name)
-                                    .unwrap_or_else(|| table.span());
-                                return Err(src.error(
-                                    Some(&span),
-                                    &key,
-                                    "must be a number (a new value for the model's parameter)",
-                                ));
-                            }
-                        };
-                        changes.push((name.as_str(), v));
-                    }
-                    model.with_parameters(&changes).map_err(|e| {
-                        let span = match &e {
-                            htfid_lang::ModelError::Parameter { name, .. } => {
-                                src.key_in_table(table.span().start, name)
-                            }
-                            _ => None,
-                        };
-                        src.error(
-                            Some(&span.unwrap_or_else(|| table.span())),
-                            "model.parameters",
-                            e.to_string(),
-                        )
-                    })?
-                }
+                Some(table) => with_overrides(src, model, table)?,
             }
         }
         None => htfid_lang::Model::from_document(&src.text, Some(&src.path), &["model"])
             .map_err(lang_error)?,
     };
     Ok(System::Model(Box::new(model)))
+}
+
+/// `model` with the values of a `[model.parameters]` table; a wrong entry is reported at its
+/// own line.
+pub fn with_overrides(
+    src: &Source,
+    model: htfid_lang::Model,
+    table: &Spanned<toml::Table>,
+) -> Result<htfid_lang::Model, ConfigError> {
+    let at = |name: &str| {
+        src.key_in_table(table.span().start, name)
+            .unwrap_or_else(|| table.span())
+    };
+    let mut changes = Vec::new();
+    for (name, value) in table.get_ref() {
+        let v = match value {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            _ => {
+                return Err(src.error(
+                    Some(&at(name)),
+                    &format!("model.parameters.{name}"),
+                    "must be a number (a new value for the model's parameter)",
+                ))
+            }
+        };
+        changes.push((name.as_str(), v));
+    }
+    model.with_parameters(&changes).map_err(|e| {
+        let span = match &e {
+            htfid_lang::ModelError::Parameter { name, .. } => at(name),
+            _ => table.span(),
+        };
+        src.error(Some(&span), "model.parameters", e.to_string())
+    })
 }
 
 impl RawModel {

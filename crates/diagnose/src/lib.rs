@@ -169,7 +169,8 @@ pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use interp::Interpolation;
 pub use model_fit::{
-    diagnose_model, ModelDiagnosis, ModelFitOptions, ModelRecord, ModelScore, ParameterChange,
+    diagnose_model, ModelCause, ModelDiagnosis, ModelFitOptions, ModelRecord, ModelScore,
+    ParameterChange,
 };
 pub use nominal::NominalModel;
 pub use record::Record;

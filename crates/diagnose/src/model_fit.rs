@@ -89,12 +89,32 @@ pub struct ParameterChange {
     pub z: f64,
 }
 
+/// What a model-file diagnosis names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelCause {
+    /// Some parameter moved significantly and the refit improves the held-out error by at
+    /// least `min_gain`.
+    ParameterError,
+    /// Nothing: the configured model describes the data as well as a refit.
+    None,
+}
+
+impl ModelCause {
+    /// The name used in `diagnosis.json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelCause::ParameterError => "parameter_error",
+            ModelCause::None => "none",
+        }
+    }
+}
+
 /// The outcome.
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelDiagnosis {
-    /// `parameter_error` when some parameter moved significantly and the refit improves the
-    /// held-out error by at least `min_gain`; `none` otherwise.
-    pub cause: String,
+    /// What the diagnosis names.
+    pub cause: ModelCause,
     /// The configured simulation's score (the baseline).
     pub configured: ModelScore,
     /// The refitted simulation's score.
@@ -410,7 +430,7 @@ pub fn diagnose_model(
         .collect::<Result<_, _>>()?;
     if index.is_empty() {
         return Ok(ModelDiagnosis {
-            cause: "none".into(),
+            cause: ModelCause::None,
             refitted: configured.clone(),
             configured,
             parameters: Vec::new(),
@@ -483,12 +503,12 @@ pub fn diagnose_model(
         .iter()
         .any(|p| p.z.abs() >= opts.significance_sigma);
     let cause = if moved && gain >= opts.min_gain {
-        "parameter_error"
+        ModelCause::ParameterError
     } else {
-        "none"
+        ModelCause::None
     };
     Ok(ModelDiagnosis {
-        cause: cause.into(),
+        cause,
         configured,
         refitted,
         parameters,

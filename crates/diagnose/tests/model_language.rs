@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use htfid_diagnose::{diagnose_model, ModelFitOptions, ModelRecord};
+use htfid_diagnose::{diagnose_model, ModelCause, ModelFitOptions, ModelRecord};
 use htfid_lang::Model;
 use htfid_truth::{generate, ParameterErrors, Scenario};
 
@@ -47,7 +47,7 @@ fn a_stiffer_spring_is_a_parameter_error() {
         ..Scenario::default()
     };
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
-    assert_eq!(d.cause, "parameter_error", "{d:?}");
+    assert_eq!(d.cause, ModelCause::ParameterError, "{d:?}");
     let k = &d.parameters[0];
     assert!((k.fitted / 206.0 - 1.0).abs() < 5e-3, "{k:?}");
     assert!(k.z.abs() > 5.0);
@@ -65,7 +65,7 @@ fn the_nominal_hopper_gives_none() {
         ..Scenario::default()
     };
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
-    assert_eq!(d.cause, "none", "{d:?}");
+    assert_eq!(d.cause, ModelCause::None, "{d:?}");
     for p in &d.parameters {
         assert!(
             p.z.abs() < 5.0 && (p.fitted / p.configured - 1.0).abs() < 1e-2,

@@ -7,6 +7,7 @@ use std::f64::consts::PI;
 use num_complex::Complex64;
 use rustfft::FftPlanner;
 
+use crate::smooth::golden_min;
 use crate::{Error, Result};
 
 /// A record split into its `T`-periodic part and the rest.
@@ -186,29 +187,7 @@ pub fn estimate_period(y: &[f64], dt: f64) -> Result<PeriodEstimate> {
     };
     // Golden-section search within one DFT bin of the record around the coarse estimate.
     let bin = 1.0 / (n as f64 * dt);
-    let (mut a, mut b) = (f0 - bin, f0 + bin);
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (score(c), score(d));
-    for _ in 0..60 {
-        if fc > fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = score(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = score(d);
-        }
-        if (b - a) < 1e-12 * f0 {
-            break;
-        }
-    }
-    let f = 0.5 * (a + b);
+    let (f, _) = golden_min(|f| -score(f), f0 - bin, f0 + bin, 1e-12 * f0);
     // Share of the variance at the harmonics: a sinusoid of amplitude A has windowed DTFT
     // magnitude A sum(w) / 2 at its frequency and variance A^2 / 2.
     let gain: f64 = window.iter().sum();

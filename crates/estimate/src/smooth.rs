@@ -251,30 +251,11 @@ pub(crate) fn gcv_alpha(sys: &BinSystem, scale: f64, ridge: f64) -> Result<f64> 
     if best == usize::MAX {
         return Err(Error::GcvFailed);
     }
-    let (mut lo, mut hi) = (
+    let (lo, hi) = (
         grid[best.saturating_sub(1)],
         grid[(best + 1).min(GCV_GRID - 1)],
     );
-    let phi = (5f64.sqrt() - 1.0) / 2.0;
-    let mut x1 = hi - phi * (hi - lo);
-    let mut x2 = lo + phi * (hi - lo);
-    let (mut f1, mut f2) = (eval(x1), eval(x2));
-    while hi - lo > GCV_LOG_TOL {
-        if f1 <= f2 {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - phi * (hi - lo);
-            f1 = eval(x1);
-        } else {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + phi * (hi - lo);
-            f2 = eval(x2);
-        }
-    }
-    let (x_gs, f_gs) = if f1 <= f2 { (x1, f1) } else { (x2, f2) };
+    let (x_gs, f_gs) = golden_min(eval, lo, hi, GCV_LOG_TOL);
     Ok(if f_gs <= best_score {
         10f64.powf(x_gs)
     } else {
@@ -337,6 +318,40 @@ fn check_weight(a: f64) -> Result<()> {
         Ok(())
     } else {
         Err(Error::InvalidAlpha { alpha: a })
+    }
+}
+
+/// Golden-section search for a minimum of a unimodal `f` on `[lo, hi]`, until the bracket is
+/// narrower than `tol`: the better of the two interior points and its value.
+pub(crate) fn golden_min(
+    mut f: impl FnMut(f64) -> f64,
+    mut lo: f64,
+    mut hi: f64,
+    tol: f64,
+) -> (f64, f64) {
+    let phi = (5f64.sqrt() - 1.0) / 2.0;
+    let mut x1 = hi - phi * (hi - lo);
+    let mut x2 = lo + phi * (hi - lo);
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    while hi - lo > tol {
+        if f1 <= f2 {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - phi * (hi - lo);
+            f1 = f(x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + phi * (hi - lo);
+            f2 = f(x2);
+        }
+    }
+    if f1 <= f2 {
+        (x1, f1)
+    } else {
+        (x2, f2)
     }
 }
 

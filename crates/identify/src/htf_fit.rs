@@ -4,7 +4,7 @@ use htfid_estimate::{levenberg_marquardt, HtfEstimate, LmOptions};
 use htfid_hybrid::Options;
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{LimitCycle, ShootingOptions};
-use htfid_theory::{HarmonicTransferFunction, HtfMethod, LinearisedHtf};
+use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 use num_complex::Complex64;
 use serde::Serialize;
 
@@ -26,9 +26,6 @@ pub enum IdentifyError {
         /// Parameters fitted.
         parameters: usize,
     },
-    /// The HTF of the starting model cannot be computed.
-    #[error(transparent)]
-    Theory(#[from] htfid_theory::TheoryError),
     /// The optimiser failed.
     #[error(transparent)]
     Fit(#[from] htfid_estimate::Error),
@@ -106,10 +103,11 @@ pub fn fit_to_htf(
                 .ok_or_else(|| IdentifyError::UnknownParameter { name: n.clone() })
         })
         .collect::<Result<_, _>>()?;
-    let method = LinearisedHtf::new(model, cycle, opts)?.method();
-    let per_harmonic = match method {
-        HtfMethod::ExactPiecewise => spec.points_exact,
-        HtfMethod::PeriodicResponse => spec.points_periodic,
+    // The same test LinearisedHtf applies to pick its method.
+    let per_harmonic = if model.is_piecewise_constant() {
+        spec.points_exact
+    } else {
+        spec.points_periodic
     }
     .max(1);
     let (lo, hi) = spec.band;

@@ -32,8 +32,10 @@ impl Mode {
 struct Compiled {
     /// Per mode: `f` (n values).
     flow: Vec<Program>,
-    /// Per mode: `df/dx` (n x n row-major) then `df/du` (n).
-    linear: Vec<Program>,
+    /// Per mode: `df/dx` (n x n row-major).
+    jacobian: Vec<Program>,
+    /// Per mode: `df/du` (n). Apart from the Jacobian, so that each is evaluated alone.
+    input_gain: Vec<Program>,
     /// Per guard: `h`.
     guard: Vec<Program>,
     /// Per guard: `dh/dx` (n) then `dh/dt`.
@@ -141,21 +143,21 @@ impl Compiled {
             })
         };
         let mut piecewise_constant = true;
-        let (mut flow, mut linear) = (Vec::new(), Vec::new());
+        let (mut flow, mut jacobian, mut input_gain) = (Vec::new(), Vec::new(), Vec::new());
         for f in &def.flows {
             let folded: Vec<Expr> = f.iter().map(|e| fold(e, p, values)).collect();
-            let mut lin = Vec::with_capacity(n * n + n);
+            let mut jac = Vec::with_capacity(n * n);
             for fi in &folded {
                 for s in &state_names {
-                    lin.push(fi.derivative(s));
+                    jac.push(fi.derivative(s));
                 }
             }
-            for fi in &folded {
-                lin.push(fi.derivative(&def.input));
-            }
-            piecewise_constant &= constant_in_mode(&lin, &state_names, &def.input);
+            let gain: Vec<Expr> = folded.iter().map(|fi| fi.derivative(&def.input)).collect();
+            piecewise_constant &= constant_in_mode(&jac, &state_names, &def.input)
+                && constant_in_mode(&gain, &state_names, &def.input);
             flow.push(compile(&folded)?);
-            linear.push(compile(&lin)?);
+            jacobian.push(compile(&jac)?);
+            input_gain.push(compile(&gain)?);
         }
         let (mut guard, mut guard_linear, mut reset) = (Vec::new(), Vec::new(), Vec::new());
         for g in &def.guards {
@@ -212,7 +214,8 @@ impl Compiled {
         };
         Ok(Compiled {
             flow,
-            linear,
+            jacobian,
+            input_gain,
             guard,
             guard_linear,
             reset,
@@ -537,9 +540,7 @@ impl HybridSystem for Model {
         let n = x.len();
         let u = self.u(t);
         with_vars(t, x, u, |v| {
-            with_outputs(&self.compiled.linear[mode.index()], v, |out| {
-                jac.copy_from_slice(&out[..n * n]);
-            })
+            self.compiled.jacobian[mode.index()].eval(v, &mut jac[..n * n])
         });
         true
     }
@@ -623,9 +624,7 @@ impl htfid_ltp::InputOutput for Model {
     fn input_gain(&self, mode: Mode, t: f64, x: &[f64], b: &mut [f64]) {
         let n = x.len();
         with_vars(t, x, 0.0, |v| {
-            with_outputs(&self.compiled.linear[mode.index()], v, |out| {
-                b.copy_from_slice(&out[n * n..n * n + n]);
-            })
+            self.compiled.input_gain[mode.index()].eval(v, &mut b[..n])
         });
     }
 

@@ -8,7 +8,9 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use htfid_data::{read_csv, CsvSpec, OutputDir, TimeSeries};
+use htfid_data::{OutputDir, TimeSeries};
+
+use crate::records::{read_record, Columns};
 use htfid_diagnose::{
     diagnose_with_progress, simulate_record, DiagnoseOptions, DiagnosisReport, Effect,
     NominalModel, NominalParam, Record, Score,
@@ -123,23 +125,14 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
 
 fn read_series(settings: &DiagnoseSettings) -> Result<TimeSeries> {
     let d = &settings.data;
-    let mut spec = CsvSpec::default()
-        .with_columns(d.input.clone(), d.output.clone())
-        .with_min_samples(64)
-        .with_time_tolerance(d.time_tolerance);
-    spec = match (&d.time, d.sample_rate) {
-        (Some(t), _) => spec.with_time_column(t.clone()),
-        (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
-        (None, None) => spec,
+    let columns = Columns {
+        input: &d.input,
+        output: &d.output,
+        time: d.time.as_deref(),
+        sample_rate: d.sample_rate,
+        time_tolerance: d.time_tolerance,
     };
-    read_csv(&d.file, &spec).with_context(|| {
-        format!(
-            "{}: [data] file (a non-uniform time step can be allowed with data.time_tolerance, \
-             now {:e})",
-            settings.path.display(),
-            d.time_tolerance
-        )
-    })
+    read_record(&settings.path, &d.file, columns)
 }
 
 fn nominal_model(s: &DiagnoseSettings) -> Result<NominalModel> {

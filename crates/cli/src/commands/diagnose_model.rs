@@ -5,14 +5,14 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use htfid_data::{read_csv, CsvSpec};
-use htfid_diagnose::{diagnose_model, ModelDiagnosis, ModelRecord};
+use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis, ModelRecord};
 use htfid_plot::{stacked_figure, time_panel, Panel, Series, Style};
 use serde_json::json;
 
 use crate::commands::simulate::report_written;
 use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::output::{json_text, open, resolve_dir};
+use crate::records::{read_record, Columns};
 
 /// Seconds of the held-out part drawn in the comparison figure (a readable window).
 const WINDOW_S: f64 = 10.0;
@@ -30,9 +30,9 @@ pub fn run(
         force,
         &["diagnosis.json", "report.md", "compare.svg", "compare.png"],
     )?;
-    let record = read_record(&s, &s.file)?;
+    let record = read_model_record(&s, &s.file)?;
     let validation = match &s.validation {
-        Some(path) => Some(read_record(&s, path)?),
+        Some(path) => Some(read_model_record(&s, path)?),
         None => None,
     };
     eprintln!(
@@ -118,37 +118,28 @@ pub fn run(
         ));
         panels.push(panel);
     }
-    let fig = stacked_figure(format!("{}: {}", s.name, d.cause), panels);
+    let fig = stacked_figure(format!("{}: {}", s.name, d.cause.name()), panels);
     crate::plots::write(&mut outdir, "compare", &fig)?;
     eprintln!(
         "[htfid] cause: {} (held-out gain of the refit {:.1} %)",
-        d.cause,
+        d.cause.name(),
         100.0 * d.gain
     );
     report_written(&outdir.commit()?);
     Ok(())
 }
 
-fn read_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<ModelRecord> {
+fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<ModelRecord> {
     let (mut t, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
     for (o, column) in s.outputs.iter().enumerate() {
-        let mut spec = CsvSpec::default()
-            .with_columns(s.input.clone(), column.clone())
-            .with_min_samples(64)
-            .with_time_tolerance(s.time_tolerance);
-        spec = match (&s.time, s.sample_rate) {
-            (Some(tc), _) => spec.with_time_column(tc.clone()),
-            (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
-            (None, None) => spec,
+        let columns = Columns {
+            input: &s.input,
+            output: column,
+            time: s.time.as_deref(),
+            sample_rate: s.sample_rate,
+            time_tolerance: s.time_tolerance,
         };
-        let series = read_csv(file, &spec).with_context(|| {
-            format!(
-                "{}: [data] (a non-uniform time step can be allowed with data.time_tolerance, \
-                 now {:e})",
-                s.path.display(),
-                s.time_tolerance
-            )
-        })?;
+        let series = read_record(&s.path, file, columns)?;
         if o == 0 {
             t = series.time().to_vec();
             u = series.input().to_vec();
@@ -161,8 +152,8 @@ fn read_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<Mode
 fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
     let mut r = String::new();
     let _ = writeln!(r, "# Diagnosis: {}\n", s.name);
-    let verdict = match d.cause.as_str() {
-        "parameter_error" => format!(
+    let verdict = match d.cause {
+        ModelCause::ParameterError => format!(
             "The configured model `{}` misdescribes the data through its parameters: refitting {} \
              lowers the held-out error by {:.1} %.",
             s.model.name(),
@@ -174,7 +165,7 @@ fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
                 .join(", "),
             100.0 * d.gain
         ),
-        _ => format!(
+        ModelCause::None => format!(
             "No parameter of `{}` moved by {} standard errors with a held-out gain of {:.0} %: \
              the configured model describes the data as well as a refit does.",
             s.model.name(),

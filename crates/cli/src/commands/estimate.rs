@@ -7,39 +7,32 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use htfid_data::{read_csv, CsvSpec, TimeSeries};
+use htfid_data::TimeSeries;
 use htfid_estimate::{estimate_period, siddiqi, split_periodic, Alpha, HtfEstimate, Record};
 use htfid_plot::Style;
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
+use crate::commands::run::write_estimate_csv;
 use crate::commands::simulate::report_written;
 use crate::estimate_config::{EstimateSettings, PeriodSetting};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
+use crate::records::{read_record, Columns};
 
 /// Fewer periods than this and the estimate is called short in the checks.
 const MIN_PERIODS: usize = 20;
 
 fn read(settings: &EstimateSettings, output: &str) -> Result<TimeSeries> {
-    let mut spec = CsvSpec::default()
-        .with_columns(settings.input.clone(), output.to_string())
-        .with_min_samples(64)
-        .with_time_tolerance(settings.time_tolerance);
-    spec = match (&settings.time, settings.sample_rate) {
-        (Some(t), _) => spec.with_time_column(t.clone()),
-        (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
-        (None, None) => spec,
+    let columns = Columns {
+        input: &settings.input,
+        output,
+        time: settings.time.as_deref(),
+        sample_rate: settings.sample_rate,
+        time_tolerance: settings.time_tolerance,
     };
-    read_csv(&settings.file, &spec).with_context(|| {
-        format!(
-            "{}: [data] file (a non-uniform time step can be allowed with data.time_tolerance, \
-             now {:e})",
-            settings.path.display(),
-            settings.time_tolerance
-        )
-    })
+    read_record(&settings.path, &settings.file, columns)
 }
 
 pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
@@ -185,14 +178,11 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
 
     stages.run("write outputs", || -> Result<()> {
         for (o, e) in estimates.iter().enumerate() {
-            let mut csv = outdir.csv(
+            write_estimate_csv(
+                &mut outdir,
                 &format!("estimate_siddiqi{}.csv", suffix(o)),
-                &["omega", "n", "re", "im", "stderr"],
+                e,
             )?;
-            for r in e.rows() {
-                csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
-            }
-            csv.finish()?;
         }
         // One period of the measured orbit (the periodic part), from its harmonics.
         let mut header = vec!["phase".to_string(), settings.input.clone()];

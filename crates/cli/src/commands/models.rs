@@ -15,7 +15,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
-use crate::commands::run::{aliasing, estimate, harmonic_errors, run_plots};
+use crate::commands::run::{aliasing, estimate, harmonic_errors, run_plots, write_estimate_csv};
 use crate::commands::simulate::report_written;
 use crate::commands::theory::{theory_plots, write_theory_csv};
 use crate::output::{json_text, open, resolve_dir};
@@ -121,13 +121,8 @@ fn simulate_record(
     stages: &mut Stages,
 ) -> Result<ModelRecord> {
     let excitation = signals::build(settings)?;
-    let period = settings.period;
-    let start = settings.settle_time();
-    let end = start + ((excitation.end - start).max(0.0) / period - 1e-9).ceil() * period;
-    let end = end.max(period);
-    let dt = 1.0 / settings.sample_rate;
-    let n = (end / dt + 1e-9).floor() as usize + 1;
-    let grid: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+    let (end, grid) = settings.record_grid(excitation.end);
+    let n = grid.len();
     let driven = model.with_input(excitation.input_fn());
     let traj = stages
         .run("simulate", || {
@@ -457,14 +452,8 @@ pub fn run_model(
         }
         for (o, per) in estimates.iter().enumerate() {
             for (est, e) in per {
-                let mut csv = outdir.csv(
-                    &format!("estimate_{}{}.csv", est.name(), suffix(&outputs, o)),
-                    &["omega", "n", "re", "im", "stderr"],
-                )?;
-                for r in e.rows() {
-                    csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
-                }
-                csv.finish()?;
+                let name = format!("estimate_{}{}.csv", est.name(), suffix(&outputs, o));
+                write_estimate_csv(&mut outdir, &name, e)?;
             }
         }
         Ok(())

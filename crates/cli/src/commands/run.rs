@@ -132,14 +132,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         crate::commands::simulate::write_limit_cycle(&settings, &sim, &mut outdir)?;
         write_theory_csv(&mut outdir, "theory.csv", &grid)?;
         for (est, e) in &estimates {
-            let mut csv = outdir.csv(
-                &format!("estimate_{}.csv", est.name()),
-                &["omega", "n", "re", "im", "stderr"],
-            )?;
-            for r in e.rows() {
-                csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
-            }
-            csv.finish()?;
+            write_estimate_csv(&mut outdir, &format!("estimate_{}.csv", est.name()), e)?;
         }
         Ok(())
     })?;
@@ -332,6 +325,20 @@ pub(crate) fn estimate(
             Ok(e)
         }
     }
+}
+
+/// Writes an estimate CSV (`estimate_*.csv`): rows `omega,n,re,im,stderr`.
+pub(crate) fn write_estimate_csv(
+    out: &mut htfid_data::OutputDir,
+    name: &str,
+    e: &HtfEstimate,
+) -> Result<()> {
+    let mut csv = out.csv(name, &["omega", "n", "re", "im", "stderr"])?;
+    for r in e.rows() {
+        csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
+    }
+    csv.finish()?;
+    Ok(())
 }
 
 /// Keeps the rows whose output frequency lies in the band (the line estimator also returns

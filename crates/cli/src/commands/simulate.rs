@@ -83,15 +83,8 @@ pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hop
 pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
     let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
     let excitation = signals::build(settings)?;
-    let period = settings.period;
-    // The record ends on a whole number of periods after the settling, so the estimators can
-    // use all of it.
-    let start = settings.settle_time();
-    let end = start + ((excitation.end - start).max(0.0) / period - 1e-9).ceil() * period;
-    let end = end.max(period);
-    let dt = 1.0 / settings.sample_rate;
-    let n = (end / dt + 1e-9).floor() as usize + 1;
-    let grid: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+    let (end, grid) = settings.record_grid(excitation.end);
+    let n = grid.len();
     let driven = hopper.with_input(excitation.input_fn());
     let traj = stages
         .run("simulate", || {
