@@ -20,9 +20,10 @@ doc:
 tests:
     cargo test --workspace --locked
 
-# The diagnosis's wide sweep: 100 seeded records with a hidden effect (or none), about 70 s.
+# The diagnosis's wide sweep: 200 records of the independent truth generator (htfid-truth):
+# single and compound effects, sensor-side effects, effects outside the library, clean data.
 sweep:
-    cargo test --locked -p htfid-diagnose --test hidden_effects -- --ignored
+    cargo test --locked -p htfid-diagnose --test independent -- --ignored --nocapture
 
 # The main job: the paper's experiment end to end.
 run config="configs/paper.toml":

@@ -1131,6 +1131,11 @@ pub struct RawDiagnoseOptions {
     pub min_gain: OptNum,
     pub burn_in: OptNum,
     pub fit_initial_state: Option<Spanned<bool>>,
+    pub alpha: OptNum,
+    pub max_effects: OptNum,
+    pub bic_margin: OptNum,
+    pub unexplained_ratio: OptNum,
+    pub min_explained: OptNum,
 }
 
 /// Where the measured data are and how to read them.
@@ -1163,6 +1168,18 @@ pub struct DiagnoseSettings {
     pub min_gain: Option<f64>,
     pub burn_in: Option<f64>,
     pub fit_initial_state: Option<bool>,
+    /// The decision's thresholds (`diagnose.alpha`, ...), when set.
+    pub thresholds: Thresholds,
+}
+
+/// The diagnosis's decision thresholds as set in the config (`None`: the library default).
+#[derive(Debug, Clone, Default)]
+pub struct Thresholds {
+    pub alpha: Option<f64>,
+    pub max_effects: Option<usize>,
+    pub bic_margin: Option<f64>,
+    pub unexplained_ratio: Option<f64>,
+    pub min_explained: Option<f64>,
 }
 
 fn ranges(
@@ -1383,6 +1400,36 @@ impl DiagnoseSettings {
             fit_initial_state: o
                 .and_then(|o| o.fit_initial_state.as_ref())
                 .map(|v| *v.get_ref()),
+            thresholds: Thresholds {
+                alpha: opt(o.map(|o| &o.alpha), "diagnose.alpha", "in (0, 0.5)", |v| {
+                    v > 0.0 && v < 0.5
+                })?,
+                max_effects: opt(
+                    o.map(|o| &o.max_effects),
+                    "diagnose.max_effects",
+                    "a whole number from 1 to 13",
+                    |v| v.fract() == 0.0 && (1.0..=13.0).contains(&v),
+                )?
+                .map(|v| v as usize),
+                bic_margin: opt(
+                    o.map(|o| &o.bic_margin),
+                    "diagnose.bic_margin",
+                    ">= 0",
+                    |v| v >= 0.0,
+                )?,
+                unexplained_ratio: opt(
+                    o.map(|o| &o.unexplained_ratio),
+                    "diagnose.unexplained_ratio",
+                    ">= 1",
+                    |v| v >= 1.0,
+                )?,
+                min_explained: opt(
+                    o.map(|o| &o.min_explained),
+                    "diagnose.min_explained",
+                    "in [0, 1]",
+                    |v| (0.0..=1.0).contains(&v),
+                )?,
+            },
         })
     }
 }

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use htfid_data::{read_csv, CsvSpec};
 use htfid_diagnose::{
     diagnose, simulate_record, DiagnoseOptions, FittedModel, Interpolation, NominalModel, Record,
-    SimMethod,
+    Sensor, SimMethod,
 };
 use htfid_hybrid::{simulate, Options};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams, InputFn};
@@ -94,6 +94,7 @@ fn main() {
         },
         damper: DamperLaw::Switching,
         effects,
+        sensor: Sensor::default(),
     };
     let n = record.len();
     for sim in [SimMethod::default(), SimMethod::Adaptive { rtol: 1e-8 }] {
@@ -141,6 +142,7 @@ fn main() {
                     input_offset: -5.345e-3,
                     ..Effects::default()
                 },
+                sensor: Sensor::default(),
             };
             let n = record.len();
             let (t, _) = best_of(5, || {

@@ -13,8 +13,9 @@ use crate::fit::{Context, FitResult, ModelPoint, Scales, Segment};
 use crate::interp::Interpolation;
 use crate::noise::noise_floor;
 use crate::screen::Screening;
+use crate::select;
 use crate::sim::{Extent, MeasuredForce, SimMethod, Stepping};
-use crate::{DiagnoseError, Effect, NominalModel, Record};
+use crate::{DiagnoseError, Effect, NominalModel, Record, Sensor};
 
 /// Fewest scored samples a range must keep after the burn-in.
 const MIN_SCORED: usize = 16;
@@ -36,22 +37,26 @@ pub struct DiagnoseOptions {
     pub burn_in_s: Option<f64>,
     /// The effects tried. Default: the whole library, [`Effect::ALL`].
     pub candidates: Vec<Effect>,
-    /// A candidate's effect parameter must lie this many standard errors from its nominal
-    /// value (zero for an absent effect) to be significant, `> 0`. Default 5.
+    /// A refitted free parameter of the nominal model that lies this many standard errors from
+    /// its configured value is a `parameter_error` finding, `> 0`. Default 5.
     pub significance_sigma: f64,
-    /// Smallest relative reduction `1 - rmse_candidate / rmse_nominal` of the held-out error
-    /// for a significant candidate, in `[0, 1)`. Default 0.05.
+    /// Smallest relative reduction of the held-out error, `1 - rmse_after / rmse_before`, for
+    /// an effect to be added (and for a refit of the configured parameters to count), in
+    /// `[0, 1)`. Default 0.05.
     pub min_gain: f64,
-    /// Evidence margin in BIC units: a significant candidate must lower the fit BIC by this
-    /// much below the nominal's, and the winner must beat every other significant candidate's
-    /// BIC by this much, `>= 0`. Default 10 ("very strong" on Kass and Raftery's scale).
+    /// Evidence margin in BIC units: first-round candidates whose fits lie within this margin
+    /// of the best one's (and are not nested in it) are its rivals, and the answer is
+    /// `ambiguous` unless the selection adds them too, `>= 0`. Default 10 ("very strong" on
+    /// Kass and Raftery's scale).
     pub bic_margin: f64,
     /// A held-out RMSE above this multiple of the noise floor is "clear residual structure",
-    /// `>= 1`. Default 1.5.
+    /// `>= 1`. Default 5 (effects in the library fitted to data they describe leave about 1 to
+    /// 1.5 times the floor; effects outside it mimicked by library ones, 4 to 80 times).
     pub unexplained_ratio: f64,
     /// Fraction of the nominal's excess error (above the noise floor, in mean square) the
-    /// winner must remove when its own residual is still above `unexplained_ratio` times the
-    /// noise floor, in `[0, 1]`. Default 0.75.
+    /// selected effects must remove when their residual is still above `unexplained_ratio`
+    /// times the noise floor; otherwise the answer is `unexplained`, in `[0, 1]`. Default
+    /// 0.999 (a residual 3 % of the nominal's, in RMS).
     pub min_explained: f64,
     /// How the measured force is read between samples. Default: cubic spline.
     pub interpolation: Interpolation,
@@ -68,6 +73,17 @@ pub struct DiagnoseOptions {
     /// Band of the residual spectrum whose level is the noise floor, as fractions of the
     /// Nyquist frequency, `0 < lo < hi <= 1`. Default (0.6, 0.95).
     pub noise_band: (f64, f64),
+    /// Level of the nested-model test that admits an effect (the probability that an absent
+    /// effect passes it on white residuals), in `(0, 0.5)`. Default 1e-4.
+    pub alpha: f64,
+    /// Most effects named together, `>= 1`. Default 3.
+    pub max_effects: usize,
+    /// Resolution of the simulation relative to the spread of the measured output, `>= 0`:
+    /// the noise floor used by the decision is never below `resolution * std(x)`. The force is
+    /// known only at its samples, and its interpolation alone leaves simulated outputs in
+    /// error by about this much on the paper's protocol, so a residual this small is not
+    /// evidence of structure. Default 1e-4.
+    pub resolution: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -80,13 +96,16 @@ impl Default for DiagnoseOptions {
             significance_sigma: 5.0,
             min_gain: 0.05,
             bic_margin: 10.0,
-            unexplained_ratio: 1.5,
-            min_explained: 0.75,
+            unexplained_ratio: 5.0,
+            min_explained: 0.999,
             interpolation: Interpolation::default(),
             sim: SimMethod::default(),
             fit_initial_state: true,
             max_iterations: 40,
             noise_band: (0.6, 0.95),
+            alpha: 1e-4,
+            max_effects: 3,
+            resolution: 1e-4,
         }
     }
 }
@@ -132,6 +151,15 @@ impl DiagnoseOptions {
         if self.max_iterations == 0 {
             return bad("max_iterations", ">= 1", 0.0);
         }
+        if !(self.alpha > 0.0 && self.alpha < 0.5) {
+            return bad("alpha", "in (0, 0.5)", self.alpha);
+        }
+        if !(self.resolution.is_finite() && self.resolution >= 0.0) {
+            return bad("resolution", ">= 0 and finite", self.resolution);
+        }
+        if self.max_effects == 0 {
+            return bad("max_effects", ">= 1", 0.0);
+        }
         let (lo, hi) = self.noise_band;
         if !(lo > 0.0 && lo < hi) {
             return bad("noise_band.0", "> 0 and below noise_band.1", lo);
@@ -167,6 +195,16 @@ pub struct Score {
     pub nrmse: f64,
     /// Root-mean-square of `simulated x - measured x` (m).
     pub rmse: f64,
+}
+
+impl Score {
+    /// A score that could not be computed.
+    pub fn unknown() -> Score {
+        Score {
+            nrmse: f64::NAN,
+            rmse: f64::NAN,
+        }
+    }
 }
 
 /// One candidate effect, fitted and judged.
@@ -209,10 +247,41 @@ pub struct Diagnosis {
     pub extended: Score,
     /// `1 - extended.rmse / nominal.rmse` on the held-out data.
     pub gain: f64,
-    /// Every candidate, best held-out RMSE first; skipped and failed ones last.
+    /// Every candidate of the first round (each against the nominal fit), best held-out RMSE
+    /// first; skipped and failed ones last.
     pub candidates: Vec<Candidate>,
     /// Sentences explaining the decision.
     pub evidence: Vec<String>,
+    /// Every effect the selection kept, strongest first (empty for `none` and
+    /// `model_mismatch`). With `unexplained` they are real but leave structure unexplained.
+    #[serde(default)]
+    pub causes: Vec<Cause>,
+    /// With `ambiguous`: every effect the data cannot tell apart from the first cause.
+    #[serde(default)]
+    pub alternatives: Vec<String>,
+    /// The held-out score of the model exactly as configured (nothing refitted).
+    #[serde(default = "Score::unknown")]
+    pub configured: Score,
+    /// `1 - extended.rmse / configured.rmse` on the held-out data.
+    #[serde(default)]
+    pub gain_vs_configured: f64,
+    /// With `model_mismatch`: why the model does not describe the data at all.
+    #[serde(default)]
+    pub mismatch: Vec<String>,
+}
+
+/// One effect of the selected model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Cause {
+    /// The effect's name (`coulomb_friction`, ..., `parameter_error`).
+    pub effect: String,
+    /// Its fitted parameters.
+    pub parameters: BTreeMap<String, f64>,
+    /// Their standard errors.
+    pub stderr: BTreeMap<String, f64>,
+    /// Its share of the held-out mean-square error that the selected model explains, in
+    /// `[0, 1]`; the shares of all causes add up to 1.
+    pub gain_share: f64,
 }
 
 /// A fitted model.
@@ -224,6 +293,8 @@ pub struct FittedModel {
     pub damper: DamperLaw,
     /// Effects, including any fitted one.
     pub effects: Effects,
+    /// The measurement chain (the ideal sensor unless a sensor effect was found).
+    pub sensor: Sensor,
 }
 
 /// [`Diagnosis`] plus what a caller needs to plot and check it.
@@ -283,6 +354,7 @@ pub fn diagnose_with_progress(
     let start = ModelPoint {
         params: nominal.measured_params(),
         effects: nominal.effects,
+        sensor: nominal.sensor,
     };
 
     let f_n = (start.params.k / start.params.m).sqrt() / (2.0 * std::f64::consts::PI);
@@ -355,7 +427,8 @@ pub fn diagnose_with_progress(
     let noise = {
         let mut parts: Vec<&[f64]> = nominal_fit_eval.residuals.iter().map(|r| &r[..]).collect();
         parts.extend(nominal_val.residuals.iter().map(|r| &r[..]));
-        noise_floor(&parts, opts.noise_band)
+        let floor = opts.resolution * ctx.scales.x_std;
+        noise_floor(&parts, opts.noise_band).map(|s| s.max(floor))
     };
     progress(&format!(
         "nominal fit: held-out RMSE {:.3e}, noise floor {}",
@@ -363,35 +436,42 @@ pub fn diagnose_with_progress(
         noise.map_or("unknown".to_string(), |s| format!("{s:.3e}"))
     ));
 
-    let outcomes: Vec<Outcome> = opts
-        .candidates
-        .par_iter()
-        .map(|&effect| {
-            let out = run_candidate(&ctx, &screening, &nominal_fit, &free, effect);
-            match &out.fit {
-                Some(f) => progress(&format!(
-                    "{}: held-out RMSE {:.3e} after {} simulations",
-                    effect.name(),
-                    out.val_rmse,
-                    f.evaluations
-                )),
-                None => progress(&format!("{}: {}", effect.name(), out.note)),
-            }
-            out
-        })
-        .collect();
-
-    let decision = decide(
+    let configured = match ctx.fit_fixed(&start) {
+        Ok(f) => evaluate(&ctx, &f.point, &f.stepping)
+            .map(|e| e.score)
+            .unwrap_or(Score::unknown()),
+        Err(_) => Score::unknown(),
+    };
+    let mismatch = mismatch_checks(&ctx, &nominal_val, &nominal_val.score);
+    let selection = mismatch.is_empty().then(|| {
+        select::select(
+            &ctx,
+            &screening,
+            &nominal_fit,
+            nominal_val.score,
+            &start,
+            noise,
+            opts,
+            progress,
+        )
+    });
+    let parameter_check = match &selection {
+        Some(sel) if !sel.chosen.is_empty() => check_parameters(&ctx, &sel.fit, nominal, opts),
+        Some(_) => check_parameters(&ctx, &nominal_fit, nominal, opts),
+        None => None,
+    };
+    let decision = conclude(
         &nominal_fit,
         &nominal_val.score,
+        &configured,
         noise,
-        outcomes,
-        &free,
+        selection,
+        parameter_check,
+        mismatch,
         opts,
         nominal,
     );
-    let winner_fit = decision.winner.as_ref().and_then(|w| w.fit.as_ref());
-    let extended_fit = winner_fit.unwrap_or(&nominal_fit);
+    let extended_fit = decision.extended.as_ref().unwrap_or(&nominal_fit);
     let nominal_output = plot_output(&ctx, &nominal_fit);
     let extended_output = plot_output(&ctx, extended_fit);
     let evaluations = nominal_fit.evaluations + decision.evaluations;
@@ -399,6 +479,7 @@ pub fn diagnose_with_progress(
         params: f.point.params,
         damper: nominal.damper,
         effects: f.point.effects,
+        sensor: f.point.sensor,
     };
     Ok(DiagnosisReport {
         nominal_model: fitted(&nominal_fit),
@@ -477,6 +558,7 @@ pub fn simulate_record(
         time: e.time,
         reason: e.reason,
     })?;
+    model.sensor.apply(record.dt(), &mut out);
     Ok(out)
 }
 
@@ -618,7 +700,7 @@ fn fit_nominal(
     if free.is_empty() {
         // Nothing to fit: score the nominal as given (an empty fit).
         return ctx
-            .evaluate_fixed(start)
+            .fit_fixed(start)
             .map_err(|e| DiagnoseError::NominalSimulation {
                 time: e.0,
                 reason: e.1,
@@ -640,7 +722,7 @@ fn fit_nominal(
 
 impl Context<'_> {
     /// A "fit" of no parameters: the model as given.
-    fn evaluate_fixed(&self, p: &ModelPoint) -> Result<FitResult, (f64, String)> {
+    pub(crate) fn fit_fixed(&self, p: &ModelPoint) -> Result<FitResult, (f64, String)> {
         let stepping = self.stepping(p);
         let hopper = self.hopper(p).map_err(|e| (self.record.t()[0], e))?;
         let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
@@ -656,6 +738,7 @@ impl Context<'_> {
             stderr: Vec::new(),
             at_bound: Vec::new(),
             init,
+            inflation: Vec::new(),
             rss,
             bic: crate::fit::bic(rss, n, 0),
             stepping,
@@ -665,9 +748,9 @@ impl Context<'_> {
 }
 
 /// Residuals and score of a model on a set of segments.
-struct Evaluation {
-    score: Score,
-    residuals: Vec<Vec<f64>>,
+pub(crate) struct Evaluation {
+    pub score: Score,
+    pub residuals: Vec<Vec<f64>>,
 }
 
 fn score_of(residuals: &[Vec<f64>], measured: &[f64]) -> Score {
@@ -682,7 +765,7 @@ fn score_of(residuals: &[Vec<f64>], measured: &[f64]) -> Score {
 }
 
 /// Held-out evaluation, from initial states fitted to the burn-in samples.
-fn evaluate(
+pub(crate) fn evaluate(
     ctx: &Context<'_>,
     p: &ModelPoint,
     stepping: &Stepping,
@@ -838,19 +921,22 @@ fn plot_output(ctx: &Context<'_>, f: &FitResult) -> Vec<f64> {
 }
 
 /// A candidate after fitting and scoring.
-struct Outcome {
-    effect: Effect,
-    fit: Option<FitResult>,
-    val_rmse: f64,
-    val_nrmse: f64,
-    note: String,
+#[derive(Debug)]
+pub(crate) struct Outcome {
+    pub effect: Effect,
+    pub fit: Option<FitResult>,
+    pub val_rmse: f64,
+    pub val_nrmse: f64,
+    pub note: String,
 }
 
-fn run_candidate(
+/// Fits `effect` together with the parameters `slots` of the model `base` (all jointly), from
+/// the screening's starts, and scores it on the held-out data.
+pub(crate) fn run_candidate(
     ctx: &Context<'_>,
     screening: &Screening<'_, '_>,
-    nominal: &FitResult,
-    free: &[Slot],
+    base: &FitResult,
+    slots: &[Slot],
     effect: Effect,
 ) -> Outcome {
     let failed = |note: String| Outcome {
@@ -860,17 +946,24 @@ fn run_candidate(
         val_nrmse: f64::NAN,
         note,
     };
-    if let Some(reason) = effect.skip_reason(ctx.damper, free) {
+    if let Some(reason) = effect.skip_reason(ctx.damper, slots) {
         return failed(reason.to_string());
     }
-    let mut slots = free.to_vec();
-    slots.extend(effect.slots(free));
+    let mut all = slots.to_vec();
+    for s in effect.slots(slots) {
+        if !all.contains(&s) {
+            all.push(s);
+        }
+    }
+    if all.len() == slots.len() {
+        return failed("skipped: adds no parameter to the model".to_string());
+    }
     // Several starts (a threshold's two signs, two contact positions) are fitted in parallel;
     // the lowest fit cost wins.
-    let starts = screening.starts(&nominal.point, free, effect);
+    let starts = screening.starts(&base.point, slots, effect);
     let fits: Vec<Result<FitResult, String>> = starts
         .par_iter()
-        .map(|start| ctx.fit(start, &slots))
+        .map(|start| ctx.fit(start, &all))
         .collect();
     let evaluations: usize = fits.iter().flatten().map(|f| f.evaluations).sum();
     let mut best: Option<FitResult> = None;
@@ -905,108 +998,13 @@ fn run_candidate(
 
 struct Decision {
     diagnosis: Diagnosis,
-    winner: Option<Outcome>,
+    /// The extended model's fit, when an effect was kept.
+    extended: Option<FitResult>,
     evaluations: usize,
 }
 
-/// Significance of one fitted candidate against the nominal fit.
-struct Judgement {
-    /// Largest distance of a tested parameter from its nominal value, in standard errors.
-    z: f64,
-    gain: f64,
-    delta_bic: f64,
-    significant: bool,
-    note: String,
-}
-
-fn judge(
-    out: &Outcome,
-    fit: &FitResult,
-    nominal_fit: &FitResult,
-    nominal_rmse: f64,
-    free: &[Slot],
-    opts: &DiagnoseOptions,
-) -> Judgement {
-    let tested = out.effect.tested_slots(free);
-    let mut z = 0.0_f64;
-    let mut parts = Vec::new();
-    let mut bound_note = None;
-    for s in &tested {
-        let Some(i) = fit.slots.iter().position(|q| q == s) else {
-            continue;
-        };
-        let reference = nominal_fit.point.get(*s);
-        let zi = if fit.at_bound[i] {
-            bound_note = Some(format!(
-                "{} ended on its bound {:.4e}",
-                s.name(),
-                fit.values[i]
-            ));
-            0.0
-        } else {
-            let d = (fit.values[i] - reference).abs();
-            if fit.stderr[i] > 0.0 {
-                d / fit.stderr[i]
-            } else if d > 0.0 {
-                f64::INFINITY
-            } else {
-                0.0
-            }
-        };
-        parts.push(format!(
-            "{} = {:.4e} +/- {:.2e} ({:.1} standard errors from {:.4e})",
-            s.name(),
-            fit.values[i],
-            fit.stderr[i],
-            zi,
-            reference
-        ));
-        z = z.max(zi);
-    }
-    let gain = 1.0 - out.val_rmse / nominal_rmse;
-    let delta_bic = nominal_fit.bic - fit.bic;
-    let mut reasons = Vec::new();
-    if z < opts.significance_sigma {
-        reasons.push(format!(
-            "fewer than {} standard errors from nominal",
-            opts.significance_sigma
-        ));
-    }
-    if let Some(b) = bound_note {
-        reasons.push(b);
-    }
-    if gain.is_nan() || gain < opts.min_gain {
-        reasons.push(format!(
-            "held-out gain {:.1} % below {:.1} %",
-            100.0 * gain,
-            100.0 * opts.min_gain
-        ));
-    }
-    if delta_bic.is_nan() || delta_bic < opts.bic_margin {
-        reasons.push(format!(
-            "BIC lower by only {:.1} (< {})",
-            delta_bic, opts.bic_margin
-        ));
-    }
-    let significant = reasons.is_empty();
-    let mut note = parts.join("; ");
-    note.push_str(&format!(
-        "; held-out gain {:.1} %; BIC {:.1} below nominal",
-        100.0 * gain,
-        delta_bic
-    ));
-    if !significant {
-        note.push_str(&format!("; not significant: {}", reasons.join(", ")));
-    }
-    Judgement {
-        z,
-        gain,
-        delta_bic,
-        significant,
-        note,
-    }
-}
-
+/// Named parameters and standard errors of a fit; asymmetric friction also as `mu_pos` and
+/// `mu_neg` (from `mu` and the input offset; their errors combine the two as independent).
 fn named(fit: &FitResult) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
     let mut p = BTreeMap::new();
     let mut s = BTreeMap::new();
@@ -1017,45 +1015,135 @@ fn named(fit: &FitResult) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
     (p, s)
 }
 
-#[allow(clippy::too_many_lines)]
-fn decide(
+fn effect_parameters(
+    effect: Effect,
+    fit: &FitResult,
+) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+    let (all, all_se) = named(fit);
+    let mut p = BTreeMap::new();
+    let mut s = BTreeMap::new();
+    if effect == Effect::AsymmetricFriction {
+        let mu = all.get("mu").copied().unwrap_or(0.0);
+        let d = all.get("input_offset").copied().unwrap_or(0.0);
+        let se = (all_se.get("mu").copied().unwrap_or(0.0).powi(2)
+            + all_se.get("input_offset").copied().unwrap_or(0.0).powi(2))
+        .sqrt();
+        for (name, v) in [("mu_pos", mu - d), ("mu_neg", mu + d)] {
+            p.insert(name.to_string(), v);
+            s.insert(name.to_string(), se);
+        }
+        return (p, s);
+    }
+    for name in effect.parameter_names() {
+        if let (Some(v), Some(e)) = (all.get(*name), all_se.get(*name)) {
+            p.insert(name.to_string(), *v);
+            s.insert(name.to_string(), *e);
+        }
+    }
+    (p, s)
+}
+
+/// What an experiment would need to separate two effects the data cannot tell apart.
+fn separating_experiment(a: Effect, b: Effect) -> &'static str {
+    use Effect::*;
+    let pair = |x, y| (a == x && b == y) || (a == y && b == x);
+    if pair(ActuatorLag, InputDelay) || pair(SensorLag, InputDelay) {
+        "a lag and a delay agree to first order in omega tau: excite well above 1 / (2 pi tau), \
+         where a delay's phase keeps growing and a lag's gain falls"
+    } else if pair(ActuatorLag, SensorLag) {
+        "an input-side and an output-side lag act alike on the linearised response: measure the \
+         applied force itself (a load cell at the actuator), or excite at larger amplitude so the \
+         nonlinear response tells where the lag sits"
+    } else if pair(InputOffset, SensorOffsetGain) || pair(InputOffset, ParameterError) {
+        "a constant force and a constant shift of the reading move the equilibrium alike: a \
+         static test with a known added weight, or a second sensor, separates them"
+    } else {
+        "an experiment that excites the two effects differently (other amplitudes, frequencies or \
+         operating points)"
+    }
+}
+
+/// Checks whether the nominal model describes the data at all, before any effect is named.
+/// Returns the reasons it does not, each with the check that found it.
+fn mismatch_checks(ctx: &Context<'_>, nominal_val: &Evaluation, nominal: &Score) -> Vec<String> {
+    let x = ctx.record.x();
+    let (mut measured, mut simulated) = (Vec::new(), Vec::new());
+    for (seg, r) in ctx.validation.iter().zip(&nominal_val.residuals) {
+        for (k, ri) in seg.scored().zip(r) {
+            measured.push(x[k]);
+            simulated.push(x[k] + ri);
+        }
+    }
+    let n = measured.len() as f64;
+    if n < 2.0 {
+        return Vec::new();
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / n;
+    let (my, ms) = (mean(&measured), mean(&simulated));
+    let cov: f64 = measured
+        .iter()
+        .zip(&simulated)
+        .map(|(a, b)| (a - my) * (b - ms))
+        .sum::<f64>();
+    let var_s: f64 = simulated.iter().map(|b| (b - ms).powi(2)).sum::<f64>();
+    let var_y: f64 = measured.iter().map(|a| (a - my).powi(2)).sum::<f64>();
+    let gain = cov / var_s;
+    let scale = (var_y / var_s).sqrt();
+    let correlation = cov / (var_s * var_y).sqrt();
+    let mut reasons = Vec::new();
+    if gain.is_finite() && gain < -0.2 {
+        reasons.push(format!(
+            "sign: the measured output moves against the simulated one (regression gain {gain:.3}); \
+             check the sign of the output column or of the input"
+        ));
+    }
+    if scale.is_finite() && !(0.1..=10.0).contains(&scale) {
+        reasons.push(format!(
+            "scale: the measured output varies {scale:.3e} times as much as the simulated one; \
+             check the units of the output and input columns (mm against m, mN against N)"
+        ));
+    }
+    if !scale.is_finite() || !gain.is_finite() {
+        reasons.push(
+            "scale: the simulated output does not vary over the held-out data; check that the \
+             input column holds the applied force"
+                .to_string(),
+        );
+    }
+    if reasons.is_empty() && nominal.nrmse > 1.0 && correlation.abs() < 0.5 {
+        reasons.push(format!(
+            "fit: the nominal model's held-out NRMSE is {:.0} %, worse than the measured mean, \
+             and even with an offset and a scale its output explains only {:.0} % of the \
+             measured variance; check the columns (is the input the applied force, the output \
+             the position?), the time unit of the time column and the model's parameters",
+            100.0 * nominal.nrmse,
+            100.0 * correlation * correlation
+        ));
+    }
+    reasons
+}
+
+#[allow(clippy::too_many_arguments)]
+fn conclude(
     nominal_fit: &FitResult,
     nominal_score: &Score,
+    configured: &Score,
     noise: Option<f64>,
-    outcomes: Vec<Outcome>,
-    free: &[Slot],
+    selection: Option<select::Selection>,
+    parameter_check: Option<ParameterCheck>,
+    mismatch: Vec<String>,
     opts: &DiagnoseOptions,
     nominal: &NominalModel,
 ) -> Decision {
     let nominal_rmse = nominal_score.rmse;
-    let evaluations = outcomes
-        .iter()
-        .filter_map(|o| o.fit.as_ref())
-        .map(|f| f.evaluations)
-        .sum();
-    let mut judged: Vec<(Outcome, Option<Judgement>)> = outcomes
-        .into_iter()
-        .map(|o| {
-            let j = o
-                .fit
-                .as_ref()
-                .map(|f| judge(&o, f, nominal_fit, nominal_rmse, free, opts));
-            (o, j)
-        })
-        .collect();
-    // Best held-out RMSE first; unfitted last in library order.
-    judged.sort_by(|a, b| match (a.0.fit.is_some(), b.0.fit.is_some()) {
-        (true, true) => a.0.val_rmse.total_cmp(&b.0.val_rmse),
-        (true, false) => std::cmp::Ordering::Less,
-        (false, true) => std::cmp::Ordering::Greater,
-        (false, false) => a.0.effect.cmp(&b.0.effect),
-    });
-
     let mut evidence = Vec::new();
     let free_names: Vec<&str> = nominal.free.iter().map(|p| p.name()).collect();
     let ratio = noise.map(|s| nominal_rmse / s);
     evidence.push(format!(
-        "nominal model ({} refitted): held-out RMSE {:.3e} (NRMSE {:.2} %){}",
+        "configured model: held-out RMSE {:.3e} (NRMSE {:.2} %); nominal model ({} refitted): \
+         held-out RMSE {:.3e} (NRMSE {:.2} %){}",
+        configured.rmse,
+        100.0 * configured.nrmse,
         if free_names.is_empty() {
             "nothing".to_string()
         } else {
@@ -1073,143 +1161,182 @@ fn decide(
             _ => ", noise floor unknown (ranges too short)".to_string(),
         }
     ));
-    let structured = ratio.map_or(true, |r| r > opts.unexplained_ratio);
+    let mut causes: Vec<Cause> = Vec::new();
+    let mut alternatives = Vec::new();
+    let mut extended_fit: Option<FitResult> = None;
+    let mut extended = *nominal_score;
+    let mut candidates = Vec::new();
+    let mut evaluations = 0;
 
-    let significant: Vec<usize> = judged
-        .iter()
-        .enumerate()
-        .filter(|(_, (_, j))| j.as_ref().is_some_and(|j| j.significant))
-        .map(|(i, _)| i)
-        .collect();
+    // The configured free parameters are off when the final model's values of them differ
+    // significantly from the configured ones and resetting them costs held-out accuracy.
+    let (moved, reset_rmse) = match parameter_check {
+        Some((m, r)) => (m, r),
+        None => (Vec::new(), f64::NAN),
+    };
+    let final_rmse_for_check = selection
+        .as_ref()
+        .filter(|sel| !sel.chosen.is_empty())
+        .map_or(nominal_rmse, |sel| sel.held_out.rmse);
+    let refit_gain = 1.0 - final_rmse_for_check / reset_rmse;
+    let refit_is_finding = !moved.is_empty() && refit_gain >= opts.min_gain;
 
-    let mut winner: Option<usize> = None;
     let cause: String;
-    if let Some(&w) = significant.first() {
-        let (wo, wj) = (&judged[w].0, judged[w].1.as_ref().expect("judged"));
-        let wf = wo.fit.as_ref().expect("fitted");
-        evidence.push(format!(
-            "best significant candidate {}: held-out RMSE {:.3e}, {:.1} % below nominal; \
-             effect {:.1} standard errors from nominal; fit BIC {:.1} below nominal",
-            wo.effect.name(),
-            wo.val_rmse,
-            100.0 * wj.gain,
-            wj.z,
-            wj.delta_bic
-        ));
-        let rivals: Vec<String> = significant[1..]
+    if !mismatch.is_empty() {
+        cause = "model_mismatch".to_string();
+        evidence.push(
+            "the nominal model does not describe the data at all, so no effect is named; \
+             check, one by one:"
+                .to_string(),
+        );
+        evidence.extend(mismatch.iter().cloned());
+    } else {
+        let sel = selection.expect("a selection runs unless the model mismatches");
+        evaluations += sel.evaluations;
+        candidates = sel
+            .first_round
             .iter()
-            .filter_map(|&i| {
-                let f = judged[i].0.fit.as_ref()?;
-                (f.bic - wf.bic < opts.bic_margin).then(|| {
-                    format!(
-                        "{} (BIC only {:.1} higher)",
-                        judged[i].0.effect.name(),
-                        f.bic - wf.bic
-                    )
-                })
+            .map(|j| {
+                let (parameters, stderr) = j.outcome.fit.as_ref().map(named).unwrap_or_default();
+                Candidate {
+                    effect: j.outcome.effect.name().to_string(),
+                    parameters,
+                    stderr,
+                    nrmse_validation: j.outcome.val_nrmse,
+                    rmse_validation: j.outcome.val_rmse,
+                    bic: j.outcome.fit.as_ref().map_or(f64::NAN, |f| f.bic),
+                    significant: j.passes,
+                    note: j.note.clone(),
+                }
             })
             .collect();
+        evidence.extend(sel.evidence.iter().cloned());
+        if refit_is_finding {
+            let mut parameters = BTreeMap::new();
+            let mut stderr = BTreeMap::new();
+            let mut words = Vec::new();
+            for (name, v, e, c) in &moved {
+                parameters.insert(name.to_string(), *v);
+                stderr.insert(name.to_string(), *e);
+                words.push(format!("{name} = {v:.4} +/- {e:.2} (configured {c:.4})"));
+            }
+            evidence.push(format!(
+                "the configured parameters are off: refitted {} ({:.1} % better held out)",
+                words.join(", "),
+                100.0 * refit_gain
+            ));
+            causes.push(Cause {
+                effect: "parameter_error".to_string(),
+                parameters,
+                stderr,
+                gain_share: 1.0,
+            });
+        }
+        if !sel.chosen.is_empty() {
+            let final_ms = sel.held_out.rmse.powi(2);
+            let refit_rise = if refit_is_finding {
+                (reset_rmse.powi(2) - final_ms).max(0.0)
+            } else {
+                0.0
+            };
+            let total: f64 = refit_rise + sel.chosen.iter().map(|c| c.rise).sum::<f64>();
+            let n_parts = sel.chosen.len() + usize::from(refit_is_finding);
+            let share = |rise: f64| {
+                if total > 0.0 {
+                    rise / total
+                } else {
+                    1.0 / n_parts as f64
+                }
+            };
+            if let Some(c) = causes.first_mut() {
+                c.gain_share = share(refit_rise);
+            }
+            for ch in &sel.chosen {
+                let (parameters, stderr) = effect_parameters(ch.effect, &sel.fit);
+                causes.push(Cause {
+                    effect: ch.effect.name().to_string(),
+                    parameters,
+                    stderr,
+                    gain_share: share(ch.rise),
+                });
+            }
+            causes.sort_by(|a, b| b.gain_share.total_cmp(&a.gain_share));
+            extended = sel.held_out;
+            extended_fit = Some(sel.fit.clone());
+        }
+        let final_rmse = extended.rmse;
         let explained = match noise {
             Some(s) if nominal_rmse > s => {
-                (nominal_rmse.powi(2) - wo.val_rmse.powi(2)) / (nominal_rmse.powi(2) - s * s)
+                (nominal_rmse.powi(2) - final_rmse.powi(2)) / (nominal_rmse.powi(2) - s * s)
             }
             _ => 1.0,
         };
-        let at_floor = noise.is_some_and(|s| wo.val_rmse <= opts.unexplained_ratio * s);
-        if !rivals.is_empty() {
-            cause = "unexplained".to_string();
-            evidence.push(format!(
-                "the data cannot separate {} from {}: no single cause is named",
-                wo.effect.name(),
-                rivals.join(", ")
-            ));
+        let at_floor = noise.is_some_and(|s| final_rmse <= opts.unexplained_ratio * s);
+        let structured = noise.map_or(true, |s| final_rmse > opts.unexplained_ratio * s);
+        if sel.chosen.is_empty() {
+            if structured && !refit_is_finding {
+                cause = "unexplained".to_string();
+                evidence.push(format!(
+                    "no candidate is significant, yet the nominal residual is {} the noise \
+                     floor: structure remains that no library effect explains",
+                    ratio.map_or("of unknown size relative to".to_string(), |r| format!(
+                        "{r:.2} times"
+                    ))
+                ));
+            } else if refit_is_finding {
+                cause = "parameter_error".to_string();
+            } else {
+                cause = "none".to_string();
+                evidence.push(
+                    "no candidate is significant and the nominal residual is at the noise \
+                     floor: the nominal model explains the data"
+                        .to_string(),
+                );
+            }
         } else if !at_floor && explained < opts.min_explained {
             cause = "unexplained".to_string();
             evidence.push(format!(
-                "{} removes only {:.0} % of the nominal's error above the noise floor \
-                 (at least {:.0} % required) and its residual stays {:.2} times the floor: \
-                 the cause lies outside the library",
-                wo.effect.name(),
+                "the selected effects remove only {:.0} % of the nominal's error above the noise \
+                 floor (at least {:.0} % required) and the residual stays {:.2} times the floor: \
+                 something outside the library is at work as well",
                 100.0 * explained,
                 100.0 * opts.min_explained,
-                noise.map_or(f64::NAN, |s| wo.val_rmse / s)
+                noise.map_or(f64::NAN, |s| final_rmse / s)
             ));
-        } else {
-            cause = wo.effect.name().to_string();
-            winner = Some(w);
-            if let Some(next) = significant.get(1) {
-                let f = judged[*next].0.fit.as_ref().expect("fitted");
+        } else if !sel.rivals.is_empty() {
+            cause = "ambiguous".to_string();
+            let first = sel.chosen[0].effect;
+            alternatives.push(first.name().to_string());
+            for r in &sel.rivals {
+                alternatives.push(r.name().to_string());
                 evidence.push(format!(
-                    "runner-up {}: fit BIC {:.1} higher than {}",
-                    judged[*next].0.effect.name(),
-                    f.bic - wf.bic,
-                    wo.effect.name()
+                    "{} and {} explain the data equally well (fit BIC within {}); to separate \
+                     them: {}",
+                    first.name(),
+                    r.name(),
+                    opts.bic_margin,
+                    separating_experiment(first, *r)
                 ));
             }
+        } else {
+            // The strongest selected effect: a refit of the configured parameters beside it is
+            // reported in `causes`, but the cause names what the nominal model lacks.
+            cause = causes
+                .iter()
+                .find(|c| c.effect != "parameter_error")
+                .map_or("none".to_string(), |c| c.effect.clone());
             evidence.push(match noise {
                 Some(s) => format!(
                     "the extended model's held-out residual is {:.2} times the noise floor and \
                      removes {:.0} % of the nominal's excess error",
-                    wo.val_rmse / s,
+                    final_rmse / s,
                     100.0 * explained.min(1.0)
                 ),
-                None => "noise floor unknown; the decision rests on significance alone".to_string(),
+                None => "noise floor unknown; the decision rests on the tests alone".to_string(),
             });
         }
-    } else if structured {
-        cause = "unexplained".to_string();
-        evidence.push(format!(
-            "no candidate is significant, yet the nominal residual is {} the noise floor: \
-             structure remains that no library effect explains",
-            ratio.map_or("of unknown size relative to".to_string(), |r| format!(
-                "{r:.2} times"
-            ))
-        ));
-    } else {
-        cause = "none".to_string();
-        evidence.push(
-            "no candidate is significant and the nominal residual is at the noise floor: \
-             the nominal model explains the data"
-                .to_string(),
-        );
     }
-
-    let candidates: Vec<Candidate> = judged
-        .iter()
-        .map(|(o, j)| {
-            let (parameters, stderr) = o.fit.as_ref().map(named).unwrap_or_default();
-            Candidate {
-                effect: o.effect.name().to_string(),
-                parameters,
-                stderr,
-                nrmse_validation: o.val_nrmse,
-                rmse_validation: o.val_rmse,
-                bic: o.fit.as_ref().map_or(f64::NAN, |f| f.bic),
-                significant: j.as_ref().is_some_and(|j| j.significant),
-                note: match j {
-                    Some(j) => j.note.clone(),
-                    None => o.note.clone(),
-                },
-            }
-        })
-        .collect();
-
-    let (parameters, stderr, extended, winner_outcome) = match winner {
-        Some(w) => {
-            let o = judged.swap_remove(w).0;
-            let f = o.fit.as_ref().expect("fitted");
-            let (p, s) = named(f);
-            let score = Score {
-                nrmse: o.val_nrmse,
-                rmse: o.val_rmse,
-            };
-            (p, s, score, Some(o))
-        }
-        None => {
-            let (p, s) = named(nominal_fit);
-            (p, s, *nominal_score, None)
-        }
-    };
+    let (parameters, stderr) = named(extended_fit.as_ref().unwrap_or(nominal_fit));
     let gain = 1.0 - extended.rmse / nominal_rmse;
     Decision {
         diagnosis: Diagnosis {
@@ -1221,8 +1348,54 @@ fn decide(
             gain,
             candidates,
             evidence,
+            causes,
+            alternatives,
+            configured: *configured,
+            gain_vs_configured: 1.0 - extended.rmse / configured.rmse,
+            mismatch,
         },
-        winner: winner_outcome,
+        extended: extended_fit,
         evaluations,
     }
+}
+
+/// Free parameters of the final model that lie more than `significance_sigma` standard errors
+/// from their configured values (name, value, standard error, configured value), and the final
+/// model's held-out RMSE with them reset to the configured values.
+type ParameterCheck = (Vec<(&'static str, f64, f64, f64)>, f64);
+
+fn check_parameters(
+    ctx: &Context<'_>,
+    fit: &FitResult,
+    nominal: &NominalModel,
+    opts: &DiagnoseOptions,
+) -> Option<ParameterCheck> {
+    let free = nominal.free_slots();
+    let mut moved = Vec::new();
+    let mut reset = fit.point;
+    for ((slot, v), e) in fit.slots.iter().zip(&fit.values).zip(&fit.stderr) {
+        if !free.contains(slot) {
+            continue;
+        }
+        let configured = slot_value(nominal, *slot);
+        if (v - configured).abs() > opts.significance_sigma * e {
+            moved.push((slot.name(), *v, *e, configured));
+            reset.set(*slot, configured);
+        }
+    }
+    if moved.is_empty() {
+        return None;
+    }
+    let rmse = evaluate(ctx, &reset, &fit.stepping).ok()?.score.rmse;
+    Some((moved, rmse))
+}
+
+/// The configured value of a nominal parameter.
+fn slot_value(nominal: &NominalModel, slot: Slot) -> f64 {
+    ModelPoint {
+        params: nominal.measured_params(),
+        effects: nominal.effects,
+        sensor: nominal.sensor,
+    }
+    .get(slot)
 }

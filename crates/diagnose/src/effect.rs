@@ -1,7 +1,9 @@
 use std::fmt;
 use std::str::FromStr;
 
-use htfid_model::{DamperLaw, Effects, HardStop, HopperParams};
+use htfid_model::{DamperLaw, Effects, HardStop};
+
+use crate::fit::ModelPoint;
 use serde::{Deserialize, Serialize};
 
 /// A candidate physical effect. Its [`name`](Effect::name) and
@@ -28,11 +30,21 @@ pub enum Effect {
     HardStop,
     /// `m`, `k`, `c`: the nominal structure with its mass, stiffness and damping refitted.
     ParameterError,
+    /// `input_offset`: a constant added to the applied force (N).
+    InputOffset,
+    /// `mu_pos`, `mu_neg`: Coulomb friction of size `mu_pos` while `x' > 0` and `mu_neg` while
+    /// `x' < 0` (N). Fitted as symmetric friction `mu = (mu_pos + mu_neg) / 2` plus a constant
+    /// force `(mu_neg - mu_pos) / 2`, which is the same force law, sticking included.
+    AsymmetricFriction,
+    /// `tau_s`: the recorded output is the position through a first-order low-pass (s).
+    SensorLag,
+    /// `b`, `g`: the recorded output is `b + g x` (output units, output units per m).
+    SensorOffsetGain,
 }
 
 impl Effect {
     /// Every effect of the library, in a fixed order.
-    pub const ALL: [Effect; 9] = [
+    pub const ALL: [Effect; 13] = [
         Effect::CubicStiffness,
         Effect::CoulombFriction,
         Effect::FlightDamping,
@@ -42,6 +54,10 @@ impl Effect {
         Effect::SwitchThreshold,
         Effect::HardStop,
         Effect::ParameterError,
+        Effect::InputOffset,
+        Effect::AsymmetricFriction,
+        Effect::SensorLag,
+        Effect::SensorOffsetGain,
     ];
 
     /// The contract name used in results (`cubic_stiffness`, ...).
@@ -56,6 +72,10 @@ impl Effect {
             Effect::SwitchThreshold => "switch_threshold",
             Effect::HardStop => "hard_stop",
             Effect::ParameterError => "parameter_error",
+            Effect::InputOffset => "input_offset",
+            Effect::AsymmetricFriction => "asymmetric_friction",
+            Effect::SensorLag => "sensor_lag",
+            Effect::SensorOffsetGain => "sensor_offset_gain",
         }
     }
 
@@ -71,6 +91,10 @@ impl Effect {
             Effect::SwitchThreshold => &["v_th"],
             Effect::HardStop => &["x_stop", "k_stop"],
             Effect::ParameterError => &["m", "k", "c"],
+            Effect::InputOffset => &["input_offset"],
+            Effect::AsymmetricFriction => &["mu_pos", "mu_neg"],
+            Effect::SensorLag => &["tau_s"],
+            Effect::SensorOffsetGain => &["b", "g"],
         }
     }
 
@@ -90,14 +114,13 @@ impl Effect {
                 .into_iter()
                 .filter(|s| !free.contains(s))
                 .collect(),
-        }
-    }
-
-    /// The slots whose distance from the nominal value decides significance.
-    pub(crate) fn tested_slots(self, free: &[Slot]) -> Vec<Slot> {
-        match self {
-            Effect::HardStop => vec![Slot::KStop],
-            other => other.slots(free),
+            Effect::InputOffset => vec![Slot::InputOffset],
+            Effect::AsymmetricFriction => [Slot::Mu, Slot::InputOffset]
+                .into_iter()
+                .filter(|s| !free.contains(s))
+                .collect(),
+            Effect::SensorLag => vec![Slot::TauS],
+            Effect::SensorOffsetGain => vec![Slot::SensorB, Slot::SensorG],
         }
     }
 
@@ -114,6 +137,14 @@ impl Effect {
                 "skipped: m, k and c are all refitted in the nominal fit already, so this \
                  candidate equals the nominal",
             ),
+            (Effect::InputOffset, _) if free.contains(&Slot::InputOffset) => Some(
+                "skipped: the input offset is refitted in the nominal fit already, so this \
+                 candidate equals the nominal",
+            ),
+            (Effect::AsymmetricFriction, _) if free.contains(&Slot::InputOffset) => Some(
+                "skipped: with the input offset refitted in the nominal fit, asymmetric \
+                 friction equals Coulomb friction",
+            ),
             _ => None,
         }
     }
@@ -127,7 +158,7 @@ impl fmt::Display for Effect {
 
 /// The name is not one of [`Effect::ALL`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown effect {0:?}; expected one of cubic_stiffness, coulomb_friction, flight_damping, quadratic_drag, actuator_lag, input_delay, switch_threshold, hard_stop, parameter_error")]
+#[error("unknown effect {0:?}; expected one of cubic_stiffness, coulomb_friction, flight_damping, quadratic_drag, actuator_lag, input_delay, switch_threshold, hard_stop, parameter_error, input_offset, asymmetric_friction, sensor_lag, sensor_offset_gain")]
 pub struct UnknownEffect(pub String);
 
 impl FromStr for Effect {
@@ -192,6 +223,9 @@ pub(crate) enum Slot {
     VTh,
     XStop,
     KStop,
+    TauS,
+    SensorB,
+    SensorG,
 }
 
 fn stop(e: &mut Effects) -> &mut HardStop {
@@ -218,11 +252,18 @@ impl Slot {
             Slot::VTh => "v_th",
             Slot::XStop => "x_stop",
             Slot::KStop => "k_stop",
+            Slot::TauS => "tau_s",
+            Slot::SensorB => "b",
+            Slot::SensorG => "g",
         }
     }
 
-    pub(crate) fn get(self, p: &HopperParams, e: &Effects) -> f64 {
+    pub(crate) fn get(self, point: &ModelPoint) -> f64 {
+        let (p, e) = (&point.params, &point.effects);
         match self {
+            Slot::TauS => point.sensor.tau_s,
+            Slot::SensorB => point.sensor.b,
+            Slot::SensorG => point.sensor.g,
             Slot::M => p.m,
             Slot::K => p.k,
             Slot::C => p.c,
@@ -240,8 +281,12 @@ impl Slot {
         }
     }
 
-    pub(crate) fn set(self, p: &mut HopperParams, e: &mut Effects, value: f64) {
+    pub(crate) fn set(self, point: &mut ModelPoint, value: f64) {
+        let (p, e) = (&mut point.params, &mut point.effects);
         match self {
+            Slot::TauS => point.sensor.tau_s = value,
+            Slot::SensorB => point.sensor.b = value,
+            Slot::SensorG => point.sensor.g = value,
             Slot::M => p.m = value,
             Slot::K => p.k = value,
             Slot::C => p.c = value,
@@ -269,7 +314,14 @@ impl Slot {
     /// cannot be negative).
     pub(crate) fn lower_bound(self) -> f64 {
         match self {
-            Slot::Mu | Slot::CF | Slot::C2 | Slot::Tau | Slot::Delay | Slot::KStop => 0.0,
+            Slot::Mu
+            | Slot::CF
+            | Slot::C2
+            | Slot::Tau
+            | Slot::Delay
+            | Slot::KStop
+            | Slot::TauS
+            | Slot::SensorG => 0.0,
             _ => f64::NEG_INFINITY,
         }
     }
@@ -278,6 +330,8 @@ impl Slot {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Sensor;
+    use htfid_model::HopperParams;
 
     #[test]
     fn names_round_trip_and_unknown_names_fail() {
@@ -292,8 +346,11 @@ mod tests {
 
     #[test]
     fn slots_set_what_they_get() {
-        let mut p = HopperParams::paper();
-        let mut e = Effects::default();
+        let mut point = ModelPoint {
+            params: HopperParams::paper(),
+            effects: Effects::default(),
+            sensor: Sensor::default(),
+        };
         let all = [
             Slot::M,
             Slot::K,
@@ -309,11 +366,14 @@ mod tests {
             Slot::VTh,
             Slot::XStop,
             Slot::KStop,
+            Slot::TauS,
+            Slot::SensorB,
+            Slot::SensorG,
         ];
         for (i, s) in all.into_iter().enumerate() {
             let v = 0.5 + i as f64;
-            s.set(&mut p, &mut e, v);
-            assert!((s.get(&p, &e) - v).abs() < 1e-15, "{}", s.name());
+            s.set(&mut point, v);
+            assert!((s.get(&point) - v).abs() < 1e-15, "{}", s.name());
         }
         let parameter_error = Effect::ParameterError.slots(&[Slot::K, Slot::C]);
         assert_eq!(parameter_error, vec![Slot::M]);

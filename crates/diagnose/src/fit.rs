@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::effect::Slot;
 use crate::sim::{simulate_positions, Extent, MeasuredForce, SimFailure, SimMethod, Stepping};
-use crate::Record;
+use crate::{Record, Sensor};
 
 /// Relative finite-difference step of the Jacobians.
 const FD_STEP: f64 = 1e-7;
@@ -61,16 +61,24 @@ pub(crate) struct Context<'a> {
 pub(crate) struct ModelPoint {
     pub params: HopperParams,
     pub effects: Effects,
+    pub sensor: Sensor,
 }
 
 impl ModelPoint {
     pub(crate) fn get(&self, s: Slot) -> f64 {
-        s.get(&self.params, &self.effects)
+        s.get(self)
     }
 
     pub(crate) fn set(&mut self, s: Slot, v: f64) {
-        s.set(&mut self.params, &mut self.effects, v);
+        s.set(self, v);
     }
+}
+
+/// A model ready to simulate on the record: the hopper driven by the measured force, and its
+/// sensor.
+pub(crate) struct Driven {
+    pub hopper: Hopper,
+    pub sensor: Sensor,
 }
 
 /// The result of one output-error fit.
@@ -85,6 +93,8 @@ pub(crate) struct FitResult {
     pub at_bound: Vec<bool>,
     /// Initial states of the fit segments used in the fit.
     pub init: Vec<[f64; 2]>,
+    /// Per value, how much the residuals' correlation inflates its variance (`>= 1`).
+    pub inflation: Vec<f64>,
     pub rss: f64,
     pub bic: f64,
     pub stepping: Stepping,
@@ -129,10 +139,15 @@ impl Layout {
 }
 
 impl Context<'_> {
-    pub(crate) fn hopper(&self, p: &ModelPoint) -> Result<Hopper, String> {
-        self.input
+    pub(crate) fn hopper(&self, p: &ModelPoint) -> Result<Driven, String> {
+        let hopper = self
+            .input
             .drive(p.params, self.damper, p.effects)
-            .map_err(|e| e.to_string())
+            .map_err(|e| e.to_string())?;
+        Ok(Driven {
+            hopper,
+            sensor: p.sensor,
+        })
     }
 
     pub(crate) fn stepping(&self, p: &ModelPoint) -> Stepping {
@@ -150,10 +165,10 @@ impl Context<'_> {
         self.fit.iter().map(|s| s.scored().len()).sum()
     }
 
-    /// Simulates a segment from `init`; returns the simulated positions of the whole range.
+    /// Simulates a segment from `init`; returns the simulated readings of the whole range.
     pub(crate) fn simulate(
         &self,
-        hopper: &Hopper,
+        model: &Driven,
         seg: &Segment,
         init: [f64; 2],
         stepping: &Stepping,
@@ -161,13 +176,15 @@ impl Context<'_> {
     ) -> Result<(), SimFailure> {
         out.resize(seg.range.len(), 0.0);
         let t0 = self.record.t()[seg.range.start];
-        simulate_positions(hopper, t0, init, self.record.dt(), stepping, out)
+        simulate_positions(&model.hopper, t0, init, self.record.dt(), stepping, out)?;
+        model.sensor.apply(self.record.dt(), out);
+        Ok(())
     }
 
     /// Residuals `simulated - measured` over the scored samples of `segs`, concatenated.
     pub(crate) fn residuals(
         &self,
-        hopper: &Hopper,
+        hopper: &Driven,
         segs: &[Segment],
         init: &[[f64; 2]],
         stepping: &Stepping,
@@ -217,6 +234,9 @@ impl Context<'_> {
             Slot::VTh => sc.v_std,
             Slot::XStop => sc.x_std,
             Slot::KStop => p.params.k,
+            Slot::TauS => self.record.dt(),
+            Slot::SensorB => sc.x_std,
+            Slot::SensorG => 1.0,
         };
         if v.is_finite() && v > 0.0 {
             v
@@ -324,7 +344,7 @@ impl Context<'_> {
             &bounds,
             stepping,
         )?;
-        let se_u = hac_stderr(&jac, &lm.residuals, &segment_lengths(&self.fit));
+        let (se_u, inflation) = hac(&jac, &lm.residuals, &segment_lengths(&self.fit));
         let point = layout.point(start, &u);
         let mut values = Vec::with_capacity(slots.len());
         let mut stderr = Vec::with_capacity(slots.len());
@@ -344,6 +364,7 @@ impl Context<'_> {
             stderr,
             at_bound,
             init: layout.init(&self.fit, &u),
+            inflation: inflation[..slots.len()].to_vec(),
             rss,
             bic: bic(rss, n, np),
             stepping: stepping.clone(),
@@ -427,7 +448,14 @@ fn segment_lengths(segs: &[Segment]) -> Vec<usize> {
 /// `s^2 A_ii` (`s^2 = RSS / (N - p)`): white residuals keep the classical error, a model error
 /// that leaves structured residuals can only widen it. A parameter the data do not determine
 /// (a null direction of `J`) gets an infinite error.
+#[cfg(test)]
 pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> Vec<f64> {
+    hac(jac, r, seg_lens).0
+}
+
+/// [`hac_stderr`] and, per parameter, the factor `>= 1` by which the residuals' correlation
+/// inflates its variance over the classical one (1 for an undetermined parameter).
+pub(crate) fn hac(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> (Vec<f64>, Vec<f64>) {
     let (n, p) = jac.shape();
     let jtj = jac.tr_mul(jac);
     // Scale to unit diagonal first: parameters differ in size by many orders (a contact
@@ -446,12 +474,12 @@ pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> V
     let scaled = DMatrix::from_fn(p, p, |i, j| jtj[(i, j)] * d[i] * d[j]);
     // nalgebra's SVD panics on non-finite entries: no finite standard errors then.
     if !scaled.iter().all(|v| v.is_finite()) {
-        return vec![f64::INFINITY; p];
+        return (vec![f64::INFINITY; p], vec![1.0; p]);
     }
     let svd = scaled.svd(true, true);
     let tol = 1e-12 * p as f64;
     let Ok(b) = svd.pseudo_inverse(tol) else {
-        return vec![f64::INFINITY; p];
+        return (vec![f64::INFINITY; p], vec![1.0; p]);
     };
     let a = DMatrix::from_fn(p, p, |i, j| b[(i, j)] * d[i] * d[j]);
     // A direction with no information: its pseudo-inverse is zero, report it as unknown.
@@ -462,9 +490,11 @@ pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> V
     let s2 = rss / (n.saturating_sub(p)).max(1) as f64;
     let mut h = vec![0.0; n];
     let mut out = Vec::with_capacity(p);
+    let mut inflation = Vec::with_capacity(p);
     for i in 0..p {
         if undetermined[i] {
             out.push(f64::INFINITY);
+            inflation.push(1.0);
             continue;
         }
         for (t, ht) in h.iter_mut().enumerate() {
@@ -493,8 +523,13 @@ pub(crate) fn hac_stderr(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> V
         }
         let classical = s2 * a[(i, i)];
         out.push(var.max(classical).sqrt());
+        inflation.push(if classical > 0.0 {
+            (var / classical).max(1.0)
+        } else {
+            1.0
+        });
     }
-    out
+    (out, inflation)
 }
 
 #[cfg(test)]

@@ -5,7 +5,10 @@
 //! cause from a library of candidate effects ([`Effect`]), fits the extended model and
 //! measures its gain on held-out data. The answer is a [`DiagnosisReport`] whose
 //! [`Diagnosis`] serialises to the JSON contract (`cause`, `parameters`, `stderr`, `nominal`,
-//! `extended`, `gain`, `candidates`, `evidence`).
+//! `extended`, `gain`, `candidates`, `evidence`, and `causes` (each [`Cause`]), `alternatives`,
+//! `configured`, `gain_vs_configured`, `mismatch`). Several effects can be named at once; the
+//! measurement chain ([`Sensor`]: a lag, an offset and a gain of the position sensor) is part
+//! of every model.
 //!
 //! Main types: [`Record`] (validated measured data), [`NominalModel`] (the hopper's parameters,
 //! damper law, effects already present and the parameters refitted everywhere),
@@ -43,51 +46,74 @@
 //!    the best output-error cost of each sign on a grid, a hard stop from the two best of a grid
 //!    of contact positions (low quantiles of the position); each start is fitted, the lowest
 //!    fit cost kept.
-//! 4. **Candidate fits**, in parallel: each candidate's parameters together with the nominal
-//!    `free` ones, by output error from the screening start. Standard errors are Newey-West
-//!    (Bartlett kernel, `sqrt(n)` lags per range), never below the classical ones, so a model
-//!    error that leaves correlated residuals cannot make a parameter look more certain than
-//!    white noise would.
-//! 5. **Judgement** on the held-out ranges and by the BIC on the fit ranges, with the rule
-//!    below.
+//! 4. **Forward selection with joint refits** (module `select`): each round fits every
+//!    remaining candidate together with the effects already chosen and the nominal `free`
+//!    parameters, all jointly by output error, in parallel. Standard errors are Newey-West
+//!    (Bartlett kernel, `sqrt(n)` lags per range), never below the classical ones.
+//! 5. **Nested tests and held-out judgement.** A candidate passes when it improves the model
+//!    of the round before both on the fit data, by a likelihood-ratio test corrected for
+//!    correlated residuals, and on the held-out data, by at least `min_gain`. The best passing
+//!    candidate (lowest held-out error) is added; after the first round only the first
+//!    round's passing candidates are tried. A simpler library effect nested in a chosen one
+//!    replaces it when the data do not need the difference, and a backward pass drops any
+//!    chosen effect whose removal the same test does not reject.
 //!
 //! # Decision rule
 //!
-//! Notation: `rmse_0` is the nominal fit's held-out RMSE, `rmse_c` a candidate's, `sigma` the
-//! noise floor (the level of the nominal residual spectrum between 60 % and 95 % of the Nyquist
-//! frequency: the median of the Welch periodogram there, so spectral lines do not raise it),
-//! `BIC = N ln(RSS / N) + p ln N` on the `N` fitted samples with `p` fitted numbers.
+//! Notation: `rmse_0` is the nominal fit's held-out RMSE, `rmse_f` the selected model's,
+//! `sigma` the noise floor (the level of the nominal residual spectrum between 60 % and 95 %
+//! of the Nyquist frequency: the median of the Welch periodogram there, so spectral lines do
+//! not raise it, and never below `resolution` (1e-4) times the spread of the measured output,
+//! the simulation's own accuracy with an interpolated force), `RSS` the fit residual sum of
+//! squares on the `N` fitted samples.
 //!
-//! A candidate is **significant** when all of:
-//! - a tested parameter lies at least `significance_sigma` (5) standard errors from its
-//!   nominal value and not on a bound (tested parameters: the effect's parameter, zero when
-//!   absent; `k_stop` for the hard stop; for `parameter_error` the largest distance of `m`,
-//!   `k`, `c` (those not already free) from their nominal values);
-//! - `1 - rmse_c / rmse_0 >= min_gain` (0.05);
-//! - `BIC_0 - BIC_c >= bic_margin` (10).
+//! A candidate **passes** against the model before it when both:
+//! - `N ln(RSS_before / RSS_after) / kappa` exceeds the chi-square quantile of the number of
+//!   added parameters at level `alpha` (1e-4), `kappa >= 1` being the largest factor by which
+//!   the residuals' correlation inflates an added parameter's variance (Newey-West against
+//!   classical). The effect is tested as a whole: a weakly determined parameter of it (a
+//!   contact stiffness) does not veto an effect the data demand;
+//! - `1 - rmse_after / rmse_before >= min_gain` (0.05) on the held-out data;
+//! - every added parameter is determined (a finite standard error), and the effect acts where
+//!   the data are: a contact position inside the measured positions, a switching threshold
+//!   inside the measured velocities (beyond them it only mimics a change of the nominal
+//!   structure).
 //!
-//! The lower bounds of step 2 make a significant value always physical in sign.
+//! Selection stops when the held-out residual reaches the noise floor.
 //!
-//! The **cause** is then:
-//! - the significant candidate `w` with the lowest `rmse_c`, provided (a) every other
-//!   significant candidate's BIC exceeds `BIC_w` by at least `bic_margin` (otherwise the data
-//!   cannot separate them and the cause is `unexplained`) and (b) `w` leaves no clear structure:
-//!   `rmse_w <= unexplained_ratio * sigma` (1.5), or `w` removes at least `min_explained` (75 %)
-//!   of the nominal's excess mean-square error, `(rmse_0^2 - rmse_w^2) / (rmse_0^2 - sigma^2)`
-//!   (otherwise `unexplained`: something outside the library is at work);
-//! - with no significant candidate: `unexplained` when `rmse_0 > unexplained_ratio * sigma`
-//!   (or the noise floor cannot be estimated), else `none`.
+//! The lower bounds of step 2 make every fitted value physical in sign. First, `model_mismatch`
+//! is answered, and nothing named, when the nominal model does not describe the data at all:
+//! the measured output moves against the simulated one, its spread differs by more than a factor
+//! 10, or the held-out NRMSE exceeds 100 % while even an offset and a scale leave the simulated
+//! output explaining under 25 % of the measured variance; each reason found is listed
+//! (`mismatch`). Otherwise
+//! the **cause** is:
+//! - with effects selected: `unexplained` when they leave clear structure (`rmse_f >
+//!   unexplained_ratio * sigma` (5) and they remove less than `min_explained` (99.9 %) of the
+//!   nominal's excess mean-square error, `(rmse_0^2 - rmse_f^2) / (rmse_0^2 - sigma^2)`);
+//!   else `ambiguous` when a first-round rival (a non-nested candidate whose fit BIC lies within
+//!   `bic_margin` (10) of the winner's) was not added as well (`alternatives` names them, the
+//!   evidence says which experiment would separate them); else the strongest selected effect
+//!   (a refit of the configured parameters beside it stays in `causes` only);
+//! - with none: `parameter_error` when the refit of the configured free parameters moved one by
+//!   more than `significance_sigma` (5) standard errors and predicts at least `min_gain` better,
+//!   `unexplained` when `rmse_0 > unexplained_ratio * sigma`, else `none`.
 //!
-//! The rule is conservative: an effect is named only when it is many standard errors strong,
-//! improves held-out prediction clearly, is clearly better than every rival, and accounts for
-//! most of what the nominal model missed. Without a winner, `parameters`, `stderr` and
-//! `extended` are those of the nominal fit and `gain` is 0.
+//! `causes` lists every selected effect (and a significant refit of the configured parameters
+//! as `parameter_error`), strongest first, with its share of the held-out mean-square error the
+//! final model explains against the configured one: by how much that error grows when the
+//! effect is removed and the rest refitted. Without effects, `parameters`, `stderr` and
+//! `extended` are those of the nominal fit and `gain` is 0. Every threshold is a field of
+//! [`DiagnoseOptions`] and a key of `[diagnose]` in the config.
 //!
 //! # What the data can and cannot tell
 //!
-//! - A lag and a delay agree to first order in `omega tau`; when their fits differ by less than
-//!   the BIC margin (on the hopper's test protocol, below about 3 ms) the cause is
-//!   `unexplained` with both named in the evidence.
+//! - A lag and a delay agree to first order in `omega tau`, and an input-side lag and an
+//!   output-side (sensor) lag agree on the linearised response; when their fits differ by less
+//!   than the BIC margin the cause is `ambiguous`, with both in `alternatives`.
+//! - On the hopper a constant force, a shift of the sensor's reading, and errors of the rest
+//!   length or of gravity all move only the equilibrium: they are told apart only through
+//!   the configured values of the others.
 //! - A candidate can only be told from another library term over the states the data visit.
 //!   On an orbit that stays on one side of the spring's rest length, a quadratic spring equals
 //!   a cubic one plus a change of the linear stiffness up to a small remainder, so it is
@@ -159,11 +185,13 @@ mod noise;
 mod nominal;
 mod record;
 mod screen;
+mod select;
+mod sensor;
 mod sim;
 
 pub use diagnose::{
-    diagnose, diagnose_with_progress, simulate_record, Candidate, DiagnoseOptions, Diagnosis,
-    DiagnosisReport, FittedModel, Score,
+    diagnose, diagnose_with_progress, simulate_record, Candidate, Cause, DiagnoseOptions,
+    Diagnosis, DiagnosisReport, FittedModel, Score,
 };
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
@@ -174,4 +202,5 @@ pub use model_fit::{
 };
 pub use nominal::NominalModel;
 pub use record::Record;
+pub use sensor::Sensor;
 pub use sim::SimMethod;

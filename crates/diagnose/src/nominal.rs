@@ -2,7 +2,7 @@ use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
 use serde::{Deserialize, Serialize};
 
 use crate::effect::Slot;
-use crate::{DiagnoseError, NominalParam};
+use crate::{DiagnoseError, NominalParam, Sensor};
 
 /// The model the data are compared with: the hopper's parameters, damper law and any effects
 /// already believed present, plus the parameters refitted in every fit (`free`).
@@ -18,6 +18,9 @@ pub struct NominalModel {
     pub damper: DamperLaw,
     /// Extra terms already part of the nominal model (normally all absent).
     pub effects: Effects,
+    /// The measurement chain believed present (normally the ideal sensor).
+    #[serde(default)]
+    pub sensor: Sensor,
     /// Parameters refitted alongside every candidate.
     pub free: Vec<NominalParam>,
 }
@@ -34,6 +37,7 @@ impl NominalModel {
             params,
             damper,
             effects,
+            sensor: Sensor::default(),
             free,
         };
         model.validate()?;

@@ -48,7 +48,7 @@ impl<'c, 'a> Screening<'c, 'a> {
     fn accelerations(&self, p: &ModelPoint) -> Option<Vec<f64>> {
         let mut p = *p;
         p.effects.tau = 0.0;
-        let hopper = self.ctx.hopper(&p).ok()?;
+        let hopper = self.ctx.hopper(&p).ok()?.hopper;
         let mut d = [0.0; 2];
         Some(
             self.samples
@@ -112,6 +112,9 @@ impl<'c, 'a> Screening<'c, 'a> {
             Slot::VTh => sc.v_std,
             Slot::XStop => sc.x_std,
             Slot::KStop => p.params.k,
+            Slot::TauS => self.ctx.record.dt(),
+            Slot::SensorB => sc.x_std,
+            Slot::SensorG => 1e-3,
         }
     }
 
@@ -238,14 +241,18 @@ impl<'c, 'a> Screening<'c, 'a> {
                 p.set(Slot::XStop, if x_low.is_finite() { x_low } else { 0.0 });
                 p.set(Slot::KStop, 0.1 * p.params.k);
             }
-            Effect::ActuatorLag | Effect::InputDelay => {
-                // To first order a lag and a delay both shift the force by `-tau f'`.
+            Effect::ActuatorLag | Effect::InputDelay | Effect::SensorLag => {
+                // To first order a lag and a delay of the force both shift it by `-tau f'`,
+                // and a sensor's lag shifts the reading by about as much.
                 let b = joint(&p, &[Slot::Delay]).map_or(0.0, |(b, _)| b[0]);
-                if effect == Effect::ActuatorLag {
-                    p.set(Slot::Tau, b.max(0.1 * dt));
-                } else {
-                    p.set(Slot::Delay, b.max(0.0));
+                match effect {
+                    Effect::ActuatorLag => p.set(Slot::Tau, b.max(0.1 * dt)),
+                    Effect::SensorLag => p.set(Slot::TauS, b.max(0.1 * dt)),
+                    _ => p.set(Slot::Delay, b.max(0.0)),
                 }
+            }
+            Effect::SensorOffsetGain => {
+                // Linear in the reading: the fit finds them from the ideal sensor at once.
             }
             _ => {
                 let slots = effect.slots(free);

@@ -178,10 +178,22 @@ fn report_carries_the_json_contract_and_consistent_outputs() {
             "extended",
             "gain",
             "candidates",
-            "evidence"
+            "evidence",
+            "causes",
+            "alternatives",
+            "configured",
+            "gain_vs_configured",
+            "mismatch"
         ])
     );
     assert_eq!(json["cause"], "cubic_stiffness");
+    assert_eq!(
+        keys(&json["causes"][0]),
+        sorted(&["effect", "parameters", "stderr", "gain_share"])
+    );
+    assert_eq!(json["causes"][0]["effect"], "cubic_stiffness");
+    assert_eq!(json["causes"].as_array().unwrap().len(), 1);
+    assert_eq!(keys(&json["configured"]), sorted(&["nrmse", "rmse"]));
     assert_eq!(keys(&json["nominal"]), sorted(&["nrmse", "rmse"]));
     assert_eq!(keys(&json["extended"]), sorted(&["nrmse", "rmse"]));
     assert_eq!(

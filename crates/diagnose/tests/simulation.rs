@@ -5,7 +5,7 @@
 mod common;
 
 use common::{generate, Protocol};
-use htfid_diagnose::{simulate_record, FittedModel, Interpolation, Record, SimMethod};
+use htfid_diagnose::{simulate_record, FittedModel, Interpolation, Record, Sensor, SimMethod};
 use htfid_model::{DamperLaw, Effects, HardStop, Hopper, HopperParams};
 
 fn rms(a: &[f64], b: &[f64]) -> f64 {
@@ -62,6 +62,7 @@ fn linear_oscillator_matches_its_closed_form_solution() {
             input_offset: offset,
             ..Effects::default()
         },
+        sensor: Sensor::default(),
     };
     let amplitude = amp;
     // The spline reads a 40 Hz sine sampled at 610 Hz with relative error about
@@ -135,6 +136,7 @@ fn fixed_step_and_adaptive_agree_with_the_models_own_hybrid_simulation() {
         },
         damper: DamperLaw::Switching,
         effects,
+        sensor: Sensor::default(),
     };
     for sim in [SimMethod::default(), SimMethod::Adaptive { rtol: 1e-10 }] {
         let y = simulate_record(

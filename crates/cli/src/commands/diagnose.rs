@@ -191,6 +191,22 @@ fn options(s: &DiagnoseSettings, n: usize) -> Result<DiagnoseOptions> {
     if let Some(v) = s.min_gain {
         opts.min_gain = v;
     }
+    let t = &s.thresholds;
+    if let Some(v) = t.alpha {
+        opts.alpha = v;
+    }
+    if let Some(v) = t.max_effects {
+        opts.max_effects = v;
+    }
+    if let Some(v) = t.bic_margin {
+        opts.bic_margin = v;
+    }
+    if let Some(v) = t.unexplained_ratio {
+        opts.unexplained_ratio = v;
+    }
+    if let Some(v) = t.min_explained {
+        opts.min_explained = v;
+    }
     Ok(opts)
 }
 
@@ -532,6 +548,21 @@ fn fmt_params(
         .join(", ")
 }
 
+/// The causes with their shares, strongest first.
+fn causes_text(d: &htfid_diagnose::Diagnosis) -> String {
+    d.causes
+        .iter()
+        .map(|c| {
+            format!(
+                "`{}` ({:.0} % of the explained error)",
+                c.effect,
+                100.0 * c.gain_share
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn report_md(
     s: &DiagnoseSettings,
     record: &Record,
@@ -544,7 +575,11 @@ fn report_md(
     let _ = writeln!(m, "# Diagnosis: {}\n", s.name);
     let verdict = match d.cause.as_str() {
         "none" => "**No effect found**: the nominal model explains the data down to the noise.".to_string(),
-        "unexplained" => "**Unexplained**: the nominal model leaves clear structure in the residual that no candidate effect in the library explains with confidence.".to_string(),
+        "unexplained" if d.causes.is_empty() => "**Unexplained**: the nominal model leaves clear structure in the residual that no candidate effect in the library explains with confidence.".to_string(),
+        "unexplained" => format!("**Unexplained**: the library effects found ({}) lower the held-out simulation error by {:.1} %, but clear structure remains that they do not explain.", causes_text(d), 100.0 * d.gain),
+        "ambiguous" => format!("**Ambiguous**: {} explain the data equally well; the data cannot tell them apart (see the evidence for the experiment that would).", d.alternatives.iter().map(|a| format!("`{a}`")).collect::<Vec<_>>().join(" and ")),
+        "model_mismatch" => format!("**Model mismatch**: the nominal model does not describe these data at all, so no effect is named. Likely reasons: {}", d.mismatch.join("; ")),
+        c if d.causes.len() > 1 => format!("**Causes: {}** (strongest first, `{c}`). Together they lower the held-out simulation error by {:.1} %.", causes_text(d), 100.0 * d.gain),
         c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {:.1} %.", 100.0 * d.gain),
     };
     let _ = writeln!(m, "{verdict}\n");
