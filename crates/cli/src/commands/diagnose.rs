@@ -41,6 +41,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     if let Some(d) = data {
         settings.data.file = d;
     }
+    crate::limits::check_data_file(&settings.path, "data.file", &settings.data.file)?;
     let dir = resolve_dir(out, &settings.name);
     let files: Vec<String> = PLOTS
         .iter()

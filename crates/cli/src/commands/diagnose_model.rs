@@ -24,6 +24,10 @@ pub fn run(
     force: bool,
 ) -> Result<()> {
     let s = ModelDiagnoseSettings::from_file(config, data)?;
+    crate::limits::check_data_file(&s.path, "data.file", &s.file)?;
+    if let Some(v) = &s.validation {
+        crate::limits::check_data_file(&s.path, "data.validation", v)?;
+    }
     let dir = resolve_dir(out, &s.name);
     let mut outdir = open(
         &dir,

@@ -37,6 +37,7 @@ fn read(settings: &EstimateSettings, output: &str) -> Result<TimeSeries> {
 
 pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
     let settings = EstimateSettings::from_file(config, data)?;
+    crate::limits::check_data_file(&settings.path, "data.file", &settings.file)?;
     let outputs = &settings.outputs;
     let suffix = |o: usize| {
         if o == 0 {
