@@ -268,3 +268,88 @@ fn a_data_file_beyond_the_limit_is_refused_before_it_is_read() {
         ],
     );
 }
+
+/// `data/hopper-protocol.csv` with its time column in milliseconds.
+fn milliseconds_record(dir: &Path) -> PathBuf {
+    let text = fs::read_to_string(root().join("data/hopper-protocol.csv")).unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        match line.split_once(',') {
+            Some((t, rest)) if t.parse::<f64>().is_ok() => {
+                let ms = t.parse::<f64>().unwrap() * 1000.0;
+                out.push_str(&format!("{ms},{rest}\n"));
+            }
+            _ => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    let path = dir.join("ms.csv");
+    fs::write(&path, out).unwrap();
+    path
+}
+
+/// A record in milliseconds is refused by every command that reads measured data, with the key
+/// to fix, before the diagnosis or the estimator runs.
+#[test]
+fn a_time_column_in_milliseconds_is_refused_up_front() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = milliseconds_record(tmp.path());
+    let out = tmp.path().join("out");
+    let given_period = edited(
+        tmp.path(),
+        "estimate-hopper.toml",
+        &[
+            ("value = \"estimate\"", "value = 1.0"),
+            (
+                "file = \"../data/hopper-protocol.csv\"",
+                &format!("file = \"{}\"", data.display()),
+            ),
+        ],
+    );
+    let given = given_period.to_str().unwrap();
+    let cases: Vec<(&str, &str, &[&str])> = vec![
+        (
+            "diagnose",
+            "configs/diagnose-hopper.toml",
+            &[
+                "sampled every 1.000e1 s",
+                "natural period of the nominal model",
+            ],
+        ),
+        (
+            "diagnose",
+            "configs/diagnose-hopper-model.toml",
+            &[
+                "sampled every 1.000e1 s",
+                "forcing period of model `hopper`",
+            ],
+        ),
+        (
+            "estimate",
+            "configs/estimate-hopper.toml",
+            &[
+                "estimation.omega_max = 40",
+                "Nyquist frequency 3.142e-1 rad/s",
+            ],
+        ),
+        ("estimate", given, &["the period (period.value) (1.000 s)"]),
+    ];
+    for (command, config, parts) in cases {
+        let o = htfid(&[
+            command,
+            config,
+            "--data",
+            data.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{command} {config}: {err}");
+        assert!(!out.exists(), "{command} {config} left its output");
+        assert!(!err.contains("diagnosing"), "the diagnosis started: {err}");
+        assert_has(&err, &[config, "time column (data.time) is in seconds"]);
+        assert_has(&err, parts);
+    }
+}

@@ -145,12 +145,49 @@ fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Resul
         };
         let series = read_record(&s.path, file, columns)?;
         if o == 0 {
+            check_time_scale(s, &series)?;
             t = series.time().to_vec();
             u = series.input().to_vec();
         }
         y.push(series.output().to_vec());
     }
     Ok(ModelRecord { t, u, y })
+}
+
+/// Refuses a record the model's forcing period says is in the wrong time unit, or one whose
+/// simulation cannot finish under the integrator's step cap (each fit simulates the whole
+/// record many times). A model without forcing has no period to compare with.
+fn check_time_scale(s: &ModelDiagnoseSettings, series: &htfid_data::TimeSeries) -> Result<()> {
+    let Some(period) = s.model.period() else {
+        return Ok(());
+    };
+    let what = format!("the forcing period of model `{}`", s.model.name());
+    let hint = crate::records::unit_hint(s.sample_rate);
+    crate::records::check_time_scale(
+        &s.path,
+        series.dt(),
+        series.len(),
+        crate::records::TimeScale {
+            period,
+            what: &what,
+        },
+        hint,
+    )?;
+    let duration = series.dt() * series.len().saturating_sub(1) as f64;
+    let steps = htfid_hybrid::min_steps(duration, period);
+    let cap = htfid_hybrid::Options::default().max_steps;
+    if steps > cap as f64 {
+        anyhow::bail!(
+            "{}: the record lasts {} s, {} forcing periods of model `{}`: one simulation of it \
+             needs at least {} integration steps (limit {cap}): {hint}, or shorten the record",
+            s.path.display(),
+            crate::limits::approx(duration),
+            crate::limits::approx(duration / period),
+            s.model.name(),
+            crate::limits::approx(steps)
+        );
+    }
+    Ok(())
 }
 
 fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
