@@ -353,3 +353,69 @@ fn a_time_column_in_milliseconds_is_refused_up_front() {
         assert_has(&err, parts);
     }
 }
+
+/// A multisine whose lines cannot be sampled is refused before the design samples its peak (a
+/// spacing of 1e9 rad/s once asked for a 61 GB peak search).
+#[test]
+fn multisine_lines_beyond_the_nyquist_frequency_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = root().join("models/two-dof.toml");
+    let c = edited(
+        tmp.path(),
+        "two-dof.toml",
+        &[
+            ("spacing = 0.5", "spacing = 1e9"),
+            (
+                "file = \"../models/two-dof.toml\"",
+                &format!("file = \"{}\"", model.display()),
+            ),
+        ],
+    );
+    let err = refused("simulate", &c, &[]);
+    assert_has(
+        &err,
+        &[
+            "excitation.spacing = 1e9 puts input lines at 5e8 rad/s or above",
+            "simulation.sample_rate = 200 Hz",
+        ],
+    );
+    let c = edited(
+        tmp.path(),
+        "paper-improved.toml",
+        &[("sample_rate = 100.0", "sample_rate = 10.0")],
+    );
+    let err = refused("run", &c, &[]);
+    assert_has(&err, &["excitation.omega_max = 40 puts input lines"]);
+}
+
+/// A configured model off by orders of magnitude is refused before the fits (which would run
+/// hundreds of simulations of it): the forcing amplitude of the model-file diagnosis set to 1e9.
+#[test]
+fn a_model_off_by_orders_of_magnitude_is_refused_before_the_fit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = root().join("data/hopper-protocol.csv");
+    let model = root().join("models/hopper.toml");
+    let c = edited(
+        tmp.path(),
+        "diagnose-hopper-model.toml",
+        &[
+            ("a = 0.0", "a = 1e9"),
+            (
+                "file = \"../data/hopper-protocol.csv\"",
+                &format!("file = \"{}\"", data.display()),
+            ),
+            (
+                "file = \"../models/hopper.toml\"",
+                &format!("file = \"{}\"", model.display()),
+            ),
+        ],
+    );
+    let err = refused("diagnose", &c, &[]);
+    assert_has(
+        &err,
+        &[
+            "model.parameters",
+            "output x misses the record by 1.000e9 times the record's spread",
+        ],
+    );
+}

@@ -262,10 +262,43 @@ pub fn check_experiment(settings: &Settings, stage: Stage) -> Result<()> {
         return Ok(());
     }
     let record = record_size(settings);
+    let design = crate::signals::design_spec(settings)
+        .and_then(|spec| htfid_excite::design_size(&spec).ok());
+    if let (
+        Some(size),
+        Excitation::MultisineDesign {
+            spacing, omega_max, ..
+        },
+    ) = (&design, &settings.excitation)
+    {
+        let nyquist = std::f64::consts::PI * settings.sample_rate;
+        if size.min_top_line >= nyquist {
+            // The first line sits at half the spacing; otherwise the band sets the top line.
+            let (key, v) = if spacing / 2.0 >= size.min_top_line {
+                ("excitation.spacing", *spacing)
+            } else {
+                ("excitation.omega_max", *omega_max)
+            };
+            bail!(
+                "{path}: {key} = {} puts input lines at {} rad/s or above, beyond the Nyquist \
+                 frequency of simulation.sample_rate = {} Hz ({} rad/s): lower {key} or raise \
+                 simulation.sample_rate",
+                value(v),
+                approx(size.min_top_line),
+                value(settings.sample_rate),
+                approx(nyquist)
+            );
+        }
+    }
     // Per sample: the trajectory (grid, states, chart), the caller's grid, the input and the
     // forcing, and every output with its orbit.
     let per_sample = htfid_hybrid::trajectory_bytes(dim, 1, 8) + 8 * (3 + 2 * outputs as u64);
-    let series = record.samples.saturating_mul(per_sample);
+    // The design's peak search samples one multisine period finely.
+    let peak = design.map_or(0.0, |d| 8.0 * d.min_peak_samples);
+    let series = record
+        .samples
+        .saturating_mul(per_sample)
+        .saturating_add(if peak < 1.8e19 { peak as u64 } else { u64::MAX });
     if series > limit {
         // At the default rate the record would fit: the rate is what is out of scale.
         let at_default_rate = series as f64 * (100.0 / settings.sample_rate);

@@ -516,6 +516,13 @@ pub struct DesignSize {
     pub min_lines: u64,
     /// Lower bound on the record (all blocks with their settling), s.
     pub min_record: f64,
+    /// Lower bound on the highest input line, rad/s: the band's top reached through
+    /// harmonic `-H` (less one grid step), and never below the first line at `spacing / 2`.
+    /// A record must be sampled faster than twice this.
+    pub min_top_line: f64,
+    /// Lower bound on the samples [`Multisine::peak`] takes to find the peak (32 per cycle of
+    /// the highest line over one multisine period).
+    pub min_peak_samples: f64,
 }
 
 /// Lower bounds on the size of the design [`design_htf_multisine`] would
@@ -563,10 +570,15 @@ pub fn design_size(spec: &DesignSpec) -> Result<DesignSize, ExciteError> {
         guard: spec.even_order == EvenOrder::QuadraticGuard,
     };
     let min_p = p_lower_bound(&targets);
+    let min_top_line = (spacing / 2.0).max(hi + f64::from(spec.max_harmonic) * wp - spacing);
+    // The highest line sits at bin `top / dw`, `dw = wp / P`.
+    let min_peak_samples = (32.0 * min_top_line / wp * min_p as f64).max(64.0);
     Ok(DesignSize {
         min_p,
         min_lines: min_line_count(&targets),
         min_record: spec.even_order.blocks() as f64 * (settle + min_p as f64 * t),
+        min_top_line,
+        min_peak_samples,
     })
 }
 

@@ -469,5 +469,13 @@ fn the_size_bound_is_below_every_design() {
         assert!(size.min_p <= p, "min_p {} > P {p}", size.min_p);
         assert!(size.min_lines <= design.lines().len() as u64);
         assert!(size.min_record <= design.total_duration() * (1.0 + 1e-12));
+        let top = design.lines().iter().map(|l| l.omega).fold(0.0, f64::max);
+        assert!(
+            size.min_top_line <= top * (1.0 + 1e-12),
+            "{} > {top}",
+            size.min_top_line
+        );
+        let top_bin = design.lines().iter().map(|l| l.bin).max().unwrap();
+        assert!(size.min_peak_samples <= (32 * top_bin).max(64) as f64 * (1.0 + 1e-9));
     }
 }

@@ -57,7 +57,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
 
     let started = Instant::now();
     let series = read_series(&settings)?;
-    let record = Record::from_series(&series).context("measured data")?;
+    let record = Record::from_series(&series).with_context(|| {
+        format!(
+            "{}: data.file = \"{}\": measured data",
+            settings.path.display(),
+            settings.data.file.display()
+        )
+    })?;
     check_time_scale(&settings, &record)?;
     let nominal = nominal_model(&settings)?;
     let opts = options(&settings, record.len())?;
@@ -82,7 +88,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         }
     };
     let report =
-        diagnose_with_progress(&record, &nominal, &opts, &progress).context("diagnosis failed")?;
+        diagnose_with_progress(&record, &nominal, &opts, &progress).with_context(|| {
+            format!(
+                "{}: diagnosis of data.file = \"{}\" against [model] failed",
+                settings.path.display(),
+                settings.data.file.display()
+            )
+        })?;
     eprintln!(
         "[htfid] {:6.1} s  cause: {} (gain {:.1} %)",
         started.elapsed().as_secs_f64(),

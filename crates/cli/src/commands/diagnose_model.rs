@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis, ModelRecord};
 use htfid_plot::{stacked_figure, time_panel, Panel, Series, Style};
 use serde_json::json;
@@ -46,8 +46,20 @@ pub fn run(
         s.model.name(),
         s.options.free
     );
-    let d = diagnose_model(&s.model, &record, validation.as_ref(), &s.options)
-        .context("diagnosis failed")?;
+    let d = diagnose_model(&s.model, &record, validation.as_ref(), &s.options).map_err(|e| {
+        // The keys a user changes to repair each failure.
+        let key = match &e {
+            htfid_diagnose::DiagnoseError::ScaleMismatch { .. } => {
+                "model.parameters (or the units of data.outputs)"
+            }
+            _ => "model.parameters",
+        };
+        anyhow::anyhow!(
+            "{}: {key}: diagnosis of \"{}\" failed: {e}",
+            s.path.display(),
+            s.file.display()
+        )
+    })?;
     // The figure shows the held-out data: the validation record when there is one.
     let shown = validation.as_ref().unwrap_or(&record);
 
