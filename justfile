@@ -2,8 +2,9 @@
 
 default: test
 
-# Format check, lints as errors, docs, the whole test suite, and the wide hidden-effect sweep.
-test: fmt-check clippy doc tests sweep
+# Format check, lints as errors, docs, the whole test suite, the wide hidden-effect sweep and
+# the full fuzz suite.
+test: fmt-check clippy doc tests sweep fuzz
 
 # Alias kept for CI scripts.
 ci: test
@@ -23,6 +24,10 @@ tests:
 # The diagnosis's wide sweep: 100 seeded records with a hidden effect (or none), about 70 s.
 sweep:
     cargo test --locked -p htfid-diagnose --test hidden_effects -- --ignored
+
+# The fuzz and fault suite over more seeds than `cargo test` runs (880 cases, about 2 minutes).
+fuzz:
+    cargo test --locked -p htfid --test fuzz -- --ignored
 
 # The main job: the paper's experiment end to end.
 run config="configs/paper.toml":
