@@ -13,7 +13,8 @@
 //! a fraction of a second.
 //!
 //! `quick_fuzz_suite` runs a fixed seed in `cargo test`; `full_fuzz_suite` (ignored, run by
-//! `just test`) runs more seeds.
+//! `just test`) runs more seeds. With `HTFID_FUZZ_LOG=FILE` every failure message is appended
+//! to FILE, one line per case, for reading what a user would see.
 
 use std::fmt::Write as _;
 use std::fs;
@@ -532,8 +533,19 @@ fn run_case(dir: &Path, case: &Case) -> Option<String> {
         Some(0) => return None,
         Some(_) => {}
     }
-    let names_file = err.contains("case.toml") || err.contains("mutated.csv");
-    if !names_file || !names_a_place(&err) {
+    // Only the error itself counts, not the progress lines before it.
+    let message = err.find("error:").map_or("", |i| &err[i..]);
+    if let Ok(log) = std::env::var("HTFID_FUZZ_LOG") {
+        // A record of every message, for reading what users would see.
+        if let Ok(mut f) = fs::OpenOptions::new().create(true).append(true).open(log) {
+            let _ = std::io::Write::write_all(
+                &mut f,
+                format!("{} | {}\n", case.what, message.trim().replace('\n', " / ")).as_bytes(),
+            );
+        }
+    }
+    let names_file = message.contains("case.toml") || message.contains("mutated.csv");
+    if !names_file || !names_a_place(message) {
         return describe("the message names no file and key, line or column");
     }
     let leftovers: Vec<_> = fs::read_dir(&out)

@@ -73,7 +73,7 @@ pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hop
         })
         .with_context(|| {
             format!(
-                "{}: no limit cycle for these parameters",
+                "{}: model: no limit cycle for these parameters ([model] and [forcing])",
                 settings.path.display()
             )
         })?;
