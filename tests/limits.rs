@@ -205,6 +205,22 @@ fn the_step_cap_is_a_config_key() {
             "simulation.max_steps = 5000; raise it",
         ],
     );
+    // Raised above the default, the cap is accepted and the run succeeds.
+    let c = edited(
+        tmp.path(),
+        "paper.toml",
+        &[("atol = 1e-12", "atol = 1e-12\nmax_steps = 20000000")],
+    );
+    let out = tmp.path().join("raised");
+    let o = htfid(&[
+        "simulate",
+        c.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary = fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(summary.contains("\"steps\""), "{summary}");
     let c = edited(
         tmp.path(),
         "paper.toml",
