@@ -2,8 +2,9 @@
 
 default: test
 
-# Format check, lints as errors, docs, the whole test suite, and the wide hidden-effect sweep.
-test: fmt-check clippy doc tests sweep
+# Format check, lints as errors, docs, the whole test suite, the wide hidden-effect sweep and
+# the full fuzz suite.
+test: fmt-check clippy doc tests sweep fuzz
 
 # Alias kept for CI scripts.
 ci: test
@@ -24,6 +25,10 @@ tests:
 # single and compound effects, sensor-side effects, effects outside the library, clean data.
 sweep:
     cargo test --locked -p htfid-diagnose --test independent -- --ignored --nocapture
+
+# The fuzz and fault suite over more seeds than `cargo test` runs (880 cases, about 2 minutes).
+fuzz:
+    cargo test --locked -p htfid --test fuzz -- --ignored
 
 # The main job: the paper's experiment end to end.
 run config="configs/paper.toml":

@@ -15,6 +15,7 @@ use clap::{Parser, Subcommand};
 mod commands;
 mod config;
 mod estimate_config;
+mod limits;
 mod model_diagnose_config;
 mod output;
 mod plots;
@@ -32,6 +33,10 @@ mod signals;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Largest memory a command may plan to use, e.g. 8G, 512M, 16GiB (default 4G); a config
+    /// that needs more is refused before any work.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = limits::parse_size)]
+    max_memory: Option<u64>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -103,6 +108,9 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    limits::set(limits::Limits {
+        max_memory: cli.max_memory.unwrap_or(limits::DEFAULT_MAX_MEMORY),
+    });
     let result = match cli.command {
         Command::Simulate { config, out } => commands::simulate::run(&config, out.out, out.force),
         Command::Theory {

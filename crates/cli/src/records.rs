@@ -38,3 +38,54 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
         )
     })
 }
+
+/// The time scale a record must resolve: the period of the dynamics the command looks for.
+#[derive(Debug, Clone, Copy)]
+pub struct TimeScale<'a> {
+    /// The period, s.
+    pub period: f64,
+    /// What it is, for the message: "one natural period of the nominal model (...)".
+    pub what: &'a str,
+}
+
+/// The key that fixes a record in the wrong time unit: the sample rate, or the time column.
+pub fn unit_hint(sample_rate: Option<f64>) -> &'static str {
+    if sample_rate.is_some() {
+        "check data.sample_rate (Hz)"
+    } else {
+        "check that the time column (data.time) is in seconds"
+    }
+}
+
+/// Refuses a record whose time scale cannot hold the dynamics of `scale`, before any work: a
+/// record shorter than one period, or sampled at intervals longer than half of it (below the
+/// Nyquist rate). Both usually mean a sample rate or a time column in the wrong unit
+/// (milliseconds read as seconds make every step and the record 1000 times too long), and
+/// working on such a record fits noise or integrates for hours.
+pub fn check_time_scale(
+    config: &Path,
+    dt: f64,
+    samples: usize,
+    scale: TimeScale<'_>,
+    hint: &str,
+) -> Result<()> {
+    let duration = dt * samples.saturating_sub(1) as f64;
+    let what = scale.what;
+    let period = scale.period;
+    if duration < period {
+        anyhow::bail!(
+            "{}: the record lasts {duration:.3e} s, shorter than {what} ({period:.3} s): {hint}",
+            config.display()
+        );
+    }
+    if dt > period / 2.0 {
+        anyhow::bail!(
+            "{}: the record is sampled every {dt:.3e} s, more than half of {what} ({period:.3} \
+             s): its Nyquist frequency ({:.3e} rad/s) is below {:.3} rad/s: {hint}",
+            config.display(),
+            std::f64::consts::PI / dt,
+            2.0 * std::f64::consts::PI / period
+        );
+    }
+    Ok(())
+}

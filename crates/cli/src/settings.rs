@@ -172,6 +172,7 @@ pub struct RawSimulation {
     pub rtol: OptNum,
     pub atol: OptNum,
     pub method: Option<Spanned<String>>,
+    pub max_steps: Option<Spanned<i64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -411,6 +412,9 @@ impl Settings {
             atol: src.opt_number(&s.atol, 1e-12, "simulation.atol", "> 0", |v| v > 0.0)?,
             ..Options::default()
         };
+        if let Some(v) = &s.max_steps {
+            integrator.max_steps = int_in(src, v, "simulation.max_steps", 1, i64::MAX)? as u64;
+        }
         if let Some(method) = &s.method {
             integrator.method =
                 match src.choice(method, "simulation.method", &["dop853", "dopri5"])? {

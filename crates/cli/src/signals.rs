@@ -4,8 +4,8 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use htfid_excite::{
-    design_htf_multisine, Amplitude, Design, DesignSpec, EvenOrder, LinearChirp, LogChirp,
-    PaperChirp, PhaseRule, PhaseShiftedTrain, Segment, Signal, TrainLayout,
+    design_htf_multisine, Amplitude, Design, DesignSpec, EvenOrder, ExciteError, LinearChirp,
+    LogChirp, PaperChirp, PhaseRule, PhaseShiftedTrain, Segment, Signal, TrainLayout,
 };
 use htfid_model::InputFn;
 
@@ -41,40 +41,9 @@ pub fn build(settings: &Settings) -> Result<Built> {
             end: start,
             design: None,
         }),
-        Excitation::MultisineDesign {
-            max_harmonic,
-            omega_min,
-            omega_max,
-            spacing,
-            amplitude,
-            even_order,
-            phases,
-            settle,
-            max_record,
-        } => {
-            let design = design_htf_multisine(DesignSpec {
-                period: settings.period,
-                max_harmonic: *max_harmonic,
-                omega_lo: *omega_min,
-                omega_hi: *omega_max,
-                spacing: *spacing,
-                amplitude: Amplitude::Peak(*amplitude),
-                phases: match phases {
-                    PhaseSetting::Schroeder => PhaseRule::Schroeder,
-                    PhaseSetting::Random(seed) => PhaseRule::Random { seed: *seed },
-                },
-                even_order: match even_order {
-                    EvenOrderSetting::SignReversal => EvenOrder::SignReversal,
-                    EvenOrderSetting::QuadraticGuard => EvenOrder::QuadraticGuard,
-                    EvenOrderSetting::Unprotected => EvenOrder::Unprotected,
-                },
-                settle: *settle,
-                start,
-                max_record: *max_record,
-            })
-            .with_context(|| {
-                format!("{}: [excitation] multisine design", settings.path.display())
-            })?;
+        Excitation::MultisineDesign { .. } => {
+            let spec = design_spec(settings).context("a multisine excitation has a design spec")?;
+            let design = design_htf_multisine(spec).map_err(|e| design_error(settings, e))?;
             Ok(Built {
                 signal: Some(Arc::new(design.input())),
                 segments: Vec::new(),
@@ -121,5 +90,60 @@ pub fn build(settings: &Settings) -> Result<Built> {
                 design: None,
             })
         }
+    }
+}
+
+/// The design spec of a multisine excitation, `None` for other excitations.
+pub fn design_spec(settings: &Settings) -> Option<DesignSpec> {
+    let Excitation::MultisineDesign {
+        max_harmonic,
+        omega_min,
+        omega_max,
+        spacing,
+        amplitude,
+        even_order,
+        phases,
+        settle,
+        max_record,
+    } = &settings.excitation
+    else {
+        return None;
+    };
+    Some(DesignSpec {
+        period: settings.period,
+        max_harmonic: *max_harmonic,
+        omega_lo: *omega_min,
+        omega_hi: *omega_max,
+        spacing: *spacing,
+        amplitude: Amplitude::Peak(*amplitude),
+        phases: match phases {
+            PhaseSetting::Schroeder => PhaseRule::Schroeder,
+            PhaseSetting::Random(seed) => PhaseRule::Random { seed: *seed },
+        },
+        even_order: match even_order {
+            EvenOrderSetting::SignReversal => EvenOrder::SignReversal,
+            EvenOrderSetting::QuadraticGuard => EvenOrder::QuadraticGuard,
+            EvenOrderSetting::Unprotected => EvenOrder::Unprotected,
+        },
+        settle: *settle,
+        start: settings.settle_time(),
+        max_record: *max_record,
+    })
+}
+
+/// A design failure located at the key that decides it: the record budget, or the spacing
+/// that the search could not meet.
+fn design_error(settings: &Settings, e: ExciteError) -> anyhow::Error {
+    let path = settings.path.display();
+    match &e {
+        ExciteError::RecordTooLong { .. } => anyhow::anyhow!(
+            "{path}: excitation.max_record: {e}; raise excitation.max_record, or widen \
+             excitation.spacing or narrow the band"
+        ),
+        ExciteError::NoDesign { .. } => anyhow::anyhow!(
+            "{path}: excitation.spacing: {e}; widen excitation.spacing, or narrow the band \
+             (excitation.omega_min, omega_max) or lower excitation.max_harmonic"
+        ),
+        _ => anyhow::anyhow!("{path}: [excitation] multisine design: {e}"),
     }
 }

@@ -135,6 +135,22 @@ pub enum DiagnoseError {
         /// What went wrong.
         reason: String,
     },
+    /// The configured model's output misses the record by orders of magnitude before any fit:
+    /// a parameter or a column in the wrong unit, which no refit repairs (and fitting it would
+    /// run for long).
+    #[error(
+        "the configured model's output {output} misses the record by {nrmse:.3e} times the \
+         record's spread (more than {limit:e}): check the parameter values and the units of the \
+         measured column"
+    )]
+    ScaleMismatch {
+        /// The output's name.
+        output: String,
+        /// RMS error of the configured simulation over the output's standard deviation.
+        nrmse: f64,
+        /// The largest accepted ratio.
+        limit: f64,
+    },
     /// The fit of the nominal model failed.
     #[error("fitting the nominal model failed: {reason}")]
     NominalFit {

@@ -172,6 +172,11 @@ fn start_state(
     }
 }
 
+/// Largest RMS error, in standard deviations of the measured output, of the configured model
+/// simulated from its starting guess. A model in the right units misses by a few at most
+/// (the start is not fitted yet); a thousand means a wrong unit or a wrong order of magnitude.
+const MAX_CONFIGURED_NRMSE: f64 = 1e3;
+
 /// Simulates `model` driven by the record's input from `(mode, x0)` at the record's first
 /// time, in the record's own (absolute) times.
 fn simulate_outputs(
@@ -412,6 +417,21 @@ pub fn diagnose_model(
                 shown,
             ))
         };
+    // A configured model off by orders of magnitude is refused before the fits, which would
+    // spend hundreds of simulations on it.
+    let first = est.simulate(model, &est.guess)?;
+    let (_, nrmse) = est.errors(&first, est.rows.clone());
+    if let Some((o, &q)) = nrmse
+        .iter()
+        .enumerate()
+        .find(|(_, q)| q.is_nan() || **q > MAX_CONFIGURED_NRMSE)
+    {
+        return Err(DiagnoseError::ScaleMismatch {
+            output: model.outputs()[o].name.clone(),
+            nrmse: q,
+            limit: MAX_CONFIGURED_NRMSE,
+        });
+    }
     let x_configured = est.fit_state(model, &est.guess)?;
     let (configured, configured_sim) = score_of(model, &x_configured)?;
 

@@ -89,6 +89,7 @@ mod multi;
 mod periodic;
 mod record;
 mod siddiqi;
+mod size;
 mod smallls;
 mod smooth;
 
@@ -100,4 +101,5 @@ pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};
 pub use record::{dft, Record};
 pub use siddiqi::siddiqi;
+pub use size::estimator_bytes;
 pub use smooth::Alpha;

@@ -323,6 +323,9 @@ fn check_weight(a: f64) -> Result<()> {
 
 /// Golden-section search for a minimum of a unimodal `f` on `[lo, hi]`, until the bracket is
 /// narrower than `tol`: the better of the two interior points and its value.
+///
+/// At most [`GOLDEN_MAX_ITERATIONS`] steps: a `tol` below the spacing of floating-point numbers
+/// near the bracket (zero, or relative to a tiny scale) would otherwise never be met.
 pub(crate) fn golden_min(
     mut f: impl FnMut(f64) -> f64,
     mut lo: f64,
@@ -333,7 +336,9 @@ pub(crate) fn golden_min(
     let mut x1 = hi - phi * (hi - lo);
     let mut x2 = lo + phi * (hi - lo);
     let (mut f1, mut f2) = (f(x1), f(x2));
-    while hi - lo > tol {
+    let mut iterations = 0;
+    while hi - lo > tol && iterations < GOLDEN_MAX_ITERATIONS {
+        iterations += 1;
         if f1 <= f2 {
             hi = x2;
             x2 = x1;
@@ -355,9 +360,29 @@ pub(crate) fn golden_min(
     }
 }
 
+/// Golden-section steps after which the bracket has shrunk by `0.618^300`, about `1e-63`: past
+/// any resolution a double can hold.
+const GOLDEN_MAX_ITERATIONS: usize = 300;
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn golden_min_ends_when_its_tolerance_cannot_be_met() {
+        let mut calls = 0;
+        let (x, _) = golden_min(
+            |x| {
+                calls += 1;
+                (x - 1.0).powi(2)
+            },
+            0.0,
+            3.0,
+            0.0,
+        );
+        assert!((x - 1.0).abs() < 1e-7, "{x}");
+        assert!(calls <= GOLDEN_MAX_ITERATIONS + 2, "{calls} evaluations");
+    }
     use nalgebra::DMatrix;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;

@@ -449,6 +449,11 @@ struct Grid {
 /// P/5 lines, the largest sum-free symmetric set in Z_P for odd P). For each
 /// P, h runs down from the largest value the spacing allows, skipping h not
 /// coprime to P, until the kept lines exceed that capacity.
+///
+/// The search is bounded twice: P runs at most `max(start, 100000)` past its
+/// start, and the candidate bins examined in all (`SEARCH_WORK`) are capped,
+/// so fine targets over a wide band end in [`ExciteError::NoDesign`] within
+/// seconds instead of searching for hours.
 fn find_grid(t: &Targets, bound: u64) -> Result<Grid, ExciteError> {
     const MAX_START: u64 = 1 << 32;
     let start = bound.max(3) | 1;
@@ -458,6 +463,7 @@ fn find_grid(t: &Targets, bound: u64) -> Result<Grid, ExciteError> {
         });
     }
     let limit = start + start.max(100_000);
+    let mut work: u64 = 0;
     let mut p = start;
     while p <= limit {
         let capacity = if t.guard { p / 5 } else { (p - 1) / 2 };
@@ -470,6 +476,11 @@ fn find_grid(t: &Targets, bound: u64) -> Result<Grid, ExciteError> {
             let mut top_odd = (reach - 1e-9).ceil().max(1.0) as u64;
             if top_odd % 2 == 0 {
                 top_odd += 1;
+            }
+            // Each candidate bin is checked against every harmonic.
+            work = work.saturating_add((top_odd / 2 + 1) * (2 * u64::from(t.max_harmonic) + 1));
+            if work > SEARCH_WORK {
+                return Err(ExciteError::NoDesign { searched_up_to: p });
             }
             // Smaller h needs more lines against the same capacity.
             let Some(bins) = kept_bins(t, p, h, top_odd, capacity) else {
@@ -488,6 +499,86 @@ fn find_grid(t: &Targets, bound: u64) -> Result<Grid, ExciteError> {
     }
     Err(ExciteError::NoDesign {
         searched_up_to: limit,
+    })
+}
+
+/// Candidate bin checks [`find_grid`] may make in all: a fraction of a second
+/// of optimised work, far beyond what any design under a realistic record needs.
+const SEARCH_WORK: u64 = 100_000_000;
+
+/// What any design for a spec needs at least, known without searching: see
+/// [`design_size`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DesignSize {
+    /// Lower bound on P, the forcing periods per multisine period.
+    pub min_p: u64,
+    /// Lower bound on the number of input lines.
+    pub min_lines: u64,
+    /// Lower bound on the record (all blocks with their settling), s.
+    pub min_record: f64,
+    /// Lower bound on the highest input line, rad/s: the band's top reached through
+    /// harmonic `-H` (less one grid step), and never below the first line at `spacing / 2`.
+    /// A record must be sampled faster than twice this.
+    pub min_top_line: f64,
+    /// Lower bound on the samples [`Multisine::peak`] takes to find the peak (32 per cycle of
+    /// the highest line over one multisine period).
+    pub min_peak_samples: f64,
+}
+
+/// Lower bounds on the size of the design [`design_htf_multisine`] would
+/// search for, in O(H log H) time: the line count any grid of step
+/// `<= spacing` needs over the band's input images, the P that holds that
+/// many distinct residues (step 6 of the derivation), and the record that P
+/// implies. A caller can refuse absurd targets (a tiny spacing, a huge band)
+/// before the search or the record's simulation start. The actual design is
+/// at least this large; `min_record > max_record` means
+/// [`design_htf_multisine`] fails with [`ExciteError::RecordTooLong`].
+///
+/// # Errors
+///
+/// The invalid parameters that [`design_htf_multisine`] rejects in period,
+/// band, spacing, harmonic count and settling.
+pub fn design_size(spec: &DesignSpec) -> Result<DesignSize, ExciteError> {
+    let t = positive("period", spec.period)?;
+    let lo = non_negative("omega_lo", spec.omega_lo)?;
+    let hi = positive("omega_hi", spec.omega_hi)?;
+    if hi <= lo {
+        return Err(ExciteError::InvalidParameter {
+            name: "omega_hi",
+            requirement: "> omega_lo",
+            value: hi,
+        });
+    }
+    let spacing = positive("spacing", spec.spacing)?;
+    if spec.max_harmonic > MAX_HARMONIC {
+        return Err(ExciteError::InvalidParameter {
+            name: "max_harmonic",
+            requirement: "<= 1000",
+            value: f64::from(spec.max_harmonic),
+        });
+    }
+    let settle = (non_negative("settle", spec.settle)? / t - 1e-9)
+        .ceil()
+        .max(0.0)
+        * t;
+    let wp = TAU / t;
+    let targets = Targets {
+        lo: lo / wp,
+        hi: hi / wp,
+        spacing: spacing / wp,
+        max_harmonic: spec.max_harmonic,
+        guard: spec.even_order == EvenOrder::QuadraticGuard,
+    };
+    let min_p = p_lower_bound(&targets);
+    let min_top_line = (spacing / 2.0).max(hi + f64::from(spec.max_harmonic) * wp - spacing);
+    // The highest line sits at bin `top / dw`, `dw = wp / P`.
+    let min_peak_samples = (32.0 * min_top_line / wp * min_p as f64).max(64.0);
+    Ok(DesignSize {
+        min_p,
+        min_lines: min_line_count(&targets),
+        min_record: spec.even_order.blocks() as f64 * (settle + min_p as f64 * t),
+        min_top_line,
+        min_peak_samples,
     })
 }
 

@@ -87,8 +87,8 @@ mod train;
 
 pub use chirp::{LinearChirp, LogChirp, PaperChirp};
 pub use design::{
-    design_htf_multisine, BinOwner, Block, Branch, Design, DesignLine, DesignSpec, EvenOrder,
-    HtfPoint, Polarity,
+    design_htf_multisine, design_size, BinOwner, Block, Branch, Design, DesignLine, DesignSize,
+    DesignSpec, EvenOrder, HtfPoint, Polarity,
 };
 pub use error::ExciteError;
 pub use input::DesignInput;

@@ -23,6 +23,25 @@ pub struct TrainLayout {
     pub min_gap: f64,
 }
 
+impl TrainLayout {
+    /// Absolute end of the train this layout describes, s, without building
+    /// it: callers size the record (and refuse absurd ones) before any
+    /// signal exists. Not meaningful for a layout [`PhaseShiftedTrain::new`]
+    /// rejects.
+    pub fn end(&self) -> f64 {
+        let stride = self.stride_of(self.duration, self.period, self.min_gap);
+        self.start + self.copies.saturating_sub(1) as f64 * stride + self.duration
+    }
+
+    fn stride_of(&self, d: f64, t: f64, gap: f64) -> f64 {
+        let shift = t / self.copies.max(1) as f64;
+        // The 1e-9 keeps "D exactly a multiple of T" from rounding up a whole
+        // extra period.
+        let m = ((d + gap - shift) / t - 1e-9).ceil().max(0.0);
+        shift + m * t
+    }
+}
+
 /// One copy inside a train: absolute start and end, and its forcing phase.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Segment {
@@ -87,11 +106,7 @@ impl PhaseShiftedTrain {
                 value: 0.0,
             });
         }
-        let shift = t / layout.copies as f64;
-        // The 1e-9 keeps "D exactly a multiple of T" from rounding up a whole
-        // extra period.
-        let m = ((d + gap - shift) / t - 1e-9).ceil().max(0.0);
-        let stride = shift + m * t;
+        let stride = layout.stride_of(d, t, gap);
         Ok(Self {
             base,
             layout,
@@ -283,6 +298,31 @@ mod tests {
             // Independent check of the delay from the absolute start.
             assert_abs_diff_eq!((s.start - 30.0).rem_euclid(1.0), k / 9.0, epsilon = 1e-9);
         }
+    }
+
+    #[test]
+    fn layout_end_matches_the_built_train() {
+        let paper = PhaseShiftedTrain::paper(30.0).unwrap();
+        assert_abs_diff_eq!(paper.layout().end(), paper.end(), epsilon = 1e-12);
+        let layout = TrainLayout {
+            duration: 2.3,
+            copies: 4,
+            period: 0.7,
+            start: 1.4,
+            min_gap: 0.25,
+        };
+        let tr = PhaseShiftedTrain::new(
+            Box::new(LinearChirp::new(0.5, 3.0, 2.3, 1.0).unwrap()),
+            layout,
+        )
+        .unwrap();
+        assert_abs_diff_eq!(layout.end(), tr.end(), epsilon = 1e-12);
+        // Written from the layout rule: S = T/K + m T >= D + gap, end = t0 + (K - 1) S + D.
+        assert_abs_diff_eq!(
+            layout.end(),
+            1.4 + 3.0 * (0.175 + 4.0 * 0.7) + 2.3,
+            epsilon = 1e-9
+        );
     }
 
     #[test]

@@ -435,3 +435,47 @@ fn record_layout_and_input_signal() {
         assert_abs_diff_eq!(*f, u.value(t0 + i as f64 * dt), epsilon = 1e-11 * a_sum);
     }
 }
+
+/// A spacing far below what the band can use ends the search with an error instead of
+/// searching for hours; the bound is on work, so the record budget alone cannot hold it.
+#[test]
+fn an_absurdly_fine_spacing_ends_the_search() {
+    let spec = DesignSpec {
+        spacing: 1e-4,
+        max_record: 1e9,
+        ..headline()
+    };
+    let size = htfid_excite::design_size(&spec).unwrap();
+    assert!(size.min_p > 1_000_000, "{size:?}");
+    match design_htf_multisine(spec) {
+        Err(ExciteError::NoDesign { searched_up_to }) => {
+            assert!(
+                searched_up_to >= size.min_p,
+                "{searched_up_to} < {}",
+                size.min_p
+            )
+        }
+        other => panic!("expected NoDesign, got {other:?}"),
+    }
+}
+
+/// The size bound never exceeds the design found, so refusing on it never refuses a feasible one.
+#[test]
+fn the_size_bound_is_below_every_design() {
+    for spec in specs() {
+        let size = htfid_excite::design_size(&spec).unwrap();
+        let design = design_htf_multisine(spec).unwrap();
+        let p = (design.multisine_period() / design.spec().period).round() as u64;
+        assert!(size.min_p <= p, "min_p {} > P {p}", size.min_p);
+        assert!(size.min_lines <= design.lines().len() as u64);
+        assert!(size.min_record <= design.total_duration() * (1.0 + 1e-12));
+        let top = design.lines().iter().map(|l| l.omega).fold(0.0, f64::max);
+        assert!(
+            size.min_top_line <= top * (1.0 + 1e-12),
+            "{} > {top}",
+            size.min_top_line
+        );
+        let top_bin = design.lines().iter().map(|l| l.bin).max().unwrap();
+        assert!(size.min_peak_samples <= (32 * top_bin).max(64) as f64 * (1.0 + 1e-9));
+    }
+}

@@ -146,6 +146,9 @@
 //! - A crossing at exactly `t0` (a start on the surface) is not reported.
 //! - Failures never panic: step-size underflow ([`HybridError::StepSizeTooSmall`], naming the
 //!   time), non-finite states or guards, the step cap and Zeno behaviour are errors.
+//! - Cost is known up front: [`trajectory_bytes`] is the memory of a sampled trajectory and
+//!   [`min_steps`] a lower bound on the steps of a forced run, so a caller can refuse a request
+//!   that cannot fit, or cannot finish under `max_steps`, before integrating.
 //!
 //! # Performance
 //!
@@ -160,6 +163,7 @@ mod integrator;
 mod options;
 mod rk;
 mod roots;
+mod size;
 mod system;
 mod tableau;
 mod trajectory;
@@ -168,5 +172,6 @@ pub use error::HybridError;
 pub use fixed::{simulate_fixed_step, FIXED_STEP_MAX_DIM};
 pub use integrator::{simulate, Integrator, StopReason};
 pub use options::{Method, Options};
+pub use size::{min_steps, trajectory_bytes, MIN_STEPS_PER_PERIOD};
 pub use system::{Crossing, HybridSystem};
 pub use trajectory::{Event, EventKind, Stats, Trajectory};

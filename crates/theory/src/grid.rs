@@ -41,6 +41,16 @@ pub struct HtfGrid {
 }
 
 impl HtfGrid {
+    /// Bytes of a grid of `omegas` frequencies and `harmonics` harmonics (values and axes), so
+    /// a caller can refuse a grid that cannot fit before computing it. Saturates.
+    pub fn bytes_for(omegas: usize, harmonics: usize) -> u64 {
+        let (w, h) = (omegas as u64, harmonics as u64);
+        w.saturating_mul(h)
+            .saturating_mul(16)
+            .saturating_add(w.saturating_mul(8))
+            .saturating_add(h.saturating_mul(4))
+    }
+
     /// `G_{harmonics[ih]}(j omegas[iw])`, or `None` out of range.
     pub fn get(&self, iw: usize, ih: usize) -> Option<Complex64> {
         if iw < self.omegas.len() && ih < self.harmonics.len() {

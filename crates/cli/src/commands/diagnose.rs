@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use htfid_data::{OutputDir, TimeSeries};
 
 use crate::records::{read_record, Columns};
@@ -41,6 +41,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     if let Some(d) = data {
         settings.data.file = d;
     }
+    crate::limits::check_data_file(&settings.path, "data.file", &settings.data.file)?;
     let dir = resolve_dir(out, &settings.name);
     let files: Vec<String> = PLOTS
         .iter()
@@ -56,7 +57,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
 
     let started = Instant::now();
     let series = read_series(&settings)?;
-    let record = Record::from_series(&series).context("measured data")?;
+    let record = Record::from_series(&series).with_context(|| {
+        format!(
+            "{}: data.file = \"{}\": measured data",
+            settings.path.display(),
+            settings.data.file.display()
+        )
+    })?;
     check_time_scale(&settings, &record)?;
     let nominal = nominal_model(&settings)?;
     let opts = options(&settings, record.len())?;
@@ -81,7 +88,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         }
     };
     let report =
-        diagnose_with_progress(&record, &nominal, &opts, &progress).context("diagnosis failed")?;
+        diagnose_with_progress(&record, &nominal, &opts, &progress).with_context(|| {
+            format!(
+                "{}: diagnosis of data.file = \"{}\" against [model] failed",
+                settings.path.display(),
+                settings.data.file.display()
+            )
+        })?;
     eprintln!(
         "[htfid] {:6.1} s  cause: {} (gain {:.1} %)",
         started.elapsed().as_secs_f64(),
@@ -706,34 +719,20 @@ fn report_md(
     m
 }
 
-/// Refuses a record whose time scale cannot hold the model's dynamics: a record shorter than
-/// one natural period of the nominal model, or sampled below its natural frequency, usually
-/// means a sample rate or a time column in the wrong unit. Diagnosing it would fit noise.
+/// Refuses a record whose time scale cannot hold the nominal model's dynamics (see
+/// [`crate::records::check_time_scale`]).
 fn check_time_scale(settings: &DiagnoseSettings, record: &Record) -> Result<()> {
     let p = &settings.params;
     let wn = (p.k / p.m).sqrt();
-    let natural_period = 2.0 * std::f64::consts::PI / wn;
-    let duration = record.dt() * (record.len() - 1) as f64;
-    let nyquist = std::f64::consts::PI / record.dt();
-    let unit_hint = if settings.data.sample_rate.is_some() {
-        "check data.sample_rate (Hz)"
-    } else {
-        "check that the time column is in seconds"
-    };
-    if duration < natural_period {
-        bail!(
-            "{}: the record lasts {duration:.3e} s, shorter than one natural period of the \
-             nominal model ({natural_period:.3} s, sqrt(k/m) = {wn:.3} rad/s): {unit_hint}",
-            settings.path.display()
-        );
-    }
-    if nyquist < wn {
-        bail!(
-            "{}: the record is sampled every {:.3e} s, so its Nyquist frequency ({nyquist:.3e} \
-             rad/s) is below the nominal model's natural frequency ({wn:.3} rad/s): {unit_hint}",
-            settings.path.display(),
-            record.dt()
-        );
-    }
-    Ok(())
+    let what = format!("one natural period of the nominal model (sqrt(k/m) = {wn:.3} rad/s)");
+    crate::records::check_time_scale(
+        &settings.path,
+        record.dt(),
+        record.len(),
+        crate::records::TimeScale {
+            period: 2.0 * std::f64::consts::PI / wn,
+            what: &what,
+        },
+        crate::records::unit_hint(settings.data.sample_rate),
+    )
 }

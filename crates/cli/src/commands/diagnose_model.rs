@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis, ModelRecord};
 use htfid_plot::{stacked_figure, time_panel, Panel, Series, Style};
 use serde_json::json;
@@ -24,6 +24,10 @@ pub fn run(
     force: bool,
 ) -> Result<()> {
     let s = ModelDiagnoseSettings::from_file(config, data)?;
+    crate::limits::check_data_file(&s.path, "data.file", &s.file)?;
+    if let Some(v) = &s.validation {
+        crate::limits::check_data_file(&s.path, "data.validation", v)?;
+    }
     let dir = resolve_dir(out, &s.name);
     let mut outdir = open(
         &dir,
@@ -42,8 +46,20 @@ pub fn run(
         s.model.name(),
         s.options.free
     );
-    let d = diagnose_model(&s.model, &record, validation.as_ref(), &s.options)
-        .context("diagnosis failed")?;
+    let d = diagnose_model(&s.model, &record, validation.as_ref(), &s.options).map_err(|e| {
+        // The keys a user changes to repair each failure.
+        let key = match &e {
+            htfid_diagnose::DiagnoseError::ScaleMismatch { .. } => {
+                "model.parameters (or the units of data.outputs)"
+            }
+            _ => "model.parameters",
+        };
+        anyhow::anyhow!(
+            "{}: {key}: diagnosis of \"{}\" failed: {e}",
+            s.path.display(),
+            s.file.display()
+        )
+    })?;
     // The figure shows the held-out data: the validation record when there is one.
     let shown = validation.as_ref().unwrap_or(&record);
 
@@ -141,12 +157,49 @@ fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Resul
         };
         let series = read_record(&s.path, file, columns)?;
         if o == 0 {
+            check_time_scale(s, &series)?;
             t = series.time().to_vec();
             u = series.input().to_vec();
         }
         y.push(series.output().to_vec());
     }
     Ok(ModelRecord { t, u, y })
+}
+
+/// Refuses a record the model's forcing period says is in the wrong time unit, or one whose
+/// simulation cannot finish under the integrator's step cap (each fit simulates the whole
+/// record many times). A model without forcing has no period to compare with.
+fn check_time_scale(s: &ModelDiagnoseSettings, series: &htfid_data::TimeSeries) -> Result<()> {
+    let Some(period) = s.model.period() else {
+        return Ok(());
+    };
+    let what = format!("the forcing period of model `{}`", s.model.name());
+    let hint = crate::records::unit_hint(s.sample_rate);
+    crate::records::check_time_scale(
+        &s.path,
+        series.dt(),
+        series.len(),
+        crate::records::TimeScale {
+            period,
+            what: &what,
+        },
+        hint,
+    )?;
+    let duration = series.dt() * series.len().saturating_sub(1) as f64;
+    let steps = htfid_hybrid::min_steps(duration, period);
+    let cap = htfid_hybrid::Options::default().max_steps;
+    if steps > cap as f64 {
+        anyhow::bail!(
+            "{}: the record lasts {} s, {} forcing periods of model `{}`: one simulation of it \
+             needs at least {} integration steps (limit {cap}): {hint}, or shorten the record",
+            s.path.display(),
+            crate::limits::approx(duration),
+            crate::limits::approx(duration / period),
+            s.model.name(),
+            crate::limits::approx(steps)
+        );
+    }
+    Ok(())
 }
 
 fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {

@@ -37,6 +37,7 @@ fn read(settings: &EstimateSettings, output: &str) -> Result<TimeSeries> {
 
 pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
     let settings = EstimateSettings::from_file(config, data)?;
+    crate::limits::check_data_file(&settings.path, "data.file", &settings.file)?;
     let outputs = &settings.outputs;
     let suffix = |o: usize| {
         if o == 0 {
@@ -64,6 +65,19 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     })?;
     let first = &series[0];
     let dt = first.dt();
+    let hint = crate::records::unit_hint(settings.sample_rate);
+    if let PeriodSetting::Given(t) = settings.period {
+        crate::records::check_time_scale(
+            &settings.path,
+            dt,
+            first.len(),
+            crate::records::TimeScale {
+                period: t,
+                what: "the period (period.value)",
+            },
+            hint,
+        )?;
+    }
     let i0 = first.time().partition_point(|&t| t < settings.start);
     if first.len() - i0 < 64 {
         bail!(
@@ -112,6 +126,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     }
     let n = periods * per_period;
     let t_start = first.time()[i0];
+    check_band(&settings, dt, period, n, hint)?;
 
     let u_split = split_periodic(&first.input()[i0..i0 + n], dt, t_start, period, 5)
         .context("input: period average")?;
@@ -370,4 +385,69 @@ fn figure(settings: &EstimateSettings, output: &str, e: &HtfEstimate) -> htfid_p
         &format!("{}: |G_n| of {output} from data (Siddiqi)", settings.name),
         &per,
     )
+}
+
+/// Refuses, before any transform, a band the record cannot resolve and an estimate that cannot
+/// fit in `--max-memory`. Every output frequency `w` of the band with harmonic `n` needs input
+/// at `w - n wp` below the Nyquist frequency; a record whose time column is in milliseconds
+/// fails this (its Nyquist frequency is a thousand times too low).
+fn check_band(
+    settings: &EstimateSettings,
+    dt: f64,
+    period: f64,
+    samples: usize,
+    hint: &str,
+) -> Result<()> {
+    let wp = 2.0 * PI / period;
+    let (lo, hi) = settings.band;
+    let needed = settings
+        .harmonics
+        .iter()
+        .map(|&n| {
+            let shift = f64::from(n) * wp;
+            (lo - shift).abs().max((hi - shift).abs())
+        })
+        .fold(0.0, f64::max);
+    let nyquist = PI / dt;
+    if needed >= nyquist {
+        bail!(
+            "{}: estimation.omega_max = {hi} with harmonics up to {} needs input up to \
+             {needed:.3} rad/s, at or beyond the record's Nyquist frequency {nyquist:.3e} rad/s \
+             (sampled every {dt:.3e} s): narrow the band (estimation.omega_min, omega_max) or \
+             the harmonics, or {hint}",
+            settings.path.display(),
+            settings
+                .harmonics
+                .iter()
+                .map(|n| n.abs())
+                .max()
+                .unwrap_or(0)
+        );
+    }
+    let limit = crate::limits::get().max_memory;
+    let estimator = htfid_estimate::estimator_bytes(
+        1,
+        samples as u64,
+        dt,
+        settings.harmonics.len(),
+        settings.band,
+    );
+    // The records of every output stay in memory beside the estimator (time, input, output,
+    // and the periodic split of each).
+    let records = (samples as u64)
+        .saturating_mul(8 * 5)
+        .saturating_mul(settings.outputs.len() as u64);
+    let total = estimator.saturating_add(records);
+    if total > limit {
+        bail!(
+            "{}: data.file = \"{}\" ({} samples after data.start) needs about {} for the \
+             estimate (limit {}; raise with --max-memory, or narrow the band or set data.start)",
+            settings.path.display(),
+            settings.file.display(),
+            samples,
+            crate::limits::Bytes(total),
+            crate::limits::Bytes(limit)
+        );
+    }
+    Ok(())
 }

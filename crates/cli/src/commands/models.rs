@@ -136,7 +136,7 @@ fn simulate_record(
                 &settings.integrator,
             )
         })
-        .context("simulation of the experiment failed")?;
+        .map_err(|e| crate::limits::integration_failed(settings, "the experiment", e))?;
     let u: Vec<f64> = match &excitation.signal {
         Some(s) => s.sample(&grid),
         None => vec![0.0; n],
@@ -529,7 +529,7 @@ fn orbit_deviation(
         grid,
         &settings.integrator,
     )
-    .context("simulation of the unexcited orbit failed")?;
+    .map_err(|e| crate::limits::integration_failed(settings, "the unexcited orbit", e))?;
     let one = outputs_along(model, &free, &vec![0.0; grid.len()]);
     Ok(rec
         .outputs

@@ -35,6 +35,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             settings.path.display()
         );
     }
+    crate::limits::check_experiment(&settings, crate::limits::Stage::Run)?;
     if let crate::settings::System::Model(model) = &settings.system {
         return crate::commands::models::run_model(&settings, model, out, force, no_plots);
     }
@@ -184,7 +185,7 @@ fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
                 &phase_grid,
                 &settings.integrator,
             )
-            .context("simulation of the unexcited orbit failed")?;
+            .map_err(|e| crate::limits::integration_failed(settings, "the unexcited orbit", e))?;
             return Ok(sim
                 .x
                 .iter()
@@ -203,7 +204,7 @@ fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
         &sim.t,
         &settings.integrator,
     )
-    .context("simulation of the unexcited orbit failed")?;
+    .map_err(|e| crate::limits::integration_failed(settings, "the unexcited orbit", e))?;
     Ok(sim
         .x
         .iter()

@@ -35,6 +35,7 @@ pub struct Simulated {
 
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
     let settings = Settings::from_file(config)?;
+    crate::limits::check_experiment(&settings, crate::limits::Stage::Simulate)?;
     if let System::Model(model) = &settings.system {
         return crate::commands::models::simulate_model(&settings, model, out, force);
     }
@@ -72,7 +73,7 @@ pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hop
         })
         .with_context(|| {
             format!(
-                "{}: no limit cycle for these parameters",
+                "{}: model: no limit cycle for these parameters ([model] and [forcing])",
                 settings.path.display()
             )
         })?;
@@ -98,7 +99,7 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
                 &settings.integrator,
             )
         })
-        .context("simulation of the experiment failed")?;
+        .map_err(|e| crate::limits::integration_failed(settings, "the experiment", e))?;
     let u: Vec<f64> = match &excitation.signal {
         Some(s) => s.sample(&grid),
         None => vec![0.0; n],

@@ -151,6 +151,7 @@ pub fn run(
         Some(list) => parse_omegas(list)?,
         None => settings.theory.omegas.clone(),
     };
+    crate::limits::check_experiment(&settings, crate::limits::Stage::Theory { omegas: &omegas })?;
     if let System::Model(model) = &settings.system {
         if truncate.is_some() {
             bail!("--truncate: model-language models use their exact HTF (no truncation)");
