@@ -20,6 +20,7 @@ mod output;
 mod plots;
 mod progress;
 mod records;
+mod results;
 mod settings;
 mod signals;
 
@@ -30,6 +31,9 @@ mod signals;
     about = "Harmonic transfer functions of rhythmic hybrid systems"
 )]
 struct Cli {
+    /// Print no progress on stderr (errors still go there); the results summary stays on stdout.
+    #[arg(long, short, global = true)]
+    quiet: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -39,7 +43,9 @@ struct OutArgs {
     /// Output directory (default: out/NAME, NAME being the config's name).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Replace output files that already exist in the output directory.
+    /// Replace files in the output directory that htfid's earlier results there do not
+    /// account for (files of other programs, or edited since), and the earlier results as a
+    /// whole. Without it a rerun still replaces its own earlier results.
     #[arg(long)]
     force: bool,
 }
@@ -101,8 +107,28 @@ enum Command {
     },
 }
 
+/// Exit status after SIGINT or SIGTERM (the shell's 128 + SIGINT).
+const INTERRUPTED: i32 = 130;
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    progress::init(cli.quiet);
+    // A stopped run removes its unfinished output rather than leaving a staging directory; a
+    // commit under way finishes first (abandon_all waits for it), so the output directory
+    // holds either the earlier results or the whole new run.
+    if let Err(e) = ctrlc::set_handler(|| {
+        let dirs = htfid_data::OutputDir::abandon_all();
+        progress::clear();
+        for dir in dirs {
+            eprintln!(
+                "htfid: stopped; nothing of this run was written to {}",
+                dir.display()
+            );
+        }
+        std::process::exit(INTERRUPTED);
+    }) {
+        eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); a stopped run may leave a hidden .htfid-staging-* directory, which the next run there removes");
+    }
     let result = match cli.command {
         Command::Simulate { config, out } => commands::simulate::run(&config, out.out, out.force),
         Command::Theory {
@@ -127,6 +153,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            progress::clear();
             eprintln!("error: {}", error_text(&e));
             ExitCode::FAILURE
         }
