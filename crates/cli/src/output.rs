@@ -18,9 +18,7 @@ pub fn open(dir: &Path, force: bool, names: &[&str]) -> Result<OutputDir> {
         Ok(out) => out,
         // The message names the directory and the other run already.
         Err(e @ DataError::Locked { .. }) => {
-            return Err(anyhow::anyhow!(
-                "{e}\n(or pass --out DIR to write elsewhere)"
-            ))
+            return Err(anyhow::anyhow!("{e}\n(pass --out DIR to write elsewhere)"))
         }
         Err(e) => {
             return Err(e).with_context(|| format!("cannot use output directory {}", dir.display()))

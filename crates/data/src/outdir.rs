@@ -383,7 +383,14 @@ impl OutputDir {
         ABANDONED.store(true, Ordering::SeqCst);
         let mut cleaned = Vec::new();
         for l in live.drain(..) {
-            let _ = fs::remove_dir_all(&l.staging);
+            // The run's threads may still create or rename a file in the staging directory
+            // while it is removed, which makes one removal fail: a few tries.
+            for _ in 0..5 {
+                if remove_all(&l.staging).is_ok() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
             lock::remove_lock_file(&l.lock_file);
             if l.created_dir {
                 let _ = fs::remove_dir(&l.dir);
