@@ -201,39 +201,73 @@ fn harmonics(v: &Value) -> String {
     }
 }
 
-/// `htfid run`: the fits with standard errors and the HTF errors against the exact theory.
-/// `unit` gives a fitted parameter's unit.
-pub fn run(summary: &Value, unit: &dyn Fn(&str) -> Option<String>, dir: &Path, files: &[PathBuf]) {
+/// `htfid run`: the fits with standard errors and the HTF errors against the exact theory, in
+/// the config's order of estimators and of `fitted` parameters. `unit` gives a parameter's unit.
+pub fn run(
+    summary: &Value,
+    fitted: &[String],
+    unit: &dyn Fn(&str) -> Option<String>,
+    dir: &Path,
+    files: &[PathBuf],
+) {
     let mut t = Table::new(title("run", summary));
     limit_cycle(&mut t, summary);
     simulation(&mut t, summary);
-    if let Some(fits) = summary["fit"].as_object() {
-        for (estimator, fit) in fits {
-            let Some(fit) = fit.as_object() else { continue };
-            let lines: Vec<String> = fit
-                .iter()
-                .filter_map(|(name, v)| {
-                    let stderr = fit.get(&format!("{name}_stderr"))?;
-                    let u = unit(name);
-                    Some(format!("{name} = {}", pm(f(v), f(stderr), u.as_deref())))
-                })
-                .collect();
-            t.rows(&format!("fit ({estimator})"), lines);
+    let estimators: Vec<&str> = summary["estimation"]["estimators"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(Value::as_str)
+        .collect();
+    for estimator in &estimators {
+        let fit = &summary["fit"][estimator];
+        let lines: Vec<String> = fitted
+            .iter()
+            .filter(|name| !fit[name.as_str()].is_null())
+            .map(|name| {
+                let stderr = f(&fit[format!("{name}_stderr")]);
+                let u = unit(name);
+                format!(
+                    "{name} = {}",
+                    pm(f(&fit[name.as_str()]), stderr, u.as_deref())
+                )
+            })
+            .collect();
+        t.rows(&format!("fit ({estimator})"), lines);
+    }
+    // Error keys: `<estimator>` for the first output, `<estimator>_<output>` for the others.
+    let outputs: Vec<&str> = summary["htf"]["outputs"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(Value::as_str)
+        .collect();
+    let mut columns = Vec::new();
+    for estimator in &estimators {
+        if outputs.len() > 1 {
+            for (i, output) in outputs.iter().enumerate() {
+                let key = if i == 0 {
+                    estimator.to_string()
+                } else {
+                    format!("{estimator}_{output}")
+                };
+                columns.push((format!("{estimator} ({output})"), &summary["errors"][key]));
+            }
+        } else {
+            columns.push((estimator.to_string(), &summary["errors"][estimator]));
         }
     }
-    if let Some(errors) = summary["errors"].as_object() {
-        t.rows("HTF error", error_table(errors));
-    }
+    t.rows("HTF error", error_table(&columns));
     t.row("results", location(dir, files));
     t.print();
 }
 
 /// Per harmonic (rows) and estimate (columns): median and max over the band of
 /// `|G_hat_n - G_n| / max|G_n|`.
-fn error_table(errors: &serde_json::Map<String, Value>) -> Vec<String> {
-    let mut ns: Vec<i64> = errors
-        .values()
-        .filter_map(Value::as_object)
+fn error_table(columns: &[(String, &Value)]) -> Vec<String> {
+    let mut ns: Vec<i64> = columns
+        .iter()
+        .filter_map(|(_, e)| e.as_object())
         .flat_map(|m| m.keys().filter_map(|k| k.parse().ok()))
         .collect();
     ns.sort_unstable();
@@ -249,7 +283,7 @@ fn error_table(errors: &serde_json::Map<String, Value>) -> Vec<String> {
             format!("{} / {}", pct(f(&h["median"])), pct(f(&h["max"])))
         }
     };
-    let columns: Vec<(&String, Vec<String>)> = errors
+    let columns: Vec<(&String, Vec<String>)> = columns
         .iter()
         .map(|(name, e)| (name, ns.iter().map(|&n| cell(e, n)).collect()))
         .collect();

@@ -500,7 +500,7 @@ pub fn run_model(
             .find(|p| p.name == name)
             .and_then(|p| p.unit.clone())
     };
-    crate::results::run(&summary, &unit, &dir, &written);
+    crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
     Ok(())
 }
 

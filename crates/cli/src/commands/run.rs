@@ -163,7 +163,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     outdir.write_text("summary.json", &json_text(&summary))?;
     let written = outdir.commit()?;
     let unit = |name: &str| crate::results::hopper_unit(name).map(str::to_string);
-    crate::results::run(&summary, &unit, &dir, &written);
+    crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
     Ok(())
 }
 
