@@ -6,6 +6,10 @@
 //! - `htfid run CONFIG`: the whole pipeline: simulate, estimate, fit, compare with theory;
 //! - `htfid estimate CONFIG`: HTFs from measured data alone;
 //! - `htfid diagnose CONFIG`: measured data against the model: what is wrong and why.
+//!
+//! Each ends with its results on stdout; progress goes to stderr (silenced by `--quiet`).
+//! Output directories are handled by `htfid_data::OutputDir` (one run at a time, a manifest,
+//! reruns replacing their own results): `docs/outputs.md`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -107,7 +111,7 @@ enum Command {
     },
 }
 
-/// Exit status after SIGINT or SIGTERM (the shell's 128 + SIGINT).
+/// Exit status after SIGINT, SIGTERM or SIGHUP (the shell's 128 + SIGINT).
 const INTERRUPTED: i32 = 130;
 
 fn main() -> ExitCode {

@@ -169,7 +169,11 @@ pub fn theory(summary: &Value, dir: &Path, files: &[PathBuf]) {
     let max_abs = match &h["max_abs"] {
         Value::Array(per_output) => per_output
             .iter()
-            .map(|v| num(f(v), 4))
+            .enumerate()
+            .map(|(i, v)| match h["outputs"][i].as_str() {
+                Some(output) if per_output.len() > 1 => format!("{} ({output})", num(f(v), 4)),
+                _ => num(f(v), 4),
+            })
             .collect::<Vec<_>>()
             .join(", "),
         v => num(f(v), 4),

@@ -316,7 +316,9 @@ impl OutputDir {
                     || previous
                         .entry(&relative)
                         .is_some_and(|e| e.matches(&self.dir.join(&relative)));
-                let exists = fs::symlink_metadata(self.dir.join(&relative)).is_ok();
+                // A directory where a listed file was is someone else's since.
+                let exists =
+                    fs::symlink_metadata(self.dir.join(&relative)).is_ok_and(|m| !m.is_dir());
                 if owned && exists && !out.contains(&relative) {
                     out.push(relative);
                 }
