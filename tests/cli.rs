@@ -1104,12 +1104,25 @@ fn estimate_from_data_alone_matches_the_theory() {
     )
     .unwrap();
     let out = tmp.path().join("est");
-    htfid_ok(&[
+    let o = htfid(&[
         "estimate",
         config.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // On the terminal: the period and where it came from, and a table per output.
+    let text = stdout(&o);
+    assert!(
+        text.lines().any(|l| l.trim_start().starts_with("period")
+            && l.trim_end()
+                .ends_with("1.000 s (estimated), periodic share of the output 100.0 %")),
+        "{text}"
+    );
+    assert!(
+        text.contains("HTF of x ") && text.contains("HTF of xd "),
+        "{text}"
+    );
     let s = summary(&out);
     let period = s["period"]["estimated"].as_f64().unwrap();
     assert!((period - 1.0).abs() < 1e-5, "{period}");
