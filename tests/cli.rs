@@ -1706,6 +1706,45 @@ fn a_busy_directory_is_refused_and_sigterm_leaves_nothing() {
     );
 }
 
+/// Ctrl-C (SIGINT) in a directory holding earlier results: they stay exactly as they were.
+#[cfg(unix)]
+#[test]
+fn sigint_keeps_the_earlier_results() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("earlier");
+    let out_s = out.to_str().unwrap();
+    htfid_ok(&["simulate", "configs/paper.toml", "--out", out_s]);
+    let before = fs::read_to_string(out.join(".htfid-manifest.json")).unwrap();
+    let mut run = spawn(&[SLOW_RUN[0], SLOW_RUN[1], SLOW_RUN[2], "--out", out_s]);
+    wait_for_staged_file(&out, &mut run);
+    let kill = Command::new("kill")
+        .args(["-INT", &run.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    assert_eq!(run.wait().unwrap().code(), Some(130));
+    let mut names: Vec<String> = fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            ".htfid-manifest.json",
+            "limit_cycle.csv",
+            "summary.json",
+            "timeseries.csv"
+        ],
+        "no staging, no lock, nothing of the stopped run"
+    );
+    assert_eq!(
+        fs::read_to_string(out.join(".htfid-manifest.json")).unwrap(),
+        before
+    );
+    assert_manifest_matches(&out, &[]);
+}
+
 /// SIGKILL cannot be handled: the staging directory stays, and the next run there removes it.
 #[cfg(unix)]
 #[test]
