@@ -31,6 +31,10 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
 /// Writes the paper config with `edit` applied (a textual replacement) into `dir`.
 fn edited_config(dir: &Path, from: &str, to: &str) -> PathBuf {
     let text = fs::read_to_string(root().join("configs/paper.toml")).unwrap();
@@ -1100,12 +1104,25 @@ fn estimate_from_data_alone_matches_the_theory() {
     )
     .unwrap();
     let out = tmp.path().join("est");
-    htfid_ok(&[
+    let o = htfid(&[
         "estimate",
         config.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // On the terminal: the period and where it came from, and a table per output.
+    let text = stdout(&o);
+    assert!(
+        text.lines().any(|l| l.trim_start().starts_with("period")
+            && l.trim_end()
+                .ends_with("1.000 s (estimated), periodic share of the output 100.0 %")),
+        "{text}"
+    );
+    assert!(
+        text.contains("HTF of x ") && text.contains("HTF of xd "),
+        "{text}"
+    );
     let s = summary(&out);
     let period = s["period"]["estimated"].as_f64().unwrap();
     assert!((period - 1.0).abs() < 1e-5, "{period}");
@@ -1161,6 +1178,48 @@ fn diagnose_hopper_model_config_runs() {
     let report = fs::read_to_string(out.join("report.md")).unwrap();
     assert!(report.contains("held-out NRMSE"), "{report}");
     assert!(out.join("compare.png").exists());
+}
+
+/// The diagnosis on the terminal: cause, gain, refitted parameters with standard errors and
+/// units, and where the files are, as in diagnosis.json.
+#[test]
+fn diagnose_prints_the_cause_and_the_gain() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("d");
+    let o = htfid(&[
+        "diagnose",
+        "configs/diagnose-hopper-model.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let d: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.join("diagnosis.json")).unwrap()).unwrap();
+    let cause = d["cause"].as_str().unwrap();
+    assert!(
+        text.lines()
+            .any(|l| l.trim_start().starts_with("cause") && l.trim_end().ends_with(cause)),
+        "{text}"
+    );
+    let gain = format!("{:.3}", 100.0 * d["gain"].as_f64().unwrap());
+    assert!(
+        text.contains("gain") && text.contains(&gain[..4]),
+        "{gain}: {text}"
+    );
+    for p in d["parameters"].as_array().unwrap() {
+        let name = p["name"].as_str().unwrap();
+        assert!(
+            text.lines()
+                .any(|l| l.contains(&format!("{name} = ")) && l.contains(" ± ")),
+            "{name}: {text}"
+        );
+    }
+    assert!(text.contains(" N/m "), "k in N/m: {text}");
+    assert!(
+        text.contains(&format!("{}/ (4 files)", out.display())),
+        "{text}"
+    );
 }
 
 /// Estimate configs are checked like the others, and a config of another kind is explained.
@@ -1500,4 +1559,415 @@ fn a_record_on_the_wrong_time_scale_is_refused() {
     );
     assert!(stderr(&o).contains("data.sample_rate"), "{}", stderr(&o));
     assert!(!out.exists());
+}
+
+// ---- One run per output directory, results on the terminal ----
+
+/// Every file below `dir` but htfid's own hidden ones (manifest, lock, staging), relative, with
+/// `/` separators, sorted.
+fn result_files(dir: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut stack = vec![PathBuf::new()];
+    while let Some(rel) = stack.pop() {
+        for e in fs::read_dir(dir.join(&rel)).unwrap() {
+            let e = e.unwrap();
+            let r = rel.join(e.file_name());
+            if r.to_string_lossy().starts_with(".htfid-") {
+                continue;
+            }
+            if e.file_type().unwrap().is_dir() {
+                stack.push(r);
+            } else {
+                out.push(r.to_string_lossy().replace('\\', "/"));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The manifest's files (path, bytes), sorted.
+fn manifest(dir: &Path) -> Vec<(String, u64)> {
+    let m: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join(".htfid-manifest.json")).unwrap())
+            .unwrap();
+    let mut files: Vec<(String, u64)> = m["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            (
+                f["path"].as_str().unwrap().to_owned(),
+                f["bytes"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// The manifest lists exactly the directory's files (but `others`), with their sizes.
+fn assert_manifest_matches(dir: &Path, others: &[&str]) {
+    let listed = manifest(dir);
+    let present: Vec<String> = result_files(dir)
+        .into_iter()
+        .filter(|f| !others.contains(&f.as_str()))
+        .collect();
+    let names: Vec<String> = listed.iter().map(|(p, _)| p.clone()).collect();
+    assert_eq!(names, present, "manifest against the directory");
+    for (path, bytes) in listed {
+        assert_eq!(
+            fs::metadata(dir.join(&path)).unwrap().len(),
+            bytes,
+            "{path}: size in the manifest"
+        );
+    }
+}
+
+fn spawn(args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_htfid"))
+        .args(args)
+        .current_dir(root())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("the htfid binary starts")
+}
+
+/// Waits until the run has staged a file in `dir`, and returns its staging directory.
+fn wait_for_staged_file(dir: &Path, child: &mut std::process::Child) -> PathBuf {
+    let start = std::time::Instant::now();
+    loop {
+        if let Ok(entries) = fs::read_dir(dir) {
+            for e in entries.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if name.starts_with(".htfid-staging-")
+                    && fs::read_dir(e.path()).is_ok_and(|mut s| s.next().is_some())
+                {
+                    return e.path();
+                }
+            }
+        }
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the run ended ({status}) before it staged a file");
+        }
+        assert!(
+            start.elapsed().as_secs() < 120,
+            "no staged file after 2 minutes"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
+/// A run slow enough to be caught while it works: the two-dof fit takes seconds, and its
+/// time series is staged before the fit starts.
+const SLOW_RUN: [&str; 3] = ["run", "configs/two-dof.toml", "--no-plots"];
+
+/// A second run into a directory in use fails at once, naming the directory and the run that
+/// holds it; SIGTERM then stops the first run, which removes everything it had staged.
+#[cfg(unix)]
+#[test]
+fn a_busy_directory_is_refused_and_sigterm_leaves_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("busy");
+    let out_s = out.to_str().unwrap();
+    let mut first = spawn(&[SLOW_RUN[0], SLOW_RUN[1], SLOW_RUN[2], "--out", out_s]);
+    let staging = wait_for_staged_file(&out, &mut first);
+
+    let started = std::time::Instant::now();
+    let o = htfid(&["simulate", "configs/paper.toml", "--out", out_s]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains(&format!(
+            "output directory {out_s} is in use by another htfid run (pid {})",
+            first.id()
+        )),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        started.elapsed().as_secs_f64() < 5.0,
+        "refused without waiting: {:?}",
+        started.elapsed()
+    );
+    assert!(staging.is_dir(), "the refused run left the first one alone");
+
+    let kill = Command::new("kill")
+        .args(["-TERM", &first.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let status = first.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status}");
+    assert!(
+        !out.exists(),
+        "the stopped run made the directory and leaves nothing in it: {:?}",
+        fs::read_dir(&out).map(|d| d.flatten().map(|e| e.file_name()).collect::<Vec<_>>())
+    );
+}
+
+/// Ctrl-C (SIGINT) in a directory holding earlier results: they stay exactly as they were.
+#[cfg(unix)]
+#[test]
+fn sigint_keeps_the_earlier_results() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("earlier");
+    let out_s = out.to_str().unwrap();
+    htfid_ok(&["simulate", "configs/paper.toml", "--out", out_s]);
+    let before = fs::read_to_string(out.join(".htfid-manifest.json")).unwrap();
+    let mut run = spawn(&[SLOW_RUN[0], SLOW_RUN[1], SLOW_RUN[2], "--out", out_s]);
+    wait_for_staged_file(&out, &mut run);
+    let kill = Command::new("kill")
+        .args(["-INT", &run.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    assert_eq!(run.wait().unwrap().code(), Some(130));
+    let mut names: Vec<String> = fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            ".htfid-manifest.json",
+            "limit_cycle.csv",
+            "summary.json",
+            "timeseries.csv"
+        ],
+        "no staging, no lock, nothing of the stopped run"
+    );
+    assert_eq!(
+        fs::read_to_string(out.join(".htfid-manifest.json")).unwrap(),
+        before
+    );
+    assert_manifest_matches(&out, &[]);
+}
+
+/// SIGKILL cannot be handled: the staging directory stays, and the next run there removes it.
+#[cfg(unix)]
+#[test]
+fn the_next_run_removes_what_a_killed_run_left() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("killed");
+    let out_s = out.to_str().unwrap();
+    // Earlier results in the directory, which the killed run must not disturb.
+    htfid_ok(&["simulate", "configs/paper.toml", "--out", out_s]);
+    let before = fs::read_to_string(out.join("summary.json")).unwrap();
+    let mut first = spawn(&[SLOW_RUN[0], SLOW_RUN[1], SLOW_RUN[2], "--out", out_s]);
+    let staging = wait_for_staged_file(&out, &mut first);
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(staging.is_dir(), "a killed run cannot clean up");
+    assert_eq!(
+        fs::read_to_string(out.join("summary.json")).unwrap(),
+        before,
+        "nothing of the killed run was committed"
+    );
+    assert_manifest_matches(&out, &[]);
+
+    let o = htfid(&["simulate", "configs/paper.toml", "--out", out_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("left by an htfid run that was killed"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!staging.exists());
+    let mut names: Vec<String> = fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            ".htfid-manifest.json",
+            "limit_cycle.csv",
+            "summary.json",
+            "timeseries.csv"
+        ]
+    );
+    assert_manifest_matches(&out, &[]);
+}
+
+/// Two runs of different configs started together into one directory: one may be refused as
+/// busy, or both succeed one after the other; the directory always holds one run's files,
+/// exactly as its manifest lists them.
+#[test]
+fn two_runs_into_one_directory_never_mix() {
+    let tmp = tempfile::tempdir().unwrap();
+    let other = edited_config(tmp.path(), "sample_rate = 100.0", "sample_rate = 50.0");
+    let configs = [
+        root().join("configs/paper.toml"),
+        other.canonicalize().unwrap(),
+    ];
+    for round in 0..3 {
+        let out = tmp.path().join(format!("shared-{round}"));
+        let out_s = out.to_str().unwrap();
+        let children: Vec<_> = configs
+            .iter()
+            .map(|c| {
+                Command::new(env!("CARGO_BIN_EXE_htfid"))
+                    .args(["simulate", c.to_str().unwrap(), "--out", out_s])
+                    .current_dir(root())
+                    .stdout(std::process::Stdio::piped())
+                    .stderr(std::process::Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        let outputs: Vec<Output> = children
+            .into_iter()
+            .map(|c| c.wait_with_output().unwrap())
+            .collect();
+        for o in &outputs {
+            assert!(
+                o.status.success() || stderr(o).contains("is in use by another htfid run (pid "),
+                "{}",
+                stderr(o)
+            );
+        }
+        assert!(outputs.iter().any(|o| o.status.success()));
+        assert_manifest_matches(&out, &[]);
+        assert_eq!(
+            result_files(&out),
+            ["limit_cycle.csv", "summary.json", "timeseries.csv"]
+        );
+        // The time series and the summary are of the same run.
+        let s = summary(&out);
+        let rows = fs::read_to_string(out.join("timeseries.csv"))
+            .unwrap()
+            .lines()
+            .count()
+            - 1;
+        assert_eq!(rows as u64, s["simulation"]["samples"].as_u64().unwrap());
+        let rate = s["simulation"]["sample_rate"].as_f64().unwrap();
+        let expected = if s["config"].as_str().unwrap().ends_with("edited.toml") {
+            50.0
+        } else {
+            100.0
+        };
+        assert!(
+            (rate - expected).abs() < 1e-9,
+            "{rate} from {}",
+            s["config"]
+        );
+    }
+}
+
+/// A rerun replaces htfid's earlier results without --force, stale ones included; a file
+/// htfid did not write (or that was edited since) blocks the run unless --force, which then
+/// replaces the previous run's files as a whole. Files no run writes are never touched.
+#[test]
+fn reruns_replace_their_own_results_and_protect_others() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("rerun");
+    let out_s = out.to_str().unwrap();
+    htfid_ok(&["simulate", "configs/paper.toml", "--out", out_s]);
+    fs::write(out.join("notes.txt"), "the user's").unwrap();
+    htfid_ok(&["simulate", "configs/paper.toml", "--out", out_s]);
+    assert_manifest_matches(&out, &["notes.txt"]);
+
+    // Other outputs: the simulation's files are stale and go.
+    htfid_ok(&["theory", "configs/paper.toml", "--no-plots", "--out", out_s]);
+    assert_eq!(
+        result_files(&out),
+        ["notes.txt", "summary.json", "theory.csv"]
+    );
+    assert_manifest_matches(&out, &["notes.txt"]);
+
+    // A result edited by hand is the user's: no silent replacement.
+    fs::write(out.join("summary.json"), "edited").unwrap();
+    let o = htfid(&["simulate", "configs/paper.toml", "--out", out_s]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("\"summary.json\"") && stderr(&o).contains("--force"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(
+        result_files(&out),
+        ["notes.txt", "summary.json", "theory.csv"]
+    );
+    assert_eq!(
+        fs::read_to_string(out.join("summary.json")).unwrap(),
+        "edited"
+    );
+
+    htfid_ok(&["simulate", "configs/paper.toml", "--out", out_s, "--force"]);
+    assert_eq!(
+        result_files(&out),
+        [
+            "limit_cycle.csv",
+            "notes.txt",
+            "summary.json",
+            "timeseries.csv"
+        ]
+    );
+    assert_manifest_matches(&out, &["notes.txt"]);
+    assert_eq!(
+        fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "the user's"
+    );
+}
+
+/// `run` ends with its results on stdout: the fitted k and c with standard errors and units,
+/// the HTF errors, the output directory; progress goes to stderr, and --quiet silences it.
+#[test]
+fn run_prints_its_results_and_quiet_silences_progress() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let out_s = out.to_str().unwrap();
+    let o = htfid(&["run", "configs/paper.toml", "--no-plots", "--out", out_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("[htfid] simulate ... "),
+        "plain progress lines when stderr is not a terminal: {}",
+        stderr(&o)
+    );
+    let text = stdout(&o);
+    let s = summary(&out);
+    for estimator in ["siddiqi", "multi"] {
+        assert!(text.contains(&format!("fit ({estimator})")), "{text}");
+    }
+    // k and c as in summary.json, 4 significant digits, with their units.
+    let k = s["fit"]["siddiqi"]["k"].as_f64().unwrap();
+    let c = s["fit"]["siddiqi"]["c"].as_f64().unwrap();
+    assert!(text.contains(&format!("k = {k:.1} ± ")), "{k}: {text}");
+    assert!(text.contains(&format!("c = {c:.3} ± ")), "{c}: {text}");
+    assert!(text
+        .lines()
+        .any(|l| l.contains("k = ") && l.ends_with(" N/m")));
+    assert!(text
+        .lines()
+        .any(|l| l.contains("c = ") && l.ends_with(" N s/m")));
+    assert!(text.contains("HTF error"), "{text}");
+    assert!(text.contains(&format!("{out_s}/ (6 files)")), "{text}");
+
+    // --quiet anywhere on the line: the same results, nothing on stderr.
+    let o = htfid(&[
+        "-q",
+        "run",
+        "configs/paper.toml",
+        "--no-plots",
+        "--out",
+        out_s,
+    ]);
+    assert!(o.status.success());
+    assert_eq!(stderr(&o), "");
+    let quiet_text = stdout(&o);
+    assert!(
+        quiet_text.contains(&format!("k = {k:.1} ± ")),
+        "{quiet_text}"
+    );
+    let o = htfid(&["simulate", "configs/paper.toml", "--out", out_s, "--quiet"]);
+    assert!(o.status.success());
+    assert_eq!(stderr(&o), "");
+    assert!(
+        stdout(&o).contains("limit cycle  period 1.000 s"),
+        "{}",
+        stdout(&o)
+    );
 }

@@ -6,6 +6,10 @@
 //! - `htfid run CONFIG`: the whole pipeline: simulate, estimate, fit, compare with theory;
 //! - `htfid estimate CONFIG`: HTFs from measured data alone;
 //! - `htfid diagnose CONFIG`: measured data against the model: what is wrong and why.
+//!
+//! Each ends with its results on stdout; progress goes to stderr (silenced by `--quiet`).
+//! Output directories are handled by `htfid_data::OutputDir` (one run at a time, a manifest,
+//! reruns replacing their own results): `docs/outputs.md`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -21,6 +25,7 @@ mod output;
 mod plots;
 mod progress;
 mod records;
+mod results;
 mod settings;
 mod signals;
 
@@ -31,6 +36,9 @@ mod signals;
     about = "Harmonic transfer functions of rhythmic hybrid systems"
 )]
 struct Cli {
+    /// Print no progress on stderr (errors still go there); the results summary stays on stdout.
+    #[arg(long, short, global = true)]
+    quiet: bool,
     #[command(subcommand)]
     command: Command,
     /// Largest memory a command may plan to use, e.g. 8G, 512M, 16GiB (default 4G); a config
@@ -44,7 +52,9 @@ struct OutArgs {
     /// Output directory (default: out/NAME, NAME being the config's name).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Replace output files that already exist in the output directory.
+    /// Replace files in the output directory that htfid's earlier results there do not
+    /// account for (files of other programs, or edited since), and the earlier results as a
+    /// whole. Without it a rerun still replaces its own earlier results.
     #[arg(long)]
     force: bool,
 }
@@ -106,11 +116,31 @@ enum Command {
     },
 }
 
+/// Exit status after SIGINT, SIGTERM or SIGHUP (the shell's 128 + SIGINT).
+const INTERRUPTED: i32 = 130;
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     limits::set(limits::Limits {
         max_memory: cli.max_memory.unwrap_or(limits::DEFAULT_MAX_MEMORY),
     });
+    progress::init(cli.quiet);
+    // A stopped run removes its unfinished output rather than leaving a staging directory; a
+    // commit under way finishes first (abandon_all waits for it), so the output directory
+    // holds either the earlier results or the whole new run.
+    if let Err(e) = ctrlc::set_handler(|| {
+        let dirs = htfid_data::OutputDir::abandon_all();
+        progress::clear();
+        for dir in dirs {
+            eprintln!(
+                "htfid: stopped; nothing of this run was written to {}",
+                dir.display()
+            );
+        }
+        std::process::exit(INTERRUPTED);
+    }) {
+        eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); a stopped run may leave a hidden .htfid-staging-* directory, which the next run there removes");
+    }
     let result = match cli.command {
         Command::Simulate { config, out } => commands::simulate::run(&config, out.out, out.force),
         Command::Theory {
@@ -135,6 +165,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            progress::clear();
             eprintln!("error: {}", error_text(&e));
             ExitCode::FAILURE
         }

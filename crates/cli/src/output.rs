@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use htfid_data::OutputDir;
+use htfid_data::{DataError, OutputDir};
 
 /// The output directory of a run: `--out DIR`, or `out/<config name>/`.
 pub fn resolve_dir(out: Option<PathBuf>, name: &str) -> PathBuf {
@@ -12,9 +12,21 @@ pub fn resolve_dir(out: Option<PathBuf>, name: &str) -> PathBuf {
 
 /// Opens the output directory after checking that none of `names` would be overwritten
 /// (unless `force`), so a clash is reported before any work is done.
+/// The directory is locked for this run until the returned value is committed or dropped.
 pub fn open(dir: &Path, force: bool, names: &[&str]) -> Result<OutputDir> {
-    let out = OutputDir::create(dir, force)
-        .with_context(|| format!("cannot use output directory {}", dir.display()))?;
+    let out = match OutputDir::create(dir, force) {
+        Ok(out) => out,
+        // The message names the directory and the other run already.
+        Err(e @ DataError::Locked { .. }) => {
+            return Err(anyhow::anyhow!("{e}\n(pass --out DIR to write elsewhere)"))
+        }
+        Err(e) => {
+            return Err(e).with_context(|| format!("cannot use output directory {}", dir.display()))
+        }
+    };
+    for note in out.notes() {
+        crate::progress::line(&format!("{}: {note}", dir.display()));
+    }
     out.claim(names).map_err(|e| {
         anyhow::anyhow!("{e}\n(pass --force to replace them, or --out DIR to write elsewhere)")
     })?;

@@ -1,33 +1,112 @@
-//! Progress lines on standard error: one line per stage with its duration, so long work is
-//! visible on a terminal and quiet in logs.
+//! Progress on standard error, so that standard output carries only the results.
+//!
+//! Three modes, chosen once by [`init`]: `--quiet` prints nothing; on a terminal every stage
+//! shows a spinner with its elapsed time (a bar with an ETA where the work is counted) and
+//! leaves one line with its duration; otherwise (a log, a pipe) plain lines, one per stage.
 
-use std::time::Instant;
+use std::io::IsTerminal;
+use std::sync::{Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    Quiet,
+    Plain,
+    Terminal,
+}
+
+static MODE: OnceLock<Mode> = OnceLock::new();
+/// The bar or spinner on screen, so that lines printed meanwhile go above it.
+static ACTIVE: Mutex<Option<ProgressBar>> = Mutex::new(None);
+
+/// Chooses the mode for the process: quiet, or by whether stderr is a terminal.
+pub fn init(quiet: bool) {
+    let mode = if quiet {
+        Mode::Quiet
+    } else if std::io::stderr().is_terminal() {
+        Mode::Terminal
+    } else {
+        Mode::Plain
+    };
+    let _ = MODE.set(mode);
+}
+
+fn mode() -> Mode {
+    *MODE.get().unwrap_or(&Mode::Plain)
+}
+
+fn active() -> std::sync::MutexGuard<'static, Option<ProgressBar>> {
+    ACTIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A line of progress (`[htfid] msg`), unless quiet.
+pub fn line(msg: &str) {
+    match mode() {
+        Mode::Quiet => {}
+        Mode::Plain => eprintln!("[htfid] {msg}"),
+        Mode::Terminal => match active().as_ref() {
+            Some(bar) => bar.println(format!("[htfid] {msg}")),
+            None => eprintln!("[htfid] {msg}"),
+        },
+    }
+}
+
+/// Clears the bar on screen (before the process exits on a signal or an error).
+pub fn clear() {
+    if let Some(bar) = active().take() {
+        bar.finish_and_clear();
+    }
+}
+
+fn show(bar: ProgressBar) -> ProgressBar {
+    bar.enable_steady_tick(Duration::from_millis(120));
+    *active() = Some(bar.clone());
+    bar
+}
+
+fn hide(bar: &ProgressBar) {
+    bar.finish_and_clear();
+    active().take();
+}
 
 /// Times stages and reports them on stderr.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub struct Stages {
-    quiet: bool,
     timings: Vec<(String, f64)>,
 }
 
 impl Stages {
-    pub fn new(quiet: bool) -> Self {
-        Stages {
-            quiet,
-            timings: Vec::new(),
-        }
+    pub fn new() -> Self {
+        Stages::default()
     }
 
-    /// Runs `f` as the stage `name`, printing its start and duration.
+    /// Runs `f` as the stage `name`, showing it while it runs and its duration after.
     pub fn run<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
-        if !self.quiet {
-            eprint!("[htfid] {name} ... ");
-        }
+        let spinner = match mode() {
+            Mode::Quiet => None,
+            Mode::Plain => {
+                eprint!("[htfid] {name} ... ");
+                None
+            }
+            Mode::Terminal => Some(show(
+                ProgressBar::new_spinner()
+                    .with_style(
+                        ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+                            .expect("a valid template"),
+                    )
+                    .with_message(name.to_string()),
+            )),
+        };
         let start = Instant::now();
         let out = f();
         let ms = start.elapsed().as_secs_f64() * 1e3;
-        if !self.quiet {
-            eprintln!("{ms:.1} ms");
+        if let Some(s) = &spinner {
+            hide(s);
+            eprintln!("[htfid] {name} ... {}", duration(ms));
+        } else if mode() == Mode::Plain {
+            eprintln!("{}", duration(ms));
         }
         self.timings.push((name.to_string(), ms));
         out
@@ -43,6 +122,68 @@ impl Stages {
         }
         map.insert("total".into(), serde_json::json!(round3(total)));
         serde_json::Value::Object(map)
+    }
+}
+
+/// Counted work (`total` steps) with a bar and an ETA on a terminal; plain lines otherwise.
+#[derive(Debug)]
+pub struct Counter {
+    bar: Option<ProgressBar>,
+    started: Instant,
+}
+
+impl Counter {
+    pub fn new(what: &str, total: u64) -> Self {
+        let bar = (mode() == Mode::Terminal).then(|| {
+            show(
+                ProgressBar::new(total)
+                    .with_style(
+                        ProgressStyle::with_template(
+                            "{msg} [{bar:30}] {pos}/{len} {elapsed} (ETA {eta})",
+                        )
+                        .expect("a valid template")
+                        .progress_chars("=> "),
+                    )
+                    .with_message(what.to_string()),
+            )
+        });
+        Counter {
+            bar,
+            started: Instant::now(),
+        }
+    }
+
+    /// Reports `msg`, counting one more step done when `done`.
+    pub fn step(&self, msg: &str, done: bool) {
+        match &self.bar {
+            Some(bar) => {
+                bar.println(format!("[htfid] {msg}"));
+                if done {
+                    bar.inc(1);
+                }
+            }
+            None => line(&format!(
+                "{:6.1} s  {msg}",
+                self.started.elapsed().as_secs_f64()
+            )),
+        }
+    }
+}
+
+impl Drop for Counter {
+    fn drop(&mut self) {
+        if let Some(bar) = &self.bar {
+            hide(bar);
+        }
+    }
+}
+
+/// `12.3 ms` or `4.56 s`.
+fn duration(ms: f64) -> String {
+    if ms < 1000.0 {
+        format!("{ms:.1} ms")
+    } else {
+        format!("{:.2} s", ms / 1e3)
     }
 }
 

@@ -333,18 +333,63 @@ pub enum DataError {
         /// The path.
         path: PathBuf,
     },
-    /// The output directory already holds files the run would write, and overwriting was not asked for.
+    /// The output directory holds files the run would write that are not earlier results of
+    /// htfid's (not in its manifest, or changed since), and overwriting was not asked for.
     #[error(
-        "output directory {} already holds files this run would write: {}; \
-         allow overwriting or choose another directory",
+        "output directory {} already holds files this run would write that htfid did not write \
+         or that changed since: {}{}; allow overwriting or choose another directory",
         dir.display(),
-        quoted_list(files)
+        quoted_list(files),
+        manifest_problem.as_ref().map_or(String::new(), |p| format!(
+            " (its manifest .htfid-manifest.json cannot be read: {p})"
+        ))
     )]
     WouldOverwrite {
         /// The output directory.
         dir: PathBuf,
         /// The clashing files, relative to the directory.
         files: Vec<String>,
+        /// Why the directory's manifest could not be used, when it could not.
+        manifest_problem: Option<String>,
+    },
+    /// Another run holds the output directory's lock.
+    #[error(
+        "output directory {} is in use by another htfid run ({}); wait for it to finish or \
+         choose another directory",
+        dir.display(),
+        pid.map_or("pid unknown".to_string(), |p| format!("pid {p}"))
+    )]
+    Locked {
+        /// The output directory.
+        dir: PathBuf,
+        /// The process holding the lock, when it could be read.
+        pid: Option<u32>,
+    },
+    /// The run was stopped (by a signal) before it committed its files.
+    #[error("the run writing into {} was stopped; nothing was committed", dir.display())]
+    Abandoned {
+        /// The output directory.
+        dir: PathBuf,
+    },
+    /// Moving the run's files into place failed; the message says what state is left.
+    #[error(
+        "could not move the results into {}: {}: {source}; {}",
+        dir.display(),
+        path.display(),
+        commit_state(dir, unrestored, backup)
+    )]
+    Commit {
+        /// The output directory.
+        dir: PathBuf,
+        /// The file or directory whose move failed.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: io::Error,
+        /// Earlier files that could not be put back (relative to `dir`); empty when the
+        /// directory was restored.
+        unrestored: Vec<String>,
+        /// Where the files that could not be put back are.
+        backup: PathBuf,
     },
     /// An output name that is empty, absolute, or leaves the output directory.
     #[error("output name \"{name}\" must be a relative file path inside the output directory")]
@@ -358,4 +403,21 @@ pub enum DataError {
         /// The name given.
         name: String,
     },
+}
+
+fn commit_state(dir: &std::path::Path, unrestored: &[String], backup: &std::path::Path) -> String {
+    if unrestored.is_empty() {
+        format!(
+            "{} was restored: it holds its earlier files and nothing of this run",
+            dir.display()
+        )
+    } else {
+        format!(
+            "nothing of this run is in {}, but earlier files could not be put back: {} \
+             (they are in {}; the next htfid run in this directory puts them back)",
+            dir.display(),
+            quoted_list(unrestored),
+            backup.display()
+        )
+    }
 }

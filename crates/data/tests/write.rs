@@ -207,8 +207,8 @@ fn output_dir_commits_all_files_at_once() {
     w.write_row(&[1.0, 0.25]).unwrap();
     w.finish().unwrap();
 
-    // Before commit the directory shows only the hidden staging directory.
-    assert_eq!(entries(&dir), [staging_name]);
+    // Before commit the directory shows only the lock and the hidden staging directory.
+    assert_eq!(entries(&dir), [".htfid-lock".to_string(), staging_name]);
     let finals = out.commit().unwrap();
     assert_eq!(
         finals,
@@ -221,7 +221,13 @@ fn output_dir_commits_all_files_at_once() {
     );
     assert_eq!(
         entries(&dir),
-        ["plots", "series.csv", "summary.json", "table.csv"]
+        [
+            ".htfid-manifest.json",
+            "plots",
+            "series.csv",
+            "summary.json",
+            "table.csv"
+        ]
     );
     assert_eq!(
         fs::read_to_string(dir.join("series.csv")).unwrap(),
@@ -276,8 +282,9 @@ fn output_dir_refuses_to_overwrite_unless_asked() {
     assert_eq!(
         err.to_string(),
         format!(
-            "output directory {} already holds files this run would write: \"a.csv\", \"c.json\"; \
-             allow overwriting or choose another directory",
+            "output directory {} already holds files this run would write that htfid did not \
+             write or that changed since: \"a.csv\", \"c.json\"; allow overwriting or choose \
+             another directory",
             dir.display()
         )
     );
@@ -341,8 +348,8 @@ fn output_dir_argument_errors() {
 #[test]
 fn two_output_dirs_in_one_process_stage_separately() {
     let root = TempDir::new().unwrap();
-    let a = OutputDir::create(root.path(), false).unwrap();
-    let b = OutputDir::create(root.path(), false).unwrap();
+    let a = OutputDir::create(root.path().join("a"), false).unwrap();
+    let b = OutputDir::create(root.path().join("b"), false).unwrap();
     assert_ne!(a.staging_dir(), b.staging_dir());
     drop((a, b));
     assert!(entries(root.path()).is_empty());

@@ -23,7 +23,6 @@ use num_complex::Complex64;
 use rustfft::FftPlanner;
 use serde_json::{json, Value};
 
-use crate::commands::simulate::report_written;
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots;
 use crate::settings::DiagnoseSettings;
@@ -67,8 +66,8 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     check_time_scale(&settings, &record)?;
     let nominal = nominal_model(&settings)?;
     let opts = options(&settings, record.len())?;
-    eprintln!(
-        "[htfid] diagnosing {} ({} samples at {:.6} Hz) against the {} model, {} candidates",
+    crate::progress::line(&format!(
+        "diagnosing {} ({} samples at {:.6} Hz) against the {} model, {} candidates",
         settings.data.file.display(),
         record.len(),
         1.0 / record.dt(),
@@ -77,15 +76,16 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
             htfid_model::DamperLaw::AlwaysOn => "spring-mass-damper",
         },
         opts.candidates.len()
-    );
-    let last = Mutex::new(Instant::now());
+    ));
+    // The library reports the nominal fit and then each candidate as it finishes: a counted
+    // stage of 1 + candidates steps.
+    let counter = Mutex::new(crate::progress::Counter::new(
+        "diagnosis",
+        1 + opts.candidates.len() as u64,
+    ));
     let progress = |msg: &str| {
-        // One line per step, never more than a few per second.
-        let mut last = last.lock().unwrap_or_else(|e| e.into_inner());
-        if last.elapsed().as_millis() >= 200 || msg.contains("fitted") || msg.contains("nominal") {
-            eprintln!("[htfid] {:6.1} s  {msg}", started.elapsed().as_secs_f64());
-            *last = Instant::now();
-        }
+        let counter = counter.lock().unwrap_or_else(|e| e.into_inner());
+        counter.step(msg, !msg.starts_with("fitting"));
     };
     let report =
         diagnose_with_progress(&record, &nominal, &opts, &progress).with_context(|| {
@@ -95,12 +95,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                 settings.data.file.display()
             )
         })?;
-    eprintln!(
-        "[htfid] {:6.1} s  cause: {} (gain {:.1} %)",
-        started.elapsed().as_secs_f64(),
-        report.diagnosis.cause,
-        100.0 * report.diagnosis.gain
-    );
+    drop(counter);
 
     let tests = test_scores(&settings, &record, &report, &opts)?;
     let mut json = serde_json::to_value(&report.diagnosis)?;
@@ -132,7 +127,8 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "report.md",
         &report_md(&settings, &record, &report, &tests, &figures),
     )?;
-    report_written(&outdir.commit()?);
+    let written = outdir.commit()?;
+    crate::results::diagnose(&json, &dir, &written);
     Ok(())
 }
 

@@ -9,7 +9,6 @@ use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis, ModelRecord};
 use htfid_plot::{stacked_figure, time_panel, Panel, Series, Style};
 use serde_json::json;
 
-use crate::commands::simulate::report_written;
 use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::output::{json_text, open, resolve_dir};
 use crate::records::{read_record, Columns};
@@ -39,27 +38,31 @@ pub fn run(
         Some(path) => Some(read_model_record(&s, path)?),
         None => None,
     };
-    eprintln!(
-        "[htfid] diagnosing {} ({} samples) against model `{}`, refitting {:?}",
+    crate::progress::line(&format!(
+        "diagnosing {} ({} samples) against model `{}`, refitting {:?}",
         s.file.display(),
         record.t.len(),
         s.model.name(),
         s.options.free
-    );
-    let d = diagnose_model(&s.model, &record, validation.as_ref(), &s.options).map_err(|e| {
-        // The keys a user changes to repair each failure.
-        let key = match &e {
-            htfid_diagnose::DiagnoseError::ScaleMismatch { .. } => {
-                "model.parameters (or the units of data.outputs)"
-            }
-            _ => "model.parameters",
-        };
-        anyhow::anyhow!(
-            "{}: {key}: diagnosis of \"{}\" failed: {e}",
-            s.path.display(),
-            s.file.display()
-        )
-    })?;
+    ));
+    let d = crate::progress::Stages::new()
+        .run("output-error fit", || {
+            diagnose_model(&s.model, &record, validation.as_ref(), &s.options)
+        })
+        .map_err(|e| {
+            // The keys a user changes to repair each failure.
+            let key = match &e {
+                htfid_diagnose::DiagnoseError::ScaleMismatch { .. } => {
+                    "model.parameters (or the units of data.outputs)"
+                }
+                _ => "model.parameters",
+            };
+            anyhow::anyhow!(
+                "{}: {key}: diagnosis of \"{}\" failed: {e}",
+                s.path.display(),
+                s.file.display()
+            )
+        })?;
     // The figure shows the held-out data: the validation record when there is one.
     let shown = validation.as_ref().unwrap_or(&record);
 
@@ -136,12 +139,15 @@ pub fn run(
     }
     let fig = stacked_figure(format!("{}: {}", s.name, d.cause.name()), panels);
     crate::plots::write(&mut outdir, "compare", &fig)?;
-    eprintln!(
-        "[htfid] cause: {} (held-out gain of the refit {:.1} %)",
-        d.cause.name(),
-        100.0 * d.gain
-    );
-    report_written(&outdir.commit()?);
+    let written = outdir.commit()?;
+    let unit = |name: &str| {
+        s.model
+            .parameters()
+            .iter()
+            .find(|p| p.name == name)
+            .and_then(|p| p.unit.clone())
+    };
+    crate::results::diagnose_model(&json, &unit, &dir, &written);
     Ok(())
 }
 

@@ -14,7 +14,6 @@ use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::run::write_estimate_csv;
-use crate::commands::simulate::report_written;
 use crate::estimate_config::{EstimateSettings, PeriodSetting};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
@@ -55,7 +54,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let dir = resolve_dir(out, &settings.name);
     let mut outdir = open(&dir, force, &name_refs)?;
-    let mut stages = Stages::new(false);
+    let mut stages = Stages::new();
 
     let series: Vec<TimeSeries> = stages.run("read data", || {
         outputs
@@ -294,10 +293,9 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "timings_ms": stages.to_json(),
     });
     outdir.write_text("summary.json", &json_text(&summary))?;
-    for note in &notes {
-        eprintln!("[htfid] note: {note}");
-    }
-    report_written(&outdir.commit()?);
+    // The notes are part of the results: printed with them on stdout.
+    let written = outdir.commit()?;
+    crate::results::estimate(&summary, &dir, &written);
     Ok(())
 }
 

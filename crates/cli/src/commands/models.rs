@@ -16,7 +16,6 @@ use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
 use crate::commands::run::{aliasing, estimate, harmonic_errors, run_plots, write_estimate_csv};
-use crate::commands::simulate::report_written;
 use crate::commands::theory::{theory_plots, write_theory_csv};
 use crate::output::{json_text, open, resolve_dir};
 use crate::progress::Stages;
@@ -271,7 +270,7 @@ pub fn simulate_model(
         force,
         &["timeseries.csv", "limit_cycle.csv", "summary.json"],
     )?;
-    let mut stages = Stages::new(false);
+    let mut stages = Stages::new();
     let cycle = limit_cycle(settings, model, &mut stages)?;
     let rec = simulate_record(settings, model, &cycle, &mut stages)?;
     stages.run("write outputs", || -> Result<()> {
@@ -289,7 +288,8 @@ pub fn simulate_model(
         "timings_ms": stages.to_json(),
     });
     outdir.write_text("summary.json", &json_text(&summary))?;
-    report_written(&outdir.commit()?);
+    let written = outdir.commit()?;
+    crate::results::simulate(&summary, &dir, &written);
     Ok(())
 }
 
@@ -316,7 +316,7 @@ pub fn theory_model(
     let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let dir = resolve_dir(out, &settings.name);
     let mut outdir = open(&dir, force, &name_refs)?;
-    let mut stages = Stages::new(false);
+    let mut stages = Stages::new();
     let cycle = limit_cycle(settings, model, &mut stages)?;
     let htf = stages
         .run("linearise", || {
@@ -358,7 +358,8 @@ pub fn theory_model(
         "timings_ms": stages.to_json(),
     });
     outdir.write_text("summary.json", &json_text(&summary))?;
-    report_written(&outdir.commit()?);
+    let written = outdir.commit()?;
+    crate::results::theory(&summary, &dir, &written);
     Ok(())
 }
 
@@ -402,7 +403,7 @@ pub fn run_model(
     let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let dir = resolve_dir(out, &settings.name);
     let mut outdir = open(&dir, force, &name_refs)?;
-    let mut stages = Stages::new(false);
+    let mut stages = Stages::new();
 
     let cycle = limit_cycle(settings, model, &mut stages)?;
     let rec = simulate_record(settings, model, &cycle, &mut stages)?;
@@ -491,7 +492,15 @@ pub fn run_model(
     }
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
-    report_written(&outdir.commit()?);
+    let written = outdir.commit()?;
+    let unit = |name: &str| {
+        model
+            .parameters()
+            .iter()
+            .find(|p| p.name == name)
+            .and_then(|p| p.unit.clone())
+    };
+    crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
     Ok(())
 }
 

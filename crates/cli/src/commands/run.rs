@@ -18,7 +18,7 @@ use htfid_theory::{ExactHtf, HarmonicTransferFunction};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use crate::commands::simulate::{base_summary, report_written, simulate_experiment, Simulated};
+use crate::commands::simulate::{base_summary, simulate_experiment, Simulated};
 use crate::commands::theory::{self, ltp_json, write_theory_csv};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
@@ -62,7 +62,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         names.extend(plot_files.iter().map(String::as_str));
     }
     let mut outdir = open(&dir, force, &names)?;
-    let mut stages = Stages::new(false);
+    let mut stages = Stages::new();
 
     let sim = simulate_experiment(&settings, &mut stages)?;
     let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
@@ -162,7 +162,9 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     }
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
-    report_written(&outdir.commit()?);
+    let written = outdir.commit()?;
+    let unit = |name: &str| crate::results::hopper_unit(name).map(str::to_string);
+    crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
     Ok(())
 }
 

@@ -45,7 +45,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
         force,
         &["timeseries.csv", "limit_cycle.csv", "summary.json"],
     )?;
-    let mut stages = Stages::new(false);
+    let mut stages = Stages::new();
     let sim = simulate_experiment(&settings, &mut stages)?;
     stages.run("write outputs", || {
         write_simulation(&settings, &sim, &mut outdir)
@@ -54,7 +54,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
     let written = outdir.commit()?;
-    report_written(&written);
+    crate::results::simulate(&summary, &dir, &written);
     Ok(())
 }
 
@@ -207,10 +207,4 @@ pub fn base_summary(settings: &Settings, sim: &Simulated) -> Value {
             })).collect::<Vec<_>>(),
         },
     })
-}
-
-pub fn report_written(paths: &[PathBuf]) {
-    for p in paths {
-        eprintln!("[htfid] wrote {}", p.display());
-    }
 }

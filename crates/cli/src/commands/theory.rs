@@ -10,7 +10,7 @@ use htfid_theory::{ExactHtf, HarmonicTransferFunction, HtfGrid, TruncatedHtf};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use crate::commands::simulate::{hopper_and_orbit, limit_cycle_json, report_written};
+use crate::commands::simulate::{hopper_and_orbit, limit_cycle_json};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
@@ -178,7 +178,7 @@ pub fn run(
         ]);
     }
     let mut outdir = open(&dir, force, &names)?;
-    let mut stages = Stages::new(false);
+    let mut stages = Stages::new();
     let theory = build(&settings, &mut stages)?;
     let harmonics = settings.theory.harmonics.clone();
     let (grid, method) = match truncate {
@@ -215,7 +215,8 @@ pub fn run(
         "timings_ms": stages.to_json(),
     });
     outdir.write_text("summary.json", &json_text(&summary))?;
-    report_written(&outdir.commit()?);
+    let written = outdir.commit()?;
+    crate::results::theory(&summary, &dir, &written);
     Ok(())
 }
 
