@@ -145,7 +145,9 @@ fn zeno_cap_stops_shortly_before_accumulation_point() {
                     time,
                     events,
                     window,
+                    guard,
                 } => {
+                    assert_eq!(guard, 0, "{method:?}: the ball has one guard");
                     approx::assert_abs_diff_eq!(window, 1e-3);
                     assert!(events <= cap + 1, "{method:?} cap {cap}: {events} events");
                     // All impacts lie before t_inf (up to the ~1e-10 accumulated location error)
