@@ -1054,8 +1054,9 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
 
     /// At the initial time, for every switching surface of the current chart: a state on the
     /// far side of it belongs to the chart there (the chart of a state is its side of the
-    /// surface), and a state on it (within `graze_tol`) where both fields point into it starts
-    /// sliding.
+    /// surface). A state on it (within `graze_tol`) whose chart's field heads to the far side
+    /// starts sliding if the far side's field points back, and otherwise starts in the far
+    /// side's chart, where both fields carry it.
     fn start_on_surfaces(&mut self) -> Result<(), HybridError> {
         // At most two passes: a chart change can put the state on a surface of the new chart.
         for _ in 0..2 {
@@ -1078,13 +1079,21 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
                         // The slide starts at t0: its event is reported like any other.
                         return Ok(());
                     }
-                } else if before_side(dir, g).is_none() {
-                    self.mode = to;
-                    self.eval_f0()?;
-                    self.restart_guards()?;
-                    changed = true;
-                    break;
+                    let fl = Filippov::new(self.sys, self.mode, to, i, 1.0);
+                    let (a, b) = fl.speeds(self.t, &x);
+                    self.stats.rhs_evals += fl.rhs_evals.take();
+                    self.stats.guard_evals += fl.guard_evals.take();
+                    if !(pre * a < 0.0 && pre * b < 0.0) {
+                        continue;
+                    }
+                } else if before_side(dir, g).is_some() {
+                    continue;
                 }
+                self.mode = to;
+                self.eval_f0()?;
+                self.restart_guards()?;
+                changed = true;
+                break;
             }
             if !changed {
                 break;
