@@ -175,10 +175,22 @@ impl<M> Trajectory<M> {
         Ok(())
     }
 
-    /// Transitions only (grazes left out).
+    /// Transitions only (grazes and the starts and ends of sliding left out).
     pub fn transitions(&self) -> impl Iterator<Item = &Event<M>> {
         self.events
             .iter()
             .filter(|e| e.kind == EventKind::Transition)
+    }
+
+    /// Every switch of the motion: the transitions, and the ends of sliding that leave into
+    /// the chart on the far side of the surface (a stuck mass that breaks loose upward after
+    /// arriving from above switches there).
+    pub fn switches(&self) -> impl Iterator<Item = &Event<M>>
+    where
+        M: PartialEq,
+    {
+        self.events.iter().filter(|e| {
+            e.kind == EventKind::Transition || (e.kind == EventKind::SlideEnd && e.from != e.to)
+        })
     }
 }

@@ -210,6 +210,17 @@ pub fn find_limit_cycle<S: HybridSystem>(
     let mut iterations = 0;
     let mut residual;
     let mut map = period_map(sys, mode, t0, &x, period, opts)?;
+    if let [only] = map.sliding.as_slice() {
+        // Sliding from the start to the end of the period: stuck for good.
+        if only.start <= t0 && only.exit.is_none() {
+            return Err(OrbitError::SlidesThroughout {
+                guard: only.guard,
+                period,
+                start: t0,
+                state: x,
+            });
+        }
+    }
     loop {
         let r = DVector::from_iterator(n, (0..n).map(|i| map.state[i] - x[i]));
         residual = r.amax();
