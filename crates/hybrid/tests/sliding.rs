@@ -373,3 +373,34 @@ fn sticking_and_slipping_faster_than_the_zeno_cap_is_an_error_with_the_numbers()
         other => panic!("expected Zeno, got {other}"),
     }
 }
+
+#[test]
+fn the_fixed_step_method_refuses_to_pass_through_a_sticking_surface() {
+    // From rest the mass reaches the belt speed at t1 = 0.206 s and would stick there.
+    let w = omega();
+    let t1 = (V * K / (F * w)).asin() / w;
+    let sys = Stick {
+        gradient: true,
+        forcing: (0.0, 0.0),
+    };
+    let mut out = vec![0.0; 101];
+    let err = htfid_hybrid::simulate_fixed_step(
+        &sys,
+        Belt::Behind,
+        0.0,
+        &[0.0, 0.0],
+        0.01,
+        4,
+        0,
+        &mut out,
+    )
+    .unwrap_err();
+    match err {
+        htfid_hybrid::HybridError::SlidingUnsupported { time, guard } => {
+            assert_eq!(guard, 0);
+            // RK4 with h = 2.5 ms locates the crossing to its O(h^4) error, about 1e-9 s here.
+            assert_abs_diff_eq!(time, t1, epsilon = 1e-6);
+        }
+        other => panic!("expected SlidingUnsupported, got {other}"),
+    }
+}
