@@ -144,7 +144,9 @@ fn before_side(dir: Crossing, g: f64) -> Option<f64> {
 
 impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
     /// Starts at `(t0, x0)` in chart `mode0`. Validates the options, the dimension and
-    /// finiteness, evaluates `f(t0, x0)` and the guards, and picks the first step.
+    /// finiteness, evaluates `f(t0, x0)` and the guards, and picks the first step. On a
+    /// declared switching surface ([`HybridSystem::sliding_chart`]) the start may take the
+    /// chart of the state's side or start sliding at once (crate docs, "Sliding").
     pub fn new(
         sys: &'a S,
         mode0: S::Mode,

@@ -91,7 +91,8 @@ pub struct Trajectory<M> {
     /// Row-major `times.len() x dim` states on the grid. A grid time equal to a transition time
     /// holds the post-reset state.
     pub states: Vec<f64>,
-    /// Chart at each grid time (post-transition at a transition time).
+    /// Chart at each grid time (post-transition at a transition time; while sliding, the chart
+    /// the motion arrived in, see [`Trajectory::sliding`]).
     pub modes: Vec<M>,
     /// Every event, in time order.
     pub events: Vec<Event<M>>,
