@@ -665,7 +665,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
                                 // Continuing would let the state slip through the guard.
                                 return Err(HybridError::Zeno {
                                     time: t0,
-                                    guard: i,
+                                    guard: self.slide.as_ref().map_or(i, |fl| fl.reported_guard(i)),
                                     events: self.recent.len(),
                                     window: self.opts.zeno_window,
                                 });

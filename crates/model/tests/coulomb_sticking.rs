@@ -179,3 +179,32 @@ fn sticking_limit_cycle_matches_the_settled_truth() {
         .iter()
         .any(|e| e.kind == EventKind::SlideStart));
 }
+
+#[test]
+fn linearisations_refuse_an_orbit_that_sticks() {
+    let h = hopper(0.5);
+    let orbit = h
+        .limit_cycle(&ShootingOptions::default(), &tight())
+        .unwrap();
+    let first = orbit.cycle.sliding[0];
+    // Both ways to the HTF (the piecewise-LTI model and the periodic-response method) stop
+    // with the first stick interval rather than give an HTF without the sticking.
+    let err = htfid_ltp::linearise(&h, &orbit.cycle, 64, &tight()).unwrap_err();
+    assert_eq!(
+        err,
+        htfid_ltp::LtpError::SlidingOrbit {
+            guard: 0,
+            start: first.start,
+            end: first.end,
+            intervals: 2,
+        }
+    );
+    let err = htfid_theory::OrbitHtf::new(&h, &orbit.cycle, &tight()).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            htfid_theory::TheoryError::Ltp(htfid_ltp::LtpError::SlidingOrbit { intervals: 2, .. })
+        ),
+        "{err}"
+    );
+}
