@@ -45,10 +45,17 @@ pub enum HybridError {
     /// heads back toward its pre-crossing side by less than can be resolved (the accumulation
     /// point has been reached numerically, as for a bouncing ball whose bounces shrink below the
     /// event resolution).
-    #[error("Zeno behaviour at t = {time} s: {events} transitions within the last {window} s")]
+    /// Sliding starts and ends along a switching surface count as transitions here, so a
+    /// motion that keeps entering and leaving a surface (chattering) ends here too.
+    #[error(
+        "Zeno behaviour at t = {time} s: {events} transitions within the last {window} s \
+         (the last through guard {guard}); the events accumulate and cannot be resolved"
+    )]
     Zeno {
         /// Time of the transition that exceeded the cap or after which the guard stuck (s).
         time: f64,
+        /// The guard of the last transition (index in the chart it left).
+        guard: usize,
         /// Transitions within the window ending at `time`.
         events: usize,
         /// The window length (s).
@@ -62,6 +69,19 @@ pub enum HybridError {
         time: f64,
         /// Transitions within the step.
         events: usize,
+    },
+    /// The fixed-step method reached a switching surface where the motion slides (the field
+    /// on the far side points back into it); it does not implement sliding, and crossing would
+    /// chatter or leave the state in the wrong chart.
+    #[error(
+        "the motion slides along guard {guard} at t = {time} s (the field on its far side \
+         points back into it); the fixed-step method does not slide, use the adaptive one"
+    )]
+    SlidingUnsupported {
+        /// Time of the crossing (s).
+        time: f64,
+        /// Guard index in the chart before it.
+        guard: usize,
     },
     /// A state vector does not have the system's dimension.
     #[error("state has dimension {found}, the system has dimension {expected}")]
@@ -92,6 +112,24 @@ pub enum HybridError {
         t0: f64,
         /// End time (s).
         t_end: f64,
+    },
+    /// A trajectory's chart disagrees with the side of one of its guards
+    /// ([`Trajectory::check_charts`](crate::Trajectory::check_charts)).
+    #[error(
+        "at t = {time} s the chart is {chart} but its guard {guard} is {value:e}, past zero by \
+         more than {tol:e}: a crossing was not taken"
+    )]
+    ChartMismatch {
+        /// Grid time (s).
+        time: f64,
+        /// The chart, as `Debug` prints it.
+        chart: String,
+        /// Guard index in that chart.
+        guard: usize,
+        /// The guard's value there.
+        value: f64,
+        /// The tolerance allowed.
+        tol: f64,
     },
     /// The bracketing root finder did not reach `Options::event_tol`.
     #[error("event location did not converge near t = {time} s")]

@@ -25,8 +25,11 @@ const MAX_EVENTS_PER_STEP: usize = 8;
 ///
 /// # Errors
 /// [`HybridError::DimensionMismatch`] for a state of the wrong length (or a system larger than
-/// [`FIXED_STEP_MAX_DIM`]), [`HybridError::NonFiniteState`], and [`HybridError::Chattering`]
-/// when more than 8 transitions fall within one step.
+/// [`FIXED_STEP_MAX_DIM`]), [`HybridError::NonFiniteState`], [`HybridError::Chattering`]
+/// when more than 8 transitions fall within one step, and [`HybridError::SlidingUnsupported`]
+/// where the motion would slide along a declared switching surface
+/// ([`HybridSystem::sliding_chart`]): this method does not slide, use
+/// [`simulate`](crate::simulate).
 pub fn simulate_fixed_step<S: HybridSystem + ?Sized>(
     sys: &S,
     mode0: S::Mode,
@@ -131,6 +134,28 @@ impl<S: HybridSystem + ?Sized> Stepper<'_, S> {
             let te = t + theta * h;
             let mut xe = [0.0; MAX_DIM];
             rk4_step(self.sys, self.mode, t, &self.x, &self.f, te - t, n, &mut xe);
+            if let Some(to) = self.sys.sliding_chart(self.mode, guard) {
+                // This method does not slide: where the far side's field points back into the
+                // surface, stepping on would chatter or pass through it in the wrong chart.
+                let (mut fa, mut fb) = ([0.0; MAX_DIM], [0.0; MAX_DIM]);
+                let (mut grad, mut xs) = ([0.0; MAX_DIM], [0.0; MAX_DIM]);
+                self.sys.vector_field(self.mode, te, &xe[..n], &mut fa[..n]);
+                self.sys.vector_field(to, te, &xe[..n], &mut fb[..n]);
+                let (a, b, _) = crate::sliding::normal_speeds(
+                    self.sys,
+                    self.mode,
+                    guard,
+                    te,
+                    &xe[..n],
+                    &fa[..n],
+                    Some(&fb[..n]),
+                    &mut grad[..n],
+                    &mut xs[..n],
+                );
+                if a * b < 0.0 {
+                    return Err(HybridError::SlidingUnsupported { time: te, guard });
+                }
+            }
             self.mode = self.sys.transition(self.mode, guard, te, &mut xe[..n]);
             fired = Some(guard);
             self.x = xe;

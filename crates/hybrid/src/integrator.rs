@@ -3,8 +3,10 @@ use std::fmt;
 
 use crate::rk::{self, Work};
 use crate::roots::{self, SQRT_EPS};
+use crate::sliding::{self, Filippov};
 use crate::{
-    Crossing, Event, EventKind, HybridError, HybridSystem, Method, Options, Stats, Trajectory,
+    Crossing, Event, EventKind, HybridError, HybridSystem, Method, Options, SlidingInterval, Stats,
+    Trajectory,
 };
 
 /// Why [`Integrator::step_until`] returned.
@@ -106,6 +108,8 @@ pub struct Integrator<'a, S: HybridSystem + ?Sized> {
     grazes: Vec<(f64, usize)>,
     pending: VecDeque<Event<S::Mode>>,
     recent: VecDeque<f64>,
+    /// The sliding motion, while the state slides along a switching surface.
+    slide: Option<Filippov<'a, S>>,
     stats: Stats,
 }
 
@@ -140,7 +144,9 @@ fn before_side(dir: Crossing, g: f64) -> Option<f64> {
 
 impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
     /// Starts at `(t0, x0)` in chart `mode0`. Validates the options, the dimension and
-    /// finiteness, evaluates `f(t0, x0)` and the guards, and picks the first step.
+    /// finiteness, evaluates `f(t0, x0)` and the guards, and picks the first step. On a
+    /// declared switching surface ([`HybridSystem::sliding_chart`]) the start may take the
+    /// chart of the state's side or start sliding at once (crate docs, "Sliding").
     pub fn new(
         sys: &'a S,
         mode0: S::Mode,
@@ -191,6 +197,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             grazes: Vec::with_capacity(8),
             pending: VecDeque::with_capacity(8),
             recent: VecDeque::with_capacity(opts.zeno_max_events + 2),
+            slide: None,
             stats: Stats::default(),
         };
         integ.eval_f0()?;
@@ -216,6 +223,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             }
         };
         integ.restart_guards()?;
+        integ.start_on_surfaces()?;
         Ok(integ)
     }
 
@@ -237,6 +245,12 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
     /// Work counters so far.
     pub fn stats(&self) -> Stats {
         self.stats
+    }
+
+    /// While the state slides along a switching surface: the surface's guard index in the
+    /// current chart, and the chart on its far side.
+    pub fn sliding(&self) -> Option<(usize, S::Mode)> {
+        self.slide.as_ref().map(|s| (s.guard, s.to))
     }
 
     /// The step size the controller proposes next (s).
@@ -268,9 +282,14 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
 
     fn eval_f0(&mut self) -> Result<(), HybridError> {
         let n = self.n;
-        self.sys
-            .vector_field(self.mode, self.t, &self.x, &mut self.k[..n]);
+        match &self.slide {
+            None => self
+                .sys
+                .vector_field(self.mode, self.t, &self.x, &mut self.k[..n]),
+            Some(fl) => fl.vector_field(self.mode, self.t, &self.x, &mut self.k[..n]),
+        }
         self.stats.rhs_evals += 1;
+        self.collect_sliding_counts();
         if self.k[..n].iter().any(|v| !v.is_finite()) {
             return Err(HybridError::NonFiniteState { time: self.t });
         }
@@ -288,7 +307,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
     /// Evaluates the current chart's guards at a restart (initial time or after a transition),
     /// with their time derivatives along the flow by a forward difference.
     fn restart_guards(&mut self) -> Result<(), HybridError> {
-        let ng = self.sys.num_guards(self.mode);
+        let ng = self.num_guards();
         self.g_start.clear();
         self.d_start.clear();
         let delta = self.fd_delta(self.h.min(self.opts.h_max));
@@ -297,11 +316,11 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             self.xs[i] = self.x[i] + delta * self.k[i];
         }
         for i in 0..ng {
-            let g0 = self.sys.guard(self.mode, i, self.t, &self.x);
+            let g0 = self.guard_at(i, self.t, &self.x);
             if !g0.is_finite() {
                 return Err(non_finite_guard(self.t, i, g0));
             }
-            let g1 = self.sys.guard(self.mode, i, self.t + delta, &self.xs);
+            let g1 = self.guard_at(i, self.t + delta, &self.xs);
             self.stats.guard_evals += 2;
             self.g_start.push(g0);
             self.d_start.push(if g1.is_finite() {
@@ -311,6 +330,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             });
         }
         self.restart = Some(self.t);
+        self.collect_sliding_counts();
         Ok(())
     }
 
@@ -333,19 +353,34 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
         }
         let (t0, h, t1) = self.accept_step(t_stop)?;
         self.stats.steps += 1;
-        self.stats.rhs_evals += rk::build_dense(
-            self.method,
-            self.sys,
-            self.mode,
-            t0,
-            h,
-            &self.x,
-            &self.xnew,
-            &mut self.k,
-            &mut self.ytmp,
-            &mut self.acc,
-            &mut self.cont,
-        );
+        self.stats.rhs_evals += match &self.slide {
+            None => rk::build_dense(
+                self.method,
+                self.sys,
+                self.mode,
+                t0,
+                h,
+                &self.x,
+                &self.xnew,
+                &mut self.k,
+                &mut self.ytmp,
+                &mut self.acc,
+                &mut self.cont,
+            ),
+            Some(fl) => rk::build_dense(
+                self.method,
+                fl,
+                self.mode,
+                t0,
+                h,
+                &self.x,
+                &self.xnew,
+                &mut self.k,
+                &mut self.ytmp,
+                &mut self.acc,
+                &mut self.cont,
+            ),
+        };
         self.dense = Some(Dense {
             t_old: t0,
             h,
@@ -365,6 +400,10 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
         for idx in 0..self.grazes.len() {
             let (tg, guard) = self.grazes[idx];
             let state = self.dense_state(tg);
+            let guard = self
+                .slide
+                .as_ref()
+                .map_or(guard, |fl| fl.reported_guard(guard));
             self.pending.push_back(Event {
                 time: tg,
                 from: self.mode,
@@ -393,6 +432,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             }
         }
 
+        self.collect_sliding_counts();
         Ok(match self.pending.pop_front() {
             Some(ev) => StopReason::Event(ev),
             None if self.t >= t_stop => StopReason::TStopReached,
@@ -441,17 +481,30 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
                 incr: &mut self.incr,
                 acc: &mut self.acc,
             };
-            let (err, evals) = rk::trial_step(
-                self.method,
-                self.sys,
-                self.mode,
-                self.t,
-                h,
-                &self.x,
-                &mut work,
-                self.opts.rtol,
-                self.opts.atol,
-            );
+            let (err, evals) = match &self.slide {
+                None => rk::trial_step(
+                    self.method,
+                    self.sys,
+                    self.mode,
+                    self.t,
+                    h,
+                    &self.x,
+                    &mut work,
+                    self.opts.rtol,
+                    self.opts.atol,
+                ),
+                Some(fl) => rk::trial_step(
+                    self.method,
+                    fl,
+                    self.mode,
+                    self.t,
+                    h,
+                    &self.x,
+                    &mut work,
+                    self.opts.rtol,
+                    self.opts.atol,
+                ),
+            };
             self.stats.rhs_evals += evals;
             let c = &self.ctrl;
             let fac11 = match self.method {
@@ -496,7 +549,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             .dense
             .expect("dense output exists during event detection");
         rk::eval_dense(self.method, &self.cont, (t - d.t_old) / d.h, &mut self.xs);
-        let g = self.sys.guard(self.mode, guard, t, &self.xs);
+        let g = self.guard_at(guard, t, &self.xs);
         self.stats.guard_evals += 1;
         if g.is_finite() {
             Ok(g)
@@ -529,7 +582,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             let tau = t0 + h * (j as f64 / (m + 1) as f64);
             rk::eval_dense(self.method, &self.cont, (tau - d.t_old) / d.h, &mut self.xs);
             for i in 0..ng {
-                let g = self.sys.guard(self.mode, i, tau, &self.xs);
+                let g = self.guard_at(i, tau, &self.xs);
                 if !g.is_finite() {
                     return Err(non_finite_guard(tau, i, g));
                 }
@@ -537,7 +590,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             }
         }
         for i in 0..ng {
-            let g = self.sys.guard(self.mode, i, t1, &self.xnew);
+            let g = self.guard_at(i, t1, &self.xnew);
             if !g.is_finite() {
                 return Err(non_finite_guard(t1, i, g));
             }
@@ -558,9 +611,12 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
 
     /// Whether a located transition must be ignored: it lies within `event_tol` after a restart,
     /// i.e. the guard is only leaving the zero it sat on.
-    fn suppressed(&self, te: f64) -> bool {
+    /// While sliding, the exit conditions (guards 0 and 1) start strictly positive, so an
+    /// early crossing of theirs is a genuine exit and never suppressed.
+    fn suppressed(&self, i: usize, te: f64) -> bool {
         self.restart
             .is_some_and(|tr| te <= tr + self.opts.event_tol)
+            && !(self.slide.is_some() && i < 2)
     }
 
     /// The first transition of guard `i` within the step, if any.
@@ -571,7 +627,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
         t1: f64,
         ns: usize,
     ) -> Result<Option<f64>, HybridError> {
-        let dir = self.sys.guard_direction(self.mode, i);
+        let dir = self.direction(i);
         let base = i * ns;
         let graze_tol = self.opts.graze_tol;
         let tau = |j: usize| {
@@ -609,6 +665,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
                                 // Continuing would let the state slip through the guard.
                                 return Err(HybridError::Zeno {
                                     time: t0,
+                                    guard: self.slide.as_ref().map_or(i, |fl| fl.reported_guard(i)),
                                     events: self.recent.len(),
                                     window: self.opts.zeno_window,
                                 });
@@ -677,7 +734,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             }
             if dir.accepts(a, b) {
                 let te = self.locate(i, tau(j), a, tau(j + 1), b)?;
-                if !self.suppressed(te) {
+                if !self.suppressed(i, te) {
                     return Ok(Some(te));
                 }
             }
@@ -730,7 +787,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
         s: f64,
     ) -> Result<Option<f64>, HybridError> {
         match self.refine(i, lo, g_lo, hi, centre, s)? {
-            Refined::Crossing(te) if !self.suppressed(te) => Ok(Some(te)),
+            Refined::Crossing(te) if !self.suppressed(i, te) => Ok(Some(te)),
             Refined::Graze(tg) => {
                 self.grazes.push((tg, i));
                 Ok(None)
@@ -787,7 +844,7 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
         for c in 0..n {
             self.xs[c] = self.xnew[c] - delta * self.k[fsal + c];
         }
-        let gb = self.sys.guard(self.mode, i, t1 - delta, &self.xs);
+        let gb = self.guard_at(i, t1 - delta, &self.xs);
         self.stats.guard_evals += 1;
         if !gb.is_finite() {
             return Err(non_finite_guard(t1 - delta, i, gb));
@@ -801,8 +858,41 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
         roots::locate_root(&mut g, a, ga, b, gb, tol)
     }
 
-    /// Ends the step at `te`: logs the transition, applies the reset, restarts in the new chart.
-    fn apply_transition(&mut self, te: f64, guard: usize) -> Result<(), HybridError> {
+    /// Guards of the current chart (the exit conditions and the other guards while sliding).
+    #[inline]
+    fn num_guards(&self) -> usize {
+        match &self.slide {
+            None => self.sys.num_guards(self.mode),
+            Some(fl) => fl.num_guards(self.mode),
+        }
+    }
+
+    #[inline]
+    fn guard_at(&self, i: usize, t: f64, x: &[f64]) -> f64 {
+        match &self.slide {
+            None => self.sys.guard(self.mode, i, t, x),
+            Some(fl) => fl.guard(self.mode, i, t, x),
+        }
+    }
+
+    #[inline]
+    fn direction(&self, i: usize) -> Crossing {
+        match &self.slide {
+            None => self.sys.guard_direction(self.mode, i),
+            Some(fl) => fl.guard_direction(self.mode, i),
+        }
+    }
+
+    /// Adds the evaluations made inside the sliding field's trait calls to the counters.
+    fn collect_sliding_counts(&mut self) {
+        if let Some(fl) = &self.slide {
+            self.stats.rhs_evals += fl.rhs_evals.take();
+            self.stats.guard_evals += fl.guard_evals.take();
+        }
+    }
+
+    /// Logs a transition time for the Zeno test and fails when the cap is exceeded.
+    fn count_transition(&mut self, te: f64, guard: usize) -> Result<(), HybridError> {
         while self
             .recent
             .front()
@@ -814,11 +904,34 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
         if self.recent.len() > self.opts.zeno_max_events {
             return Err(HybridError::Zeno {
                 time: te,
+                guard,
                 events: self.recent.len(),
                 window: self.opts.zeno_window,
             });
         }
+        Ok(())
+    }
+
+    /// Ends the step at `te` where guard `guard` fired: a transition (the reset is applied
+    /// and the integration restarts in the new chart), the start of sliding along a switching
+    /// surface, or, while sliding, its end.
+    fn apply_transition(&mut self, te: f64, guard: usize) -> Result<(), HybridError> {
+        if self.slide.is_some() {
+            return self.end_slide(te, guard);
+        }
+        self.count_transition(te, guard)?;
         let state = self.dense_state(te);
+        if let Some(to) = self.sys.sliding_chart(self.mode, guard) {
+            if self.try_slide(te, guard, to, &state, None)? {
+                return Ok(());
+            }
+        }
+        self.transition_at(te, guard, state)
+    }
+
+    /// Applies the reset of `guard` to `state` (the pre-event state at `te`), restarts in the
+    /// new chart and logs the event.
+    fn transition_at(&mut self, te: f64, guard: usize, state: Vec<f64>) -> Result<(), HybridError> {
         self.x.copy_from_slice(&state);
         let from = self.mode;
         let to = self.sys.transition(from, guard, te, &mut self.x);
@@ -842,6 +955,152 @@ impl<'a, S: HybridSystem + ?Sized> Integrator<'a, S> {
             kind: EventKind::Transition,
         });
         self.stats.events += 1;
+        Ok(())
+    }
+
+    /// At a crossing of switching surface `guard` toward chart `to` at `(te, state)`: starts
+    /// sliding if the field of `to` points back into the surface (the normal speeds `a` of
+    /// the current chart and `b` of `to` have opposite signs), after moving the state onto the
+    /// surface. With `pre = Some(p)` (a start on the surface), the current chart's field must
+    /// also head away from its own side `p`, else the surface repels and nothing slides.
+    /// Returns whether it started sliding.
+    fn try_slide(
+        &mut self,
+        te: f64,
+        guard: usize,
+        to: S::Mode,
+        state: &[f64],
+        pre: Option<f64>,
+    ) -> Result<bool, HybridError> {
+        let n = self.n;
+        let mut x = state.to_vec();
+        let (mut grad, mut xs) = (vec![0.0; n], vec![0.0; n]);
+        self.stats.guard_evals +=
+            sliding::project(self.sys, self.mode, guard, te, &mut x, &mut grad, &mut xs);
+        let fl = Filippov::new(self.sys, self.mode, to, guard, 1.0);
+        let (a, b) = fl.speeds(te, &x);
+        self.stats.rhs_evals += fl.rhs_evals.take();
+        self.stats.guard_evals += fl.guard_evals.take();
+        if !(a.is_finite() && b.is_finite()) {
+            return Err(non_finite_guard(
+                te,
+                guard,
+                if a.is_finite() { b } else { a },
+            ));
+        }
+        if a * b >= 0.0 || pre.is_some_and(|p| p * a >= 0.0) {
+            return Ok(false);
+        }
+        if let Some(d) = self.dense.as_mut() {
+            d.t_end = te;
+        }
+        self.t = te;
+        self.x.copy_from_slice(&x);
+        self.slide = Some(Filippov::new(self.sys, self.mode, to, guard, a.signum()));
+        self.eval_f0()?;
+        self.restart_guards()?;
+        self.pending.push_back(Event {
+            time: te,
+            from: self.mode,
+            to: self.mode,
+            guard,
+            state: x,
+            kind: EventKind::SlideStart,
+        });
+        self.stats.events += 1;
+        Ok(true)
+    }
+
+    /// Ends sliding at `te` because wrapper guard `k` fired: 0 leaves into the chart the
+    /// motion arrived in, 1 into the chart on the far side, `k >= 2` is another guard of the
+    /// arrival chart, whose transition follows at once.
+    fn end_slide(&mut self, te: f64, k: usize) -> Result<(), HybridError> {
+        let Some(fl) = self.slide.take() else {
+            return Ok(());
+        };
+        self.stats.rhs_evals += fl.rhs_evals.take();
+        self.stats.guard_evals += fl.guard_evals.take();
+        self.count_transition(te, fl.guard)?;
+        let state = self.dense_state(te);
+        let exit = if k == 1 { fl.to } else { fl.from };
+        debug_assert!(
+            {
+                let g = self.sys.guard(fl.from, fl.guard, te, &state);
+                let scale = state.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
+                g.abs() <= 1e-6 * scale
+            },
+            "sliding drifted off the surface of guard {} by t = {te}",
+            fl.guard
+        );
+        self.pending.push_back(Event {
+            time: te,
+            from: fl.from,
+            to: exit,
+            guard: fl.guard,
+            state: state.clone(),
+            kind: EventKind::SlideEnd,
+        });
+        self.stats.events += 1;
+        self.mode = exit;
+        if k >= 2 {
+            return self.transition_at(te, fl.inner_guard(k), state);
+        }
+        if let Some(d) = self.dense.as_mut() {
+            d.t_end = te;
+        }
+        self.t = te;
+        self.x.copy_from_slice(&state);
+        self.eval_f0()?;
+        self.restart_guards()
+    }
+
+    /// At the initial time, for every switching surface of the current chart: a state on the
+    /// far side of it belongs to the chart there (the chart of a state is its side of the
+    /// surface). A state on it (within `graze_tol`) whose chart's field heads to the far side
+    /// starts sliding if the far side's field points back, and otherwise starts in the far
+    /// side's chart, where both fields carry it.
+    fn start_on_surfaces(&mut self) -> Result<(), HybridError> {
+        // At most two passes: a chart change can put the state on a surface of the new chart.
+        for _ in 0..2 {
+            let ng = self.g_start.len();
+            let mut changed = false;
+            for i in 0..ng {
+                let Some(to) = self.sys.sliding_chart(self.mode, i) else {
+                    continue;
+                };
+                let g = self.g_start[i];
+                let dir = self.sys.guard_direction(self.mode, i);
+                if dir == Crossing::Either {
+                    // Neither side is marked as this chart's, so neither test applies.
+                    continue;
+                }
+                let pre = if dir == Crossing::Rising { -1.0 } else { 1.0 };
+                if g.abs() <= self.opts.graze_tol {
+                    let x = self.x.clone();
+                    if self.try_slide(self.t, i, to, &x, Some(pre))? {
+                        // The slide starts at t0: its event is reported like any other.
+                        return Ok(());
+                    }
+                    let fl = Filippov::new(self.sys, self.mode, to, i, 1.0);
+                    let (a, b) = fl.speeds(self.t, &x);
+                    self.stats.rhs_evals += fl.rhs_evals.take();
+                    self.stats.guard_evals += fl.guard_evals.take();
+                    if !(pre * a < 0.0 && pre * b < 0.0) {
+                        continue;
+                    }
+                } else if before_side(dir, g).is_some() {
+                    continue;
+                }
+                self.mode = to;
+                self.eval_f0()?;
+                self.restart_guards()?;
+                changed = true;
+                break;
+            }
+            if !changed {
+                break;
+            }
+        }
         Ok(())
     }
 }
@@ -882,11 +1141,14 @@ pub fn simulate<S: HybridSystem + ?Sized>(
     let mut states = Vec::with_capacity(grid.len() * n);
     let mut modes = Vec::with_capacity(grid.len());
     let mut events = Vec::new();
+    let mut sliding: Vec<SlidingInterval<S::Mode>> = Vec::new();
     let mut buf = vec![0.0; n];
     let mut gi = 0;
+    // The start may have moved to the chart of the state's side of a switching surface
+    // (and onto it): record what the integrator starts from.
     while gi < grid.len() && grid[gi] <= t0 {
-        states.extend_from_slice(x0);
-        modes.push(mode0);
+        states.extend_from_slice(integ.state());
+        modes.push(integ.mode());
         gi += 1;
     }
     loop {
@@ -909,9 +1171,32 @@ pub fn simulate<S: HybridSystem + ?Sized>(
             gi += 1;
         }
         match reason {
-            StopReason::Event(e) => events.push(e),
+            StopReason::Event(e) => {
+                match e.kind {
+                    EventKind::SlideStart => sliding.push(SlidingInterval {
+                        start: e.time,
+                        end: e.time,
+                        guard: e.guard,
+                        chart: e.from,
+                        exit: None,
+                    }),
+                    EventKind::SlideEnd => {
+                        if let Some(last) = sliding.last_mut() {
+                            last.end = e.time;
+                            last.exit = Some(e.to);
+                        }
+                    }
+                    _ => {}
+                }
+                events.push(e);
+            }
             StopReason::TStopReached => break,
             StopReason::InternalStep => {}
+        }
+    }
+    if let Some(last) = sliding.last_mut() {
+        if last.exit.is_none() {
+            last.end = integ.t();
         }
     }
     Ok(Trajectory {
@@ -920,6 +1205,7 @@ pub fn simulate<S: HybridSystem + ?Sized>(
         states,
         modes,
         events,
+        sliding,
         final_time: integ.t(),
         final_state: integ.state().to_vec(),
         final_mode: integ.mode(),

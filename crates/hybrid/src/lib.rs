@@ -10,7 +10,9 @@
 //! smoothly with the parameters. [`Integrator`] is the stepping API underneath: each
 //! call to [`Integrator::step_until`] takes at most one step and says why it stopped
 //! ([`StopReason`]). [`Options`] holds tolerances and event settings; errors are
-//! [`HybridError`].
+//! [`HybridError`]. A guard that a system declares a switching surface
+//! ([`HybridSystem::sliding_chart`]) may be slid along (Filippov sliding, for instance a mass
+//! stuck by Coulomb friction); the [`Trajectory`] lists those intervals ([`SlidingInterval`]).
 //!
 //! ```
 //! use htfid_hybrid::{simulate, Crossing, EventKind, HybridSystem, Options};
@@ -124,7 +126,48 @@
 //! beyond resolution and the integration stops with [`HybridError::Zeno`].
 //!
 //! **Zeno.** More than `zeno_max_events` transitions within any `zeno_window` is
-//! [`HybridError::Zeno`]. Grazes do not count.
+//! [`HybridError::Zeno`], which names the time, the guard of the last transition and the count.
+//! Grazes do not count; the starts and ends of sliding do, so a motion that keeps sticking and
+//! breaking loose faster than that (chattering) stops there too.
+//!
+//! # Sliding (Filippov)
+//!
+//! A switching surface is a guard `g` of chart `A` across which the state is continuous and
+//! only the vector field jumps: [`HybridSystem::sliding_chart`] returns the chart `B` on its
+//! far side (default `None`: an ordinary guard, for instance an impact with a reset). Write
+//! `a = dg/dt` along `f_A` and `b = dg/dt` along `f_B` (the normal speeds, from
+//! [`HybridSystem::guard_gradient`] and [`HybridSystem::guard_time_derivative`] where the
+//! system supplies them, else central differences along each field).
+//!
+//! - **Start.** At a located crossing of such a guard, if `a` and `b` have opposite signs
+//!   (the field of `B` points back into the surface, so the flow would cross again at once),
+//!   the motion slides instead of crossing: the state is moved onto `g = 0` along the gradient
+//!   (it was located within `event_tol` past it), an [`EventKind::SlideStart`] is logged, and
+//!   the chart stays `A`. Otherwise the transition happens as usual.
+//! - **Motion.** While sliding the integrator steps Filippov's convex combination
+//!   `f_s = (1 - alpha) f_A + alpha f_B` with `alpha = a / (a - b)`, for which `dg/dt = 0`: the
+//!   state moves along the surface (for friction at zero velocity, `x' = 0` is held). The
+//!   error control, dense output and step-size controller are those of any chart.
+//! - **End.** Sliding lasts while `alpha` stays in `(0, 1)`, i.e. while `a` and `b` keep their
+//!   signs. The two exit conditions (`alpha` reaching 0: the field of `A` leaves the surface;
+//!   1: that of `B` does) are guards of the sliding motion, sampled and located by the event
+//!   algorithm above like any crossing (an early exit is never suppressed by the restart
+//!   rule). At the exit an [`EventKind::SlideEnd`] event is logged (its `to` is the chart the
+//!   motion leaves into) and the integration restarts there. The other guards of `A` stay
+//!   active while sliding; if one fires, sliding ends and its transition follows at once.
+//! - **Initial state.** At `t0`, a state on the far side of a declared surface (for a rising
+//!   or falling guard) starts in the chart of that side; a state within `graze_tol` of the
+//!   surface whose chart's field heads across starts sliding if the far side's field points
+//!   back, and starts in the far side's chart otherwise. So a simulation restarted from the
+//!   end of another, even mid-stick, continues as it would have.
+//! - **Reports.** [`Trajectory::sliding`] lists the intervals (start, end, guard, the chart
+//!   the motion arrived in, the chart it left into); [`Trajectory::sliding_at`] finds the one
+//!   containing a time. On the grid the chart while sliding is the arrival chart.
+//!
+//! The sensitivity of the flow through sliding (saltation at the start and end, and the
+//! derivative of `alpha`) is not implemented: `htfid-orbit` takes the period-map Jacobian of an
+//! orbit with sliding by differences, and the linearisations of `htfid-ltp` and `htfid-theory`
+//! refuse such orbits.
 //!
 //! # Guarantees and limits
 //!
@@ -143,7 +186,22 @@
 //! - Two guards crossing at the same instant: the lower index fires; the other, if still
 //!   present in the new chart and within `event_tol` of its crossing, falls under the restart
 //!   rule and is ignored.
-//! - A crossing at exactly `t0` (a start on the surface) is not reported.
+//! - A crossing at exactly `t0` (a start on the surface) is not reported (for declared
+//!   switching surfaces the start rule of the sliding section decides the chart instead).
+//! - Sliding: the exit times are located to `event_tol` like crossings; the state stays on
+//!   the surface to rounding when the system supplies the guard gradient (the coefficient
+//!   `alpha` is then exact), and to the finite-difference error (about `1e-10` relative)
+//!   otherwise. Measured on a stick-slip belt with a closed-form solution
+//!   (`tests/sliding.rs`): stick start and end times and states within `1e-10`.
+//! - A surface the system does not declare is crossed as before: where the far side's field
+//!   points back, the motion chatters (ending in [`HybridError::Zeno`]) or, if the return
+//!   crossing comes within `event_tol` of the first, passes through the surface in the wrong
+//!   chart. Declare every surface that can slide.
+//! - Invariant: outside the sliding intervals, every guard of the chart at a grid time lies on
+//!   its pre-crossing side (within the event tolerance); [`Trajectory::check_charts`] checks
+//!   it, and the test suites run it on their simulations.
+//! - [`simulate_fixed_step`] does not slide: at a declared surface where the motion would
+//!   slide it stops with [`HybridError::SlidingUnsupported`] (time and guard).
 //! - Failures never panic: step-size underflow ([`HybridError::StepSizeTooSmall`], naming the
 //!   time), non-finite states or guards, the step cap and Zeno behaviour are errors.
 //! - Cost is known up front: [`trajectory_bytes`] is the memory of a sampled trajectory and
@@ -153,7 +211,9 @@
 //! # Performance
 //!
 //! Every buffer is allocated once in [`Integrator::new`]; a step allocates only when it reports
-//! an event (the event's state vector). For small state dimensions (up to 4) the stage loops are
+//! an event (the event's state vector) or starts sliding. Sliding costs two vector-field
+//! evaluations per stage (one per side) and one more per exit-guard sample; event-free stepping
+//! outside sliding is unchanged (one branch per step selects the field). For small state dimensions (up to 4) the stage loops are
 //! specialised so that they unroll. Figures from `cargo run --release -p htfid-hybrid --example
 //! bench_events` are recorded in that example's documentation.
 
@@ -164,6 +224,7 @@ mod options;
 mod rk;
 mod roots;
 mod size;
+mod sliding;
 mod system;
 mod tableau;
 mod trajectory;
@@ -174,4 +235,4 @@ pub use integrator::{simulate, Integrator, StopReason};
 pub use options::{Method, Options};
 pub use size::{min_steps, trajectory_bytes, MIN_STEPS_PER_PERIOD};
 pub use system::{Crossing, HybridSystem};
-pub use trajectory::{Event, EventKind, Stats, Trajectory};
+pub use trajectory::{Event, EventKind, SlidingInterval, Stats, Trajectory};

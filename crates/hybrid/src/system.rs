@@ -101,6 +101,21 @@ pub trait HybridSystem {
         mode
     }
 
+    /// The chart on the other side of guard `index` of `mode` when that guard is a switching
+    /// surface on which the motion can slide; `None` (the default) for every other guard.
+    ///
+    /// A switching surface is a guard across which the state is continuous (its
+    /// [`HybridSystem::transition`] leaves the state unchanged and returns this chart) while
+    /// the vector field jumps, as Coulomb friction does at zero velocity. Where, at a crossing,
+    /// the field of the chart on the far side points back into the surface, the integrator
+    /// slides along it with Filippov's convex combination instead of crossing (see the crate
+    /// docs). Guards whose reset changes the state (impacts) must return `None`. The guard's
+    /// value must not depend on the chart: guard `index` of `mode` is the surface seen from
+    /// both sides.
+    fn sliding_chart(&self, _mode: Self::Mode, _index: usize) -> Option<Self::Mode> {
+        None
+    }
+
     /// Jacobian `df/dx` of the vector field, row-major `dim x dim`, written into `jac`.
     /// Returns `false` (the default) when the system does not provide it.
     fn jacobian(&self, _mode: Self::Mode, _t: f64, _x: &[f64], _jac: &mut [f64]) -> bool {

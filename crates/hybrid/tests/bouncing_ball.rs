@@ -82,6 +82,9 @@ fn first_ten_impacts_match_closed_form() {
             .fold(f64::INFINITY, f64::min);
         assert!(closest > 1e-6, "grid point {closest} s from an impact");
         let tr = simulate(&ball, (), 0.0, &[H0, 0.0], t_end, &grid, &opts).unwrap();
+        // Above the floor at every grid time: within 1e-9 m where a grid time falls within the
+        // event tolerance of an impact.
+        tr.check_charts(&ball, 1e-9).unwrap();
         for (i, &t) in grid.iter().enumerate() {
             let (h, v) = exact_state(t, &exact, v1);
             let s = tr.state(i);
@@ -145,7 +148,9 @@ fn zeno_cap_stops_shortly_before_accumulation_point() {
                     time,
                     events,
                     window,
+                    guard,
                 } => {
+                    assert_eq!(guard, 0, "{method:?}: the ball has one guard");
                     approx::assert_abs_diff_eq!(window, 1e-3);
                     assert!(events <= cap + 1, "{method:?} cap {cap}: {events} events");
                     // All impacts lie before t_inf (up to the ~1e-10 accumulated location error)

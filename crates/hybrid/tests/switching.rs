@@ -37,6 +37,9 @@ fn sawtooth_switch_times_and_states() {
             ..Options::default()
         };
         let tr = simulate(&Sawtooth, Saw::Up, 0.0, &[0.0], t_end, &grid, &opts).unwrap();
+        // Every grid state lies on its chart's side of the guards (grid times are 0.3 ms or
+        // more from the switches, so no tolerance is needed beyond rounding).
+        tr.check_charts(&Sawtooth, 1e-12).unwrap();
         // 20 switches at 1.5 k + 1 and 19 at 1.5 (k + 1) before 29.9 s.
         assert_eq!(tr.events.len(), 39, "{method:?}");
         let mut prev_time = 0.0;

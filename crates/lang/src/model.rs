@@ -536,6 +536,24 @@ impl HybridSystem for Model {
         Mode(self.def.guards[g].to as u32)
     }
 
+    /// A guard is a switching surface, along which the motion may slide, when it leads to
+    /// another mode without a reset and that mode has a guard back, also without a reset, on
+    /// the same expression: the state is then continuous across one surface and only the flow
+    /// changes (Coulomb friction written as two modes, say). Guards with a reset (impacts) and
+    /// pairs on different surfaces (hysteresis, touchdown and liftoff) are not.
+    fn sliding_chart(&self, mode: Mode, index: usize) -> Option<Mode> {
+        let def = &self.def;
+        let guard = &def.guards[*def.guards_of[mode.index()].get(index)?];
+        if guard.reset.is_some() || guard.to == mode.index() {
+            return None;
+        }
+        def.guards_of[guard.to]
+            .iter()
+            .map(|&back| &def.guards[back])
+            .any(|back| back.to == mode.index() && back.reset.is_none() && back.when == guard.when)
+            .then_some(Mode(guard.to as u32))
+    }
+
     fn jacobian(&self, mode: Mode, t: f64, x: &[f64], jac: &mut [f64]) -> bool {
         let n = x.len();
         let u = self.u(t);

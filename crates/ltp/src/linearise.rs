@@ -136,6 +136,14 @@ pub fn linearise<S: InputOutput>(
     samples: usize,
     opts: &Options,
 ) -> Result<Linearisation<S::Mode>, LtpError> {
+    if let Some(first) = cycle.sliding.first() {
+        return Err(LtpError::SlidingOrbit {
+            guard: first.guard,
+            start: first.start,
+            end: first.end,
+            intervals: cycle.sliding.len(),
+        });
+    }
     let (t0, period) = (cycle.t0, cycle.period);
     let switches: Vec<Switch<S::Mode>> = cycle
         .events

@@ -9,6 +9,24 @@ pub enum LtpError {
     /// Integration along the orbit failed while linearising.
     #[error("integration along the orbit failed: {0}")]
     Integration(String),
+    /// The orbit slides along a switching surface (a mass stuck by friction, for instance);
+    /// the linearisation through sliding (its saltation matrices and the variation of the
+    /// Filippov field) is not implemented, so no linear model is built rather than a wrong one.
+    #[error(
+        "the orbit slides along guard {guard} from t = {start} s to t = {end} s \
+         ({intervals} sliding interval(s) per period); linearisation through sliding is not \
+         implemented, so no LTP model or HTF can be given for this orbit"
+    )]
+    SlidingOrbit {
+        /// The surface of the first interval: guard index in its chart.
+        guard: usize,
+        /// Start of the first interval (s).
+        start: f64,
+        /// End of the first interval (s).
+        end: f64,
+        /// Number of sliding intervals in the period.
+        intervals: usize,
+    },
     /// The period must be finite and strictly positive.
     #[error("period must be finite and > 0 (got {period})")]
     InvalidPeriod {

@@ -233,6 +233,20 @@ impl HybridSystem for Hopper {
         }
     }
 
+    /// The damper switch `x' = v_th` is a switching surface: the state is continuous across
+    /// it and only the force jumps (the damper, and with `mu > 0` the Coulomb friction, whose
+    /// sign is the chart). Where both sides push into it (`|spring + gravity + forcing| < mu`
+    /// at `x' = 0`) the mass sticks: the integrator slides along `x' = v_th`.
+    fn sliding_chart(&self, mode: HopperMode, _index: usize) -> Option<HopperMode> {
+        match self.damper {
+            DamperLaw::Switching => Some(match mode {
+                HopperMode::Damped => HopperMode::Free,
+                HopperMode::Free => HopperMode::Damped,
+            }),
+            DamperLaw::AlwaysOn => None,
+        }
+    }
+
     fn jacobian(&self, mode: HopperMode, _t: f64, x: &[f64], jac: &mut [f64]) -> bool {
         let p = &self.params;
         let e = &self.effects;

@@ -16,6 +16,19 @@ pub struct HopperOrbit {
     pub duty: f64,
 }
 
+impl HopperOrbit {
+    /// The intervals of the period (times from the phase origin, s) during which the mass
+    /// sticks: it slides along `x' = v_th` (with `v_th = 0`, `x' = 0` held by Coulomb
+    /// friction). Empty when it never sticks.
+    pub fn stick_intervals(&self) -> Vec<(f64, f64)> {
+        self.cycle
+            .sliding
+            .iter()
+            .map(|s| (s.start - self.cycle.t0, s.end - self.cycle.t0))
+            .collect()
+    }
+}
+
 /// One sample of the orbit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OrbitSample {
@@ -25,14 +38,17 @@ pub struct OrbitSample {
     pub x: f64,
     /// Velocity, m/s.
     pub xd: f64,
-    /// Damping switch `s` (1 = damper on).
+    /// Damping switch `s` (1 = damper on). While the mass sticks, the chart it arrived in.
     pub s: f64,
+    /// Whether the mass sticks at this phase (slides along the switching surface).
+    pub stick: bool,
 }
 
 impl Hopper {
     /// Settles onto the forced periodic orbit (input switched off) and refines it by Newton
     /// shooting. Errors when there is no asymptotically stable period-T orbit (for example
-    /// `c = 0`) or the orbit does not switch exactly twice per period.
+    /// `c = 0`) or the orbit does not switch exactly twice per period. A switch is a chart
+    /// change, through a crossing or at the end of a stick interval.
     pub fn limit_cycle(
         &self,
         shooting: &ShootingOptions,
@@ -54,10 +70,9 @@ impl Hopper {
         let period = self.params().period;
         let cycle = find_limit_cycle(&unforced, mode0, 0.0, x0, period, shooting, opts)?;
         let transitions = || {
-            cycle
-                .events
-                .iter()
-                .filter(|e| e.kind == EventKind::Transition)
+            cycle.events.iter().filter(|e| {
+                e.kind == EventKind::Transition || (e.kind == EventKind::SlideEnd && e.to != e.from)
+            })
         };
         let ons: Vec<f64> = transitions()
             .filter(|e| e.to == HopperMode::Damped)
@@ -127,6 +142,7 @@ impl Hopper {
                     x: s[0],
                     xd: s[1],
                     s: traj.modes[i].switch(),
+                    stick: traj.sliding_at(phase).is_some(),
                 }
             })
             .collect())

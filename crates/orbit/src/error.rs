@@ -44,6 +44,23 @@ pub enum OrbitError {
         /// All multipliers.
         multipliers: Vec<Complex64>,
     },
+    /// The motion slides along a switching surface through the whole period (a mass stuck
+    /// by friction that the forcing never breaks loose): every state near it on the surface
+    /// is periodic too, so there is no isolated orbit to refine.
+    #[error(
+        "the motion slides along guard {guard} through the whole period {period} s from \
+         t = {start} s (stuck at {state:?}); the periodic orbit is not isolated"
+    )]
+    SlidesThroughout {
+        /// The surface: guard index in the chart the motion slides in.
+        guard: usize,
+        /// The period.
+        period: f64,
+        /// Start of the period examined.
+        start: f64,
+        /// The state at its start.
+        state: Vec<f64>,
+    },
     /// The shooting options are out of range.
     #[error("invalid shooting option {field}: {reason}")]
     InvalidOptions {

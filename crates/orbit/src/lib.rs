@@ -29,6 +29,17 @@
 //! With the identity reset and a vector field that is continuous across the switching surface
 //! (the hopper's damper force `c xd` vanishes on `xd = 0`), `f_b = f_a` there and `S = I`.
 //!
+//! # Orbits that slide
+//!
+//! Where the motion slides along a switching surface
+//! ([`HybridSystem::sliding_chart`](htfid_hybrid::HybridSystem::sliding_chart), for instance a
+//! mass stuck by Coulomb friction), the saltation matrices of the start and end of sliding
+//! and the variation of the Filippov field are not implemented. [`period_map`] then takes the
+//! Jacobian by central differences of the period map (relative accuracy about `1e-6`), so
+//! Newton shooting and the Floquet multipliers still work; [`LimitCycle::sliding`] lists the
+//! intervals. A motion that slides through the whole period (stuck for good) has no isolated
+//! orbit: [`OrbitError::SlidesThroughout`].
+//!
 //! # Example
 //!
 //! ```

@@ -1,6 +1,6 @@
 //! Settling and Newton shooting onto the forced periodic orbit.
 
-use htfid_hybrid::{simulate, Event, HybridSystem, Options, Stats};
+use htfid_hybrid::{simulate, Event, HybridSystem, Options, SlidingInterval, Stats};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
@@ -62,15 +62,25 @@ pub struct PeriodMap<M> {
     pub state: Vec<f64>,
     /// The chart at `t0 + T`.
     pub mode: M,
-    /// `DP(x)`, saltations included.
+    /// `DP(x)`, saltations included. When the motion slides during the period, central
+    /// differences of the period map instead (see [`period_map`]).
     pub jacobian: DMatrix<f64>,
     /// Transitions during the period (states before the reset, without the sensitivity part).
     pub events: Vec<Event<M>>,
+    /// Intervals spent sliding along a switching surface during the period.
+    pub sliding: Vec<SlidingInterval<M>>,
     /// Integrator work.
     pub stats: Stats,
 }
 
 /// Integrates the variational system over one period from `(t0, x0, mode0)`.
+///
+/// When the motion slides along a switching surface during the period, the variational
+/// equations do not give the flow's Jacobian (the saltation matrices of the sliding start and
+/// end and the derivative of the Filippov coefficient are not implemented), so the Jacobian is
+/// taken by central differences of the period map instead: `2 n` further integrations, with
+/// steps of `1e-4 max(1, |x_j|)`, whose error is dominated by the integration error divided
+/// by the step (about `1e-6` relative at the default tolerances).
 pub fn period_map<S: HybridSystem>(
     sys: &S,
     mode0: S::Mode,
@@ -86,6 +96,11 @@ pub fn period_map<S: HybridSystem>(
     let var = Variational::new(sys);
     let z0 = var.initial_state(x0);
     let traj = simulate(&var, mode0, t0, &z0, t0 + period, &[], opts)?;
+    let jacobian = if traj.sliding.is_empty() {
+        DMatrix::from_row_slice(n, n, &traj.final_state[n..])
+    } else {
+        difference_jacobian(sys, mode0, t0, x0, period, opts)?
+    };
     let events = traj
         .events
         .into_iter()
@@ -97,10 +112,42 @@ pub fn period_map<S: HybridSystem>(
     Ok(PeriodMap {
         state: traj.final_state[..n].to_vec(),
         mode: traj.final_mode,
-        jacobian: DMatrix::from_row_slice(n, n, &traj.final_state[n..]),
+        jacobian,
         events,
+        sliding: traj.sliding,
         stats: traj.stats,
     })
+}
+
+/// Relative step of the central differences of the period map: large enough that the
+/// integration error (about `rtol` relative) divided by the step stays near `1e-6`, small
+/// enough that the truncation error (step squared) does too.
+const PERIOD_MAP_FD_REL: f64 = 1e-4;
+
+/// `DP(x)` by central differences of the period map of `sys` (without variational equations).
+fn difference_jacobian<S: HybridSystem>(
+    sys: &S,
+    mode0: S::Mode,
+    t0: f64,
+    x0: &[f64],
+    period: f64,
+    opts: &Options,
+) -> Result<DMatrix<f64>, OrbitError> {
+    let n = x0.len();
+    let mut jac = DMatrix::zeros(n, n);
+    let mut x = x0.to_vec();
+    for j in 0..n {
+        let h = PERIOD_MAP_FD_REL * x0[j].abs().max(1.0);
+        x[j] = x0[j] + h;
+        let plus = simulate(sys, mode0, t0, &x, t0 + period, &[], opts)?.final_state;
+        x[j] = x0[j] - h;
+        let minus = simulate(sys, mode0, t0, &x, t0 + period, &[], opts)?.final_state;
+        x[j] = x0[j];
+        for i in 0..n {
+            jac[(i, j)] = (plus[i] - minus[i]) / (2.0 * h);
+        }
+    }
+    Ok(jac)
 }
 
 /// A stable periodic orbit of a clock-driven hybrid system.
@@ -122,6 +169,10 @@ pub struct LimitCycle<M> {
     pub residual: f64,
     /// The transitions over one period starting at `t0`.
     pub events: Vec<Event<M>>,
+    /// The intervals spent sliding along a switching surface over one period starting at
+    /// `t0` (empty for an orbit that only crosses its surfaces). The linearisation about an
+    /// orbit with sliding is not implemented: `htfid-ltp` and `htfid-theory` refuse it.
+    pub sliding: Vec<SlidingInterval<M>>,
     /// Newton iterations used.
     pub newton_iterations: usize,
     /// Integrator work of the final period map.
@@ -159,6 +210,17 @@ pub fn find_limit_cycle<S: HybridSystem>(
     let mut iterations = 0;
     let mut residual;
     let mut map = period_map(sys, mode, t0, &x, period, opts)?;
+    if let [only] = map.sliding.as_slice() {
+        // Sliding from the start to the end of the period: stuck for good.
+        if only.start <= t0 && only.exit.is_none() {
+            return Err(OrbitError::SlidesThroughout {
+                guard: only.guard,
+                period,
+                start: t0,
+                state: x,
+            });
+        }
+    }
     loop {
         let r = DVector::from_iterator(n, (0..n).map(|i| map.state[i] - x[i]));
         residual = r.amax();
@@ -219,6 +281,7 @@ pub fn find_limit_cycle<S: HybridSystem>(
         multipliers,
         residual,
         events: map.events,
+        sliding: map.sliding,
         newton_iterations: iterations,
         stats: map.stats,
     })

@@ -226,6 +226,38 @@ impl<S: HybridSystem> HybridSystem for Variational<'_, S> {
         self.inner.guard_direction(mode, index)
     }
 
+    /// Forwarded, so that the state part slides exactly as the system alone does. The
+    /// sensitivity part is then not the flow's Jacobian (the saltation at the start and end of
+    /// sliding and the derivative of the Filippov coefficient are not applied):
+    /// [`period_map`](crate::period_map) replaces it by differences of the period map.
+    fn sliding_chart(&self, mode: S::Mode, index: usize) -> Option<S::Mode> {
+        self.inner.sliding_chart(mode, index)
+    }
+
+    fn guard_gradient(
+        &self,
+        mode: S::Mode,
+        index: usize,
+        t: f64,
+        z: &[f64],
+        grad: &mut [f64],
+    ) -> bool {
+        let n = self.inner.dim();
+        if !self
+            .inner
+            .guard_gradient(mode, index, t, &z[..n], &mut grad[..n])
+        {
+            return false;
+        }
+        grad[n..].iter_mut().for_each(|v| *v = 0.0);
+        true
+    }
+
+    fn guard_time_derivative(&self, mode: S::Mode, index: usize, t: f64, z: &[f64]) -> Option<f64> {
+        self.inner
+            .guard_time_derivative(mode, index, t, &z[..self.inner.dim()])
+    }
+
     fn transition(&self, mode: S::Mode, index: usize, t: f64, z: &mut [f64]) -> S::Mode {
         let n = self.inner.dim();
         let (s, to) = saltation(self.inner, mode, index, t, &z[..n]);

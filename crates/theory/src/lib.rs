@@ -230,6 +230,13 @@
 //! that is 0.4 to 0.5 ms per value at the default tolerance, against 0.2 us
 //! for [`ExactHtf`] (`cargo bench -p htfid-theory --bench orbit_htf`), so
 //! prefer [`ExactHtf`] where the linearisation is piecewise-LTI exactly.
+//!
+//! **Orbits that slide.** The linearisation through a sliding segment (a mass stuck by
+//! Coulomb friction: the saltation matrices at the start and end of sliding and the variation
+//! of the Filippov field) is not implemented. [`OrbitHtf::new`], and through
+//! `htfid_ltp::linearise` [`LinearisedHtf::new`], refuse an orbit with sliding intervals with
+//! [`TheoryError::Ltp`]`(LtpError::SlidingOrbit)`, naming the first interval, rather than give
+//! an HTF that leaves the sticking out.
 mod about_orbit;
 mod coefficients;
 mod error;

@@ -126,6 +126,16 @@ impl<'a, S: InputOutput> OrbitHtf<'a, S> {
         }
         let map = period_map(system, cycle.mode0, cycle.t0, &cycle.state0, period, opts)
             .map_err(|e| TheoryError::Orbit(e.to_string()))?;
+        // The responses below integrate the variational equations, which do not hold through
+        // sliding (see htfid-orbit's period_map): refuse rather than give a wrong HTF.
+        if let Some(first) = map.sliding.first() {
+            return Err(TheoryError::Ltp(htfid_ltp::LtpError::SlidingOrbit {
+                guard: first.guard,
+                start: first.start,
+                end: first.end,
+                intervals: map.sliding.len(),
+            }));
+        }
         let residual = map
             .state
             .iter()

@@ -96,6 +96,13 @@ fn cycle_json(model: &Model, cycle: &LimitCycle<Mode>) -> Value {
         "floquet_multipliers": cycle.multipliers.iter().map(|m| [m.re, m.im]).collect::<Vec<_>>(),
         "periodicity_residual": cycle.residual,
         "newton_iterations": cycle.newton_iterations,
+        "sliding_intervals": cycle.sliding.iter().map(|s| json!({
+            "start": s.start - cycle.t0,
+            "end": s.end - cycle.t0,
+            "guard": model.guard_name(s.chart, s.guard),
+            "arrived": model.mode_name(s.chart),
+            "left": s.exit.map(|m| model.mode_name(m)),
+        })).collect::<Vec<_>>(),
     })
 }
 
@@ -157,7 +164,7 @@ fn simulate_record(
         .collect();
     Ok(ModelRecord {
         modes: traj.modes.iter().map(|m| m.index() as f64).collect(),
-        switches: traj.transitions().count(),
+        switches: traj.switches().count(),
         stats: traj.stats,
         t: grid,
         u,
@@ -229,13 +236,15 @@ fn write_limit_cycle(
     let mut header = vec!["phase"];
     header.extend(state_names.iter().map(String::as_str));
     header.push("mode");
+    header.push("sliding");
     let mut csv = outdir.csv("limit_cycle.csv", &header)?;
-    let mut row = Vec::with_capacity(model.dim() + 2);
+    let mut row = Vec::with_capacity(model.dim() + 3);
     for i in 0..ORBIT_SAMPLES {
         row.clear();
         row.push(phases[i]);
         row.extend_from_slice(orbit.state(i));
         row.push(orbit.modes[i].index() as f64);
+        row.push(f64::from(u8::from(orbit.sliding_at(phases[i]).is_some())));
         csv.write_row(&row)?;
     }
     csv.finish()?;

@@ -4,8 +4,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use htfid_data::OutputDir;
-use htfid_hybrid::{simulate, Stats};
-use htfid_model::{Hopper, HopperOrbit};
+use htfid_hybrid::{simulate, SlidingInterval, Stats};
+use htfid_model::{Hopper, HopperMode, HopperOrbit};
 use htfid_orbit::ShootingOptions;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -31,6 +31,8 @@ pub struct Simulated {
     pub xd: Vec<f64>,
     pub stats: Stats,
     pub switches: usize,
+    /// Intervals during which the mass sticks (slides along the damper switch).
+    pub sliding: Vec<SlidingInterval<HopperMode>>,
 }
 
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
@@ -121,7 +123,8 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
         }
     }
     let xd = (0..n).map(|i| traj.state(i)[1]).collect();
-    let switches = traj.transitions().count();
+    let switches = traj.switches().count();
+    let sliding = traj.sliding.clone();
     Ok(Simulated {
         hopper,
         orbit,
@@ -133,6 +136,7 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
         xd,
         stats: traj.stats,
         switches,
+        sliding,
     })
 }
 
@@ -158,9 +162,11 @@ pub fn write_limit_cycle(settings: &Settings, sim: &Simulated, out: &mut OutputD
     let samples = sim
         .hopper
         .sample_orbit(&sim.orbit, ORBIT_SAMPLES, &settings.integrator)?;
-    let mut csv = out.csv("limit_cycle.csv", &["phase", "x", "xd", "s"])?;
+    let mut csv = out.csv("limit_cycle.csv", &["phase", "x", "xd", "s", "stick"])?;
     for s in &samples {
-        csv.write_row(&[s.phase, s.x, s.xd, s.s])?;
+        // While stuck the velocity is zero and `s` is the chart the mass arrived in; the
+        // `stick` column marks those phases.
+        csv.write_row(&[s.phase, s.x, s.xd, s.s, f64::from(u8::from(s.stick))])?;
     }
     csv.finish()?;
     Ok(())
@@ -184,7 +190,25 @@ pub fn limit_cycle_json(orbit: &HopperOrbit) -> Value {
         "floquet_multipliers": c.multipliers.iter().map(|m| [m.re, m.im]).collect::<Vec<_>>(),
         "periodicity_residual": c.residual,
         "newton_iterations": c.newton_iterations,
+        "stick_intervals": sliding_json(&c.sliding, c.t0),
+        "stick_fraction": c.sliding.iter().map(|s| s.end - s.start).sum::<f64>() / c.period,
     })
+}
+
+/// Sliding intervals as JSON: times from `origin`, the chart the mass arrived in and the one
+/// it left into (`null` when still stuck at the end).
+pub fn sliding_json(sliding: &[SlidingInterval<HopperMode>], origin: f64) -> Value {
+    sliding
+        .iter()
+        .map(|s| {
+            json!({
+                "start": s.start - origin,
+                "end": s.end - origin,
+                "arrived": s.chart,
+                "left": s.exit,
+            })
+        })
+        .collect()
 }
 
 /// The summary common to every command that simulates.
@@ -199,6 +223,8 @@ pub fn base_summary(settings: &Settings, sim: &Simulated) -> Value {
             "samples": sim.t.len(),
             "sample_rate": settings.sample_rate,
             "switches": sim.switches,
+            "stick_intervals": sim.sliding.len(),
+            "stick_time": sim.sliding.iter().map(|s| s.end - s.start).sum::<f64>(),
             "steps": sim.stats.steps,
             "rejected_steps": sim.stats.rejected,
             "rhs_evaluations": sim.stats.rhs_evals,
