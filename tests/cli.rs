@@ -1202,9 +1202,18 @@ fn diagnose_prints_the_cause_and_the_gain() {
             .any(|l| l.trim_start().starts_with("cause") && l.trim_end().ends_with(cause)),
         "{text}"
     );
-    let gain = format!("{:.3}", 100.0 * d["gain"].as_f64().unwrap());
+    // The gain line shows the percentage to 3 significant digits: within half a unit of the
+    // last digit of the JSON value.
+    let gain = 100.0 * d["gain"].as_f64().unwrap();
+    let shown: f64 = text
+        .lines()
+        .find_map(|l| l.trim_start().strip_prefix("gain"))
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no gain line: {text}"));
+    let half_digit = 0.5 * 10f64.powf(gain.abs().log10().floor() - 2.0);
     assert!(
-        text.contains("gain") && text.contains(&gain[..4]),
+        (shown - gain).abs() <= half_digit * 1.001,
         "{gain}: {text}"
     );
     for p in d["parameters"].as_array().unwrap() {
