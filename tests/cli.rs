@@ -1501,3 +1501,245 @@ fn a_record_on_the_wrong_time_scale_is_refused() {
     assert!(stderr(&o).contains("data.sample_rate"), "{}", stderr(&o));
     assert!(!out.exists());
 }
+
+fn fixture(name: &str) -> PathBuf {
+    root().join("tests/fixtures/data").join(name)
+}
+
+/// An estimate config of the fixture record (see `tests/fixtures/data/make_fixtures.py`),
+/// with `extra` lines added to its `[data]` table.
+fn fixture_estimate_config(dir: &Path, file: &str, extra: &str) -> PathBuf {
+    let config = dir.join("formats.toml");
+    fs::write(
+        &config,
+        format!(
+            "name = \"formats\"\n\n[data]\nfile = {:?}\ntime = \"t\"\ninput = \"f\"\n\
+             outputs = [\"x\"]\n{extra}\n\n[period]\nvalue = 0.16\n\n[estimation]\n\
+             harmonics = [-1, 0, 1]\nomega_min = 5.0\nomega_max = 60.0\n",
+            fixture(file)
+        ),
+    )
+    .unwrap();
+    config
+}
+
+/// `htfid estimate --data` of the one record written by NumPy and SciPy in every format gives
+/// byte-identical estimates and orbit to the CSV, and carries `data.units` to summary.json.
+#[test]
+fn estimate_reads_every_data_format_identically() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = fixture_estimate_config(
+        tmp.path(),
+        "record.csv",
+        "columns = [\"t\", \"f\", \"x\"]   # names the matrix columns of binary files\n\
+         units = { t = \"s\", f = \"N\", x = \"m\" }",
+    );
+    let run = |file: &str| {
+        let out = tmp.path().join(file);
+        htfid_ok(&[
+            "estimate",
+            config.to_str().unwrap(),
+            "--data",
+            fixture(file).to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        out
+    };
+    let csv = run("record.csv");
+    let read = |dir: &Path, name: &str| fs::read_to_string(dir.join(name)).unwrap();
+    for file in [
+        "record.npy",
+        "record.npz",
+        "record_matrix.npz",
+        "record.mat",
+        "record_matrix.mat",
+    ] {
+        let out = run(file);
+        for name in ["estimate_siddiqi.csv", "orbit.csv"] {
+            assert_eq!(read(&out, name), read(&csv, name), "{file}: {name}");
+        }
+        let s = summary(&out);
+        assert_eq!(s["data"], fixture(file).display().to_string());
+        assert_eq!(
+            s["units"],
+            serde_json::json!({"t": "s", "f": "N", "x": "m"}),
+            "{file}"
+        );
+    }
+}
+
+/// The `[data]` table chooses a MAT-file's matrix by name and names its columns; a semicolon
+/// file, an unknown delimiter, a unit of an unread column, a missing matrix and a v7.3 file are
+/// each explained with the key to change.
+#[test]
+fn data_format_keys_and_their_messages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let run = |config: &Path, data: Option<&Path>| {
+        let mut args = vec![
+            "estimate".to_owned(),
+            config.display().to_string(),
+            "--out".to_owned(),
+            out.display().to_string(),
+            "--force".to_owned(),
+        ];
+        if let Some(d) = data {
+            args.extend(["--data".to_owned(), d.display().to_string()]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        htfid(&args)
+    };
+    let config = fixture_estimate_config(
+        tmp.path(),
+        "record_matrix.mat",
+        "matrix = \"rec\"\ncolumns = [\"t\", \"f\", \"x\"]",
+    );
+    let o = run(&config, None);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let semicolons = tmp.path().join("semi.csv");
+    fs::write(
+        &semicolons,
+        fs::read_to_string(fixture("record.csv"))
+            .unwrap()
+            .replace(',', ";"),
+    )
+    .unwrap();
+    let config = fixture_estimate_config(tmp.path(), "record.csv", "");
+    // The error line, after the progress lines.
+    let error = |o: &Output| {
+        stderr(o)
+            .lines()
+            .find(|l| l.starts_with("error: "))
+            .unwrap_or_default()
+            .to_owned()
+    };
+    let o = run(&config, Some(&semicolons));
+    assert_eq!(
+        error(&o),
+        format!(
+            "error: {}: [data] file (set data.delimiter = \";\" in the config): {}:1: no column \
+             \"t\" in the header \"t;f;x\": it looks semicolon-separated but cells are split at \
+             \",\"; set the delimiter to \";\"",
+            config.display(),
+            semicolons.display()
+        )
+    );
+    let config = fixture_estimate_config(tmp.path(), "record.csv", "delimiter = \";\"");
+    let o = run(&config, Some(&semicolons));
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    for (extra, message) in [
+        (
+            "delimiter = \"|\"",
+            "8: data.delimiter: must be one of \",\", \";\", \"tab\", \"whitespace\", \"auto\" \
+             (got \"|\")",
+        ),
+        (
+            "units = { t = \"s\", y = \"m\" }",
+            "8: data.units: \"y\" is not a column this config reads (\"f\", \"x\", \"t\")",
+        ),
+        (
+            "columns = [\"t\", \"t\"]",
+            "8: data.columns: \"t\" is listed twice",
+        ),
+    ] {
+        let config = fixture_estimate_config(tmp.path(), "record.csv", extra);
+        let o = run(&config, None);
+        assert_eq!(error(&o), format!("error: {}:{message}", config.display()),);
+    }
+
+    let config = fixture_estimate_config(tmp.path(), "record_matrix.mat", "matrix = \"data\"");
+    let o = run(&config, None);
+    assert!(
+        stderr(&o).ends_with(&format!(
+            "(data.matrix and data.columns name a matrix and its columns): {}: no readable \
+             matrix \"data\" in the MAT-file; it holds \"rec\"\n",
+            fixture("record_matrix.mat").display()
+        )),
+        "{}",
+        stderr(&o)
+    );
+
+    let v73 = tmp.path().join("v73.mat");
+    let mut bytes = b"MATLAB 7.3 MAT-file, Platform: GLNXA64".to_vec();
+    bytes.resize(512, b' ');
+    bytes.extend_from_slice(b"\x89HDF\r\n\x1a\n");
+    fs::write(&v73, bytes).unwrap();
+    let o = run(&config, Some(&v73));
+    assert!(
+        stderr(&o).contains("save the variables with save(FILE, ..., '-v7')"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(o.status.code(), Some(1));
+}
+
+/// `htfid diagnose --data` of a model-file diagnosis reads a `.npy` copy of the shipped CSV
+/// record (written here as NumPy lays it out) to the same diagnosis.
+#[test]
+fn diagnose_reads_a_npy_record_like_its_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = root().join("data/hopper-protocol.csv");
+    let rows: Vec<[f64; 3]> = fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|c| c.parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    // NPY 1.0: magic, version, header length, a dict padded with spaces to a 64-byte boundary
+    // ending in a newline, then the little-endian doubles in C order.
+    let mut header = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 3), }}",
+        rows.len()
+    );
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    for v in rows.iter().flatten() {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    let npy = tmp.path().join("rec.npy");
+    fs::write(&npy, bytes).unwrap();
+    let config = tmp.path().join("d.toml");
+    fs::write(
+        &config,
+        fs::read_to_string(root().join("configs/diagnose-hopper-model.toml"))
+            .unwrap()
+            .replace("\"../", &format!("\"{}/", root().display()))
+            .replacen(
+                "outputs = [\"x\"]",
+                "outputs = [\"x\"]\ncolumns = [\"t\", \"f\", \"x\"]\nunits = { x = \"m\" }",
+                1,
+            ),
+    )
+    .unwrap();
+    let diagnose = |data: &Path, out: &Path| {
+        htfid_ok(&[
+            "diagnose",
+            config.to_str().unwrap(),
+            "--data",
+            data.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let json: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(out.join("diagnosis.json")).unwrap()).unwrap();
+        json
+    };
+    let a = diagnose(&csv, &tmp.path().join("csv"));
+    let b = diagnose(&npy, &tmp.path().join("npy"));
+    for key in ["cause", "gain", "parameters", "refitted"] {
+        assert_eq!(a[key], b[key], "{key}");
+    }
+    assert_eq!(b["units"], serde_json::json!({"x": "m"}));
+}

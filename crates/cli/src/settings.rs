@@ -1108,6 +1108,10 @@ pub struct RawData {
     pub validation: Option<Spanned<Vec<[i64; 2]>>>,
     pub test: Option<Spanned<Vec<[i64; 2]>>>,
     pub time_tolerance: OptNum,
+    pub delimiter: Option<Spanned<String>>,
+    pub matrix: Option<Spanned<String>>,
+    pub columns: Option<Spanned<Vec<String>>>,
+    pub units: Option<Spanned<std::collections::BTreeMap<String, String>>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -1147,6 +1151,8 @@ pub struct DataSettings {
     pub test: Vec<std::ops::Range<usize>>,
     /// Relative tolerance on the time step.
     pub time_tolerance: f64,
+    /// `data.delimiter`, `data.matrix`, `data.columns`, `data.units`.
+    pub format: crate::records::DataFormat,
 }
 
 #[derive(Debug, Clone)]
@@ -1245,7 +1251,13 @@ impl DiagnoseSettings {
                 format!("\"{output}\" is also the input column; the output must be another column"),
             ));
         }
+        let used: Vec<&str> = [Some(input.as_str()), Some(output.as_str()), time.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect();
+        let format = crate::records::resolve_format(&src, crate::raw_format!(d), &used)?;
         let data = DataSettings {
+            format,
             file,
             time,
             sample_rate,
