@@ -940,7 +940,7 @@ fn model_config_errors_are_located() {
     ]);
     let line = line_of(&path, "k99 = 1.0");
     assert!(
-        stderr(&o).contains(&format!("edited.toml:{line}: model.parameters")),
+        stderr(&o).contains(&format!("edited.toml:{line}:1: model.parameters")),
         "{}",
         stderr(&o)
     );
@@ -1742,4 +1742,256 @@ fn diagnose_reads_a_npy_record_like_its_csv() {
         assert_eq!(a[key], b[key], "{key}");
     }
     assert_eq!(b["units"], serde_json::json!({"x": "m"}));
+}
+
+/// `configs/NAME` with one textual replacement, written as `edited.toml` in `dir`; returns the
+/// path and the line and column where the replacement starts.
+fn edited(dir: &Path, name: &str, from: &str, to: &str) -> (PathBuf, usize, usize) {
+    let text = fs::read_to_string(root().join("configs").join(name)).unwrap();
+    let at = text
+        .find(from)
+        .unwrap_or_else(|| panic!("{name} contains {from:?}"));
+    let line = text[..at].matches('\n').count() + 1;
+    let column = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
+    let path = dir.join("edited.toml");
+    fs::write(&path, text.replacen(from, to, 1)).unwrap();
+    (path, line, column)
+}
+
+/// The error line `htfid COMMAND CONFIG` prints, with the config's folder removed.
+fn error_of(command: &str, config: &Path) -> String {
+    let out = config.with_file_name("out");
+    let o = htfid(&[
+        command,
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(!out.exists(), "an output directory was left behind");
+    stderr(&o)
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or_default()
+        .replace(&format!("{}/", config.parent().unwrap().display()), "")
+}
+
+/// Type errors name the key path, the line and the column in every kind of config, in words
+/// a reader knows ("an integer", "a list"), not Rust type names.
+#[test]
+fn type_errors_name_the_key_in_every_config_kind() {
+    let cases: &[(&str, &str, &str, &str, &str, usize, &str)] = &[
+        // (config, command, from, to, text at the error's column, its offset in `to`, message)
+        (
+            "paper.toml",
+            "simulate",
+            "copies = 9",
+            "copies = \"nine\"",
+            "\"nine\"",
+            9,
+            "excitation.copies: invalid type: string \"nine\", expected an integer",
+        ),
+        (
+            "paper.toml",
+            "theory",
+            "points = 400",
+            "points = 4.5",
+            "4.5",
+            9,
+            "theory.points: invalid type: floating point `4.5`, expected an integer",
+        ),
+        (
+            "paper.toml",
+            "run",
+            "harmonics = [-3, -2, -1, 0, 1, 2, 3]",
+            "harmonics = [-3, \"two\"]",
+            "\"two\"",
+            17,
+            "estimation.harmonics[1]: invalid type: string \"two\", expected an integer",
+        ),
+        (
+            "paper.toml",
+            "run",
+            "rtol = 1e-10",
+            "rtol = true",
+            "true",
+            7,
+            "simulation.rtol: invalid type: boolean `true`, expected a number",
+        ),
+        (
+            "paper-model.toml",
+            "run",
+            "settle_periods = 30",
+            "settle_periods = [30]",
+            "[30]",
+            17,
+            "simulation.settle_periods: invalid type: sequence, expected an integer",
+        ),
+        (
+            "estimate-hopper.toml",
+            "estimate",
+            "omega_min = 1.0",
+            "omega_min = \"low\"",
+            "\"low\"",
+            12,
+            "estimation.omega_min: invalid type: string \"low\", expected a number",
+        ),
+        (
+            "estimate-hopper.toml",
+            "estimate",
+            "outputs = [\"x\"]",
+            "outputs = \"x\"",
+            "\"x\"",
+            10,
+            "data.outputs: invalid type: string \"x\", expected a list",
+        ),
+        (
+            "diagnose-hopper.toml",
+            "diagnose",
+            "significance_sigma = 5.0",
+            "significance_sigma = \"five\"",
+            "\"five\"",
+            21,
+            "diagnose.significance_sigma: invalid type: string \"five\", expected a number",
+        ),
+        (
+            "diagnose-hopper-model.toml",
+            "diagnose",
+            "free = [\"k\", \"c\"]",
+            "free = [\"k\", 3]",
+            "3",
+            13,
+            "model.free[1]: invalid type: integer `3`, expected a string",
+        ),
+        (
+            "diagnose-hopper-model.toml",
+            "diagnose",
+            "fit_fraction = 0.7",
+            "fit_fraction = \"most\"",
+            "\"most\"",
+            15,
+            "diagnose.fit_fraction: invalid type: string \"most\", expected a number",
+        ),
+    ];
+    for &(name, command, from, to, at, offset, message) in cases {
+        assert_eq!(&to[offset..offset + at.len()], at, "{to}");
+        let tmp = tempfile::tempdir().unwrap();
+        let (config, line, column) = edited(tmp.path(), name, from, to);
+        // A replacement that starts with new lines moves the error to its last line.
+        let (line, column) = match to[..offset].rfind('\n') {
+            Some(nl) => (line + to[..offset].matches('\n').count(), offset - nl),
+            None => (line, column + offset),
+        };
+        assert_eq!(
+            error_of(command, &config),
+            format!("error: edited.toml:{line}:{column}: {message}"),
+            "{name}: {to}"
+        );
+    }
+}
+
+/// Finite values that leave no meaningful simulation are refused at their key, with the
+/// quantity that is out of range, instead of ending in an optimiser or integrator error.
+#[test]
+fn values_that_overflow_or_stall_the_simulation_are_refused_at_their_key() {
+    let cases: &[(&str, &str, &str, &str, &str)] = &[
+        (
+            "paper.toml",
+            "g = 9.81",
+            "g = 1e308",
+            "run",
+            "11:5: model.g: the spring's static sag m g / k = 5e305 m must be within +-1e6 m, \
+             or the simulation overflows (got g = 1e308)",
+        ),
+        (
+            "paper.toml",
+            "atol = 1e-12",
+            "atol = 1e-300",
+            "run",
+            "23:8: simulation.atol: must be in [1e-20, 0.1] (below 1e-20 the target is finer \
+             than the rounding of a state near zero, and the step size collapses) (got 1e-300)",
+        ),
+        (
+            "paper.toml",
+            "rtol = 1e-10",
+            "rtol = 1e-300",
+            "simulate",
+            "22:8: simulation.rtol: must be in [1e-14, 0.1] (below 1e-14 the target is finer \
+             than double-precision rounding) (got 1e-300)",
+        ),
+        (
+            "paper.toml",
+            "fit = [\"k\", \"c\"]",
+            "fit = []",
+            "run",
+            "36:7: estimation.fit: must name at least one parameter, among \"k\", \"c\", \"m\"",
+        ),
+        (
+            "paper.toml",
+            "k = 200.0",
+            "k = 1e300",
+            "simulate",
+            "9:5: model.k: the natural period 2 pi sqrt(m / k) = 6.283185307179586e-150 s must \
+             be within 1e4 times the forcing period 1 s either way, or one simulation cannot \
+             resolve both (got m = 1, k = 1e300)",
+        ),
+        (
+            "paper.toml",
+            "m = 1.0",
+            "m = 1e-300",
+            "simulate",
+            "8:5: model.m: the natural period 2 pi sqrt(m / k) = 4.442882938158366e-151 s must \
+             be within 1e4 times the forcing period 1 s either way, or one simulation cannot \
+             resolve both (got m = 1e-300, k = 200)",
+        ),
+        (
+            "paper.toml",
+            "c = 2.0",
+            "c = 1e300",
+            "simulate",
+            "10:5: model.c: the damping ratio c / (2 sqrt(k m)) = 3.5355339059327375e298 must \
+             be <= 1e4: beyond it the damper locks the mass and the equations are too stiff to \
+             integrate (got c = 1e300)",
+        ),
+        (
+            "paper.toml",
+            "amplitude = 1.0",
+            "amplitude = -1e308",
+            "simulate",
+            "16:13: forcing.amplitude: the static deflection amplitude / k = -5e305 m must be \
+             within +-1e6 m, or the simulation overflows (got amplitude = -1e308)",
+        ),
+        (
+            "paper.toml",
+            "sample_rate = 100.0",
+            "sample_rate = 1e12",
+            "simulate",
+            "21:15: simulation.sample_rate: must give at most 1e5 samples per forcing period \
+             (got 1e12 Hz x 1 s = 1e12); the record would not fit in memory",
+        ),
+        (
+            "diagnose-hopper.toml",
+            "x0 = 0.2",
+            "x0 = 1e308",
+            "diagnose",
+            "x0 = 1e308",
+        ),
+    ];
+    for &(name, from, to, command, message) in cases {
+        let tmp = tempfile::tempdir().unwrap();
+        let (config, line, column) = edited(tmp.path(), name, from, to);
+        let err = error_of(command, &config);
+        if message == to {
+            // Only the place is asserted here; the wording is the one of paper.toml's x0.
+            assert!(
+                err.starts_with(&format!(
+                    "error: edited.toml:{line}:{}: model.x0: ",
+                    column + 5
+                )),
+                "{err}"
+            );
+        } else {
+            assert_eq!(err, format!("error: edited.toml:{message}"), "{name}: {to}");
+        }
+    }
 }

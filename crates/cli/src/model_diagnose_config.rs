@@ -102,6 +102,7 @@ impl ModelDiagnoseSettings {
         let mut model = htfid_lang::Model::from_file(&model_path).map_err(|e| ConfigError {
             path: src.path.clone(),
             line: Some(src.line_of(&raw.model.file.span())),
+            column: Some(src.column_of(&raw.model.file.span())),
             key: "model.file".into(),
             message: e.to_string(),
         })?;

@@ -2,6 +2,7 @@
 //!
 //! Every key is documented in `docs/config.md`.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use htfid_hybrid::{Method, Options};
@@ -9,7 +10,7 @@ use htfid_model::{DamperLaw, Effects, HopperParams};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::config::{load, quote_list, ConfigError, Kind, Source};
+use crate::config::{load, quote_list, show, ConfigError, Kind, Source};
 
 type Num = Spanned<f64>;
 type OptNum = Option<Spanned<f64>>;
@@ -404,11 +405,40 @@ impl Settings {
             "> 0 (Hz)",
             |v| v > 0.0,
         )?;
+        // The record holds every sample of settling and excitation; a sample rate meant in
+        // another unit (kHz read as Hz) would allocate without bound.
+        let per_period = sample_rate * period;
+        if per_period > 1e5 {
+            return Err(src.error(
+                s.sample_rate.as_ref().map(Spanned::span).as_ref(),
+                "simulation.sample_rate",
+                format!(
+                    "must give at most 1e5 samples per forcing period (got {} Hz x {} s = \
+                     {per_period:e}); the record would not fit in memory",
+                    show(sample_rate),
+                    show(period)
+                ),
+            ));
+        }
         let mut integrator = Options {
-            rtol: src.opt_number(&s.rtol, 1e-10, "simulation.rtol", "in (0, 0.1]", |v| {
-                v > 0.0 && v <= 0.1
-            })?,
-            atol: src.opt_number(&s.atol, 1e-12, "simulation.atol", "> 0", |v| v > 0.0)?,
+            // Below these the error target is finer than double-precision rounding of the
+            // states (rtol: a few dozen ulps; atol: of a state crossing zero), the step size
+            // collapses and the message would wrongly say "no limit cycle".
+            rtol: src.opt_number(
+                &s.rtol,
+                1e-10,
+                "simulation.rtol",
+                "in [1e-14, 0.1] (below 1e-14 the target is finer than double-precision rounding)",
+                |v| (1e-14..=0.1).contains(&v),
+            )?,
+            atol: src.opt_number(
+                &s.atol,
+                1e-12,
+                "simulation.atol",
+                "in [1e-20, 0.1] (below 1e-20 the target is finer than the rounding of a state \
+                 near zero, and the step size collapses)",
+                |v| (1e-20..=0.1).contains(&v),
+            )?,
             ..Options::default()
         };
         if let Some(method) = &s.method {
@@ -478,6 +508,7 @@ impl Settings {
             System::Model(_) => Err(ConfigError {
                 path: self.path.clone(),
                 line: None,
+                column: None,
                 key: "model".into(),
                 message: format!(
                     "this part of `htfid {command}` takes the built-in hopper ([model] m, k, c, \
@@ -486,6 +517,105 @@ impl Settings {
             }),
         }
     }
+}
+
+/// Where the built-in hopper's numbers are written.
+struct HopperSpans {
+    m: Option<Range<usize>>,
+    k: Option<Range<usize>>,
+    c: Option<Range<usize>>,
+    g: Option<Range<usize>>,
+    x0: Option<Range<usize>>,
+    amplitude: Option<Range<usize>>,
+}
+
+/// Lengths beyond this (m) mean a unit slip, not a hopper, and overflow the simulation's squares.
+const MAX_LENGTH: f64 = 1e6;
+/// The natural period may be this many times shorter or longer than the forcing period: one
+/// adaptive simulation still resolves both with steps of sensible size.
+const MAX_PERIOD_RATIO: f64 = 1e4;
+/// Damping ratios beyond this lock the damper rigidly and make the equations stiff.
+const MAX_DAMPING_RATIO: f64 = 1e4;
+
+/// Refuses hopper parameters that are each finite but leave no meaningful simulation: an
+/// overflowing static sag (`g = 1e308`), a natural period no step size can share with the
+/// forcing period (`k = 1e300` hangs the integrator, `m = 1e-300` collapses its step).
+fn check_hopper_scales(
+    src: &Source,
+    p: &HopperParams,
+    forced: bool,
+    at: &HopperSpans,
+) -> Result<(), ConfigError> {
+    let natural = 2.0 * std::f64::consts::PI * (p.m / p.k).sqrt();
+    let ratio = natural / p.period;
+    if forced && !(1.0 / MAX_PERIOD_RATIO..=MAX_PERIOD_RATIO).contains(&ratio) {
+        // Name the parameter further from the forcing's scale.
+        let (key, span) = if p.m.log10().abs() > p.k.log10().abs() {
+            ("model.m", &at.m)
+        } else {
+            ("model.k", &at.k)
+        };
+        return Err(src.error(
+            span.as_ref(),
+            key,
+            format!(
+                "the natural period 2 pi sqrt(m / k) = {natural:e} s must be within \
+                 {MAX_PERIOD_RATIO:e} times the forcing period {} s either way, or one simulation \
+                 cannot resolve both (got m = {}, k = {})",
+                show(p.period),
+                show(p.m),
+                show(p.k)
+            ),
+        ));
+    }
+    let zeta = p.c / (2.0 * (p.k * p.m).sqrt());
+    if zeta > MAX_DAMPING_RATIO {
+        return Err(src.error(
+            at.c.as_ref(),
+            "model.c",
+            format!(
+                "the damping ratio c / (2 sqrt(k m)) = {zeta:e} must be <= {MAX_DAMPING_RATIO:e}: \
+                 beyond it the damper locks the mass and the equations are too stiff to \
+                 integrate (got c = {})",
+                show(p.c)
+            ),
+        ));
+    }
+    for (key, span, what, length, got) in [
+        (
+            "model.g",
+            &at.g,
+            "the spring's static sag m g / k",
+            p.m * p.g / p.k,
+            format!("g = {}", show(p.g)),
+        ),
+        (
+            "model.x0",
+            &at.x0,
+            "the spring rest length x0",
+            p.x0,
+            format!("x0 = {}", show(p.x0)),
+        ),
+        (
+            "forcing.amplitude",
+            &at.amplitude,
+            "the static deflection amplitude / k",
+            p.forcing_amplitude / p.k,
+            format!("amplitude = {}", show(p.forcing_amplitude)),
+        ),
+    ] {
+        if length.is_nan() || length.abs() > MAX_LENGTH {
+            return Err(src.error(
+                span.as_ref(),
+                key,
+                format!(
+                    "{what} = {length:e} m must be within +-{MAX_LENGTH:e} m, or the simulation \
+                     overflows (got {got})"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Reads `[model]` (and `[forcing]`, `[effects]` for the built-in hopper).
@@ -519,6 +649,20 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
             forcing_amplitude: src.finite(&forcing.amplitude, "forcing.amplitude")?,
             period: src.positive(&forcing.period, "forcing.period")?,
         };
+        let span = |v: &OptNum| v.as_ref().map(Spanned::span);
+        check_hopper_scales(
+            src,
+            &params,
+            true,
+            &HopperSpans {
+                m: span(&m.m),
+                k: span(&m.k),
+                c: span(&m.c),
+                g: span(&m.g),
+                x0: span(&m.x0),
+                amplitude: Some(forcing.amplitude.span()),
+            },
+        )?;
         let damper = match &m.damper {
             None => DamperLaw::Switching,
             Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
@@ -560,6 +704,7 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
     let lang_error = |e: htfid_lang::ModelError| ConfigError {
         path: src.path.clone(),
         line: None,
+        column: None,
         key: "model".into(),
         message: e.to_string(),
     };
@@ -1309,6 +1454,19 @@ impl DiagnoseSettings {
             forcing_amplitude: amplitude,
             period,
         };
+        check_hopper_scales(
+            &src,
+            &params,
+            raw.forcing.is_some(),
+            &HopperSpans {
+                m: Some(m.m.span()),
+                k: Some(m.k.span()),
+                c: Some(m.c.span()),
+                g: m.g.as_ref().map(Spanned::span),
+                x0: m.x0.as_ref().map(Spanned::span),
+                amplitude: raw.forcing.as_ref().map(|f| f.amplitude.span()),
+            },
+        )?;
         let damper = match &m.damper {
             None => DamperLaw::Switching,
             Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
