@@ -1970,6 +1970,39 @@ fn values_that_overflow_or_stall_the_simulation_are_refused_at_their_key() {
              (got 1e12 Hz x 1 s = 1e12); the record would not fit in memory",
         ),
         (
+            "hopper-truth.toml",
+            "c_f = 0.2",
+            "k3 = 1e308",
+            "simulate",
+            "40:6: effects.k3: the cubic force's share k3 L^2 / k at the hopper's length L = \
+             0.2 m = 2.000e304 must be <= 1e6, or the simulation overflows or stalls (got k3 = \
+             1e308)",
+        ),
+        (
+            "hopper-truth.toml",
+            "c_f = 0.2",
+            "tau = 1e308",
+            "simulate",
+            "40:7: effects.tau: the lag in forcing periods, tau / T = 1.000e308 must be <= 1e4, \
+             or the simulation overflows or stalls (got tau = 1e308)",
+        ),
+        (
+            "hopper-truth.toml",
+            "output_std = 2e-5",
+            "output_std = 1e308",
+            "simulate",
+            "43:14: noise.output_std: must be in [0, 1e6] (in the outputs' units) (got 1e308)",
+        ),
+        (
+            "paper.toml",
+            "waveform = \"paper\"",
+            "waveform = \"linear\"\nf_start_hz = 0.1\nf_end_hz = 5.0\nduration = 1e308\n\
+             amplitude = 0.004\n#",
+            "simulate",
+            "30:12: excitation.duration: the record would hold inf samples ((settling + \
+             excitation) x sample_rate), more than the 3e8 that fit in memory",
+        ),
+        (
             "diagnose-hopper.toml",
             "x0 = 0.2",
             "x0 = 1e308",

@@ -198,7 +198,7 @@ impl Source {
 /// A number as a config's reader would write it: plain for everyday magnitudes, in exponent
 /// form beyond them (`1e308`, not 309 digits).
 pub fn show(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() || (1e-4..1e7).contains(&v.abs()) {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e6).contains(&v.abs()) {
         format!("{v}")
     } else {
         format!("{v:e}")

@@ -452,11 +452,48 @@ impl Settings {
             None => Excitation::None,
             Some(e) => resolve_excitation(src, e, period)?,
         };
+        // Every sample of settling and excitation is held in memory.
+        let (key, span, excited) = match (&excitation, &raw.excitation) {
+            (
+                Excitation::ChirpTrain {
+                    duration, copies, ..
+                },
+                Some(e),
+            ) => (
+                "excitation.duration",
+                e.duration.as_ref().map(Spanned::span),
+                *copies as f64 * (duration + period / *copies as f64),
+            ),
+            (Excitation::MultisineDesign { max_record, .. }, Some(e)) => (
+                "excitation.max_record",
+                e.max_record.as_ref().map(Spanned::span),
+                *max_record,
+            ),
+            _ => ("simulation.settle_periods", None, 0.0),
+        };
+        let samples = (settle_periods as f64 * period + excited) * sample_rate;
+        if samples > MAX_RECORD_SAMPLES {
+            return Err(src.error(
+                span.as_ref(),
+                key,
+                format!(
+                    "the record would hold {samples:.3e} samples ((settling + excitation) x \
+                     sample_rate), more than the {MAX_RECORD_SAMPLES:e} that fit in memory"
+                ),
+            ));
+        }
         let theory = resolve_theory(src, raw.theory.as_ref())?;
         let noise = match &raw.noise {
             None => None,
             Some(n) => Some(NoiseSettings {
-                output_std: src.non_negative(&n.output_std, "noise.output_std")?,
+                // Noise beyond 1e6 output units swamps any measurement, and past 1e307 its
+                // samples overflow to inf in the written record.
+                output_std: src.number(
+                    &n.output_std,
+                    "noise.output_std",
+                    "in [0, 1e6] (in the outputs' units)",
+                    |v| (0.0..=1e6).contains(&v),
+                )?,
                 seed: match &n.seed {
                     Some(v) => int_in(src, v, "noise.seed", 0, i64::MAX)? as u64,
                     None => 1,
@@ -528,6 +565,10 @@ struct HopperSpans {
     x0: Option<Range<usize>>,
     amplitude: Option<Range<usize>>,
 }
+
+/// Samples of a simulated record (settling and excitation) beyond which it does not fit in
+/// memory with its states: about 2.4 GB per column of doubles.
+const MAX_RECORD_SAMPLES: f64 = 3e8;
 
 /// Lengths beyond this (m) mean a unit slip, not a hopper, and overflow the simulation's squares.
 const MAX_LENGTH: f64 = 1e6;
@@ -618,6 +659,112 @@ fn check_hopper_scales(
     Ok(())
 }
 
+/// Refuses effects that are finite but swamp the hopper they are added to (a cubic spring a
+/// million times the linear one at the hopper's size, a lag of ten thousand periods): such
+/// values overflow or stall the simulation, whose message could not name the key.
+fn check_effect_scales(
+    src: &Source,
+    p: &HopperParams,
+    e: &Effects,
+    raw: &RawEffects,
+    table: &str,
+) -> Result<(), ConfigError> {
+    // The hopper's length scale: its static sag, forced deflection or rest length, and at
+    // least 1 mm so an unforced, weightless hopper still has one.
+    let length = (p.m * p.g / p.k)
+        .abs()
+        .max((p.forcing_amplitude / p.k).abs())
+        .max(p.x0.abs())
+        .max(1e-3);
+    let omega = (p.k / p.m).sqrt();
+    let critical = 2.0 * (p.k * p.m).sqrt();
+    let stop_k = e.hard_stop.map_or(0.0, |h| h.k_stop);
+    let stop_x = e.hard_stop.map_or(0.0, |h| h.x_stop);
+    let checks: [(&str, &OptNum, f64, f64, String); 9] = [
+        (
+            "k3",
+            &raw.k3,
+            (e.k3 * length * length / p.k).abs(),
+            1e6,
+            format!(
+                "the cubic force's share k3 L^2 / k at the hopper's length L = {} m",
+                show(length)
+            ),
+        ),
+        (
+            "c2",
+            &raw.c2,
+            e.c2 * length * omega / critical,
+            MAX_DAMPING_RATIO,
+            "the quadratic drag's damping ratio c2 L wn / (2 sqrt(k m))".to_owned(),
+        ),
+        (
+            "c_f",
+            &raw.c_f,
+            e.c_f / critical,
+            MAX_DAMPING_RATIO,
+            "the flight damping ratio c_f / (2 sqrt(k m))".to_owned(),
+        ),
+        (
+            "mu",
+            &raw.mu,
+            e.mu / p.k,
+            MAX_LENGTH,
+            "the friction force's deflection mu / k (m)".to_owned(),
+        ),
+        (
+            "input_offset",
+            &raw.input_offset,
+            (e.input_offset / p.k).abs(),
+            MAX_LENGTH,
+            "the offset's deflection |input_offset| / k (m)".to_owned(),
+        ),
+        (
+            "tau",
+            &raw.tau,
+            e.tau / p.period,
+            MAX_PERIOD_RATIO,
+            "the lag in forcing periods, tau / T".to_owned(),
+        ),
+        (
+            "delay",
+            &raw.delay,
+            e.delay / p.period,
+            MAX_PERIOD_RATIO,
+            "the delay in forcing periods, delay / T".to_owned(),
+        ),
+        (
+            "k_stop",
+            &raw.k_stop,
+            stop_k / p.k,
+            MAX_PERIOD_RATIO * MAX_PERIOD_RATIO,
+            "the stop's stiffness against the spring's, k_stop / k".to_owned(),
+        ),
+        (
+            "x_stop",
+            &raw.x_stop,
+            stop_x.abs(),
+            MAX_LENGTH,
+            "the stop's position |x_stop| (m)".to_owned(),
+        ),
+    ];
+    for (name, raw_value, value, limit, what) in checks {
+        if value.is_nan() || value > limit {
+            let got = raw_value.as_ref().map_or(0.0, |v| *v.get_ref());
+            return Err(src.error(
+                raw_value.as_ref().map(Spanned::span).as_ref(),
+                &format!("{table}.{name}"),
+                format!(
+                    "{what} = {value:.3e} must be <= {limit:e}, or the simulation overflows or \
+                     stalls (got {name} = {})",
+                    show(got)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Reads `[model]` (and `[forcing]`, `[effects]` for the built-in hopper).
 fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> {
     let m = &raw.model;
@@ -670,10 +817,14 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
                 _ => DamperLaw::Switching,
             },
         };
+        let effects = resolve_effects(src, raw.effects.as_ref(), "effects")?;
+        if let Some(e) = &raw.effects {
+            check_effect_scales(src, &params, &effects, e, "effects")?;
+        }
         return Ok(System::Hopper {
             params,
             damper,
-            effects: resolve_effects(src, raw.effects.as_ref(), "effects")?,
+            effects,
         });
     }
     let why = "with a model-language model (its parameters are in [model.parameters])";
