@@ -2028,3 +2028,30 @@ fn values_that_overflow_or_stall_the_simulation_are_refused_at_their_key() {
         }
     }
 }
+
+/// A model file's parameter override that loses the limit cycle (g = 1e308 overflows the
+/// simulation) is named at its line, with the file's own value that has one.
+#[test]
+fn an_override_that_loses_the_limit_cycle_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = fs::read_to_string(root().join("configs/paper-model.toml"))
+        .unwrap()
+        .replace("\"../models/", &format!("\"{}/models/", root().display()))
+        .replacen(
+            "[simulation]",
+            "[model.parameters]\ng = 1e308\n\n[simulation]",
+            1,
+        );
+    let config = tmp.path().join("edited.toml");
+    fs::write(&config, &text).unwrap();
+    let line = line_of(&config, "g = 1e308");
+    assert_eq!(
+        error_of("simulate", &config),
+        format!(
+            "error: edited.toml:{line}:1: model.parameters.g: with g = 1e308 the model `hopper` \
+             has no stable limit cycle from its [initial] state (with the model file's value \
+             9.81 it has one): integration failed: step size 0e0 s fell below the minimum at \
+             t = 0 s"
+        )
+    );
+}

@@ -222,6 +222,18 @@ pub struct Settings {
     pub theory: TheorySettings,
     pub noise: Option<NoiseSettings>,
     pub estimation: EstimationSettings,
+    /// A model file's `[model.parameters]` overrides and the model as the file has it, so a
+    /// failure of the configured model can be traced to the override that causes it.
+    pub overrides: Option<Overrides>,
+}
+
+/// The parameter overrides of a model-file config.
+#[derive(Debug, Clone)]
+pub struct Overrides {
+    /// The model with the file's own values.
+    pub base: Box<htfid_lang::Model>,
+    /// Each override: name, value and where it is written (line, column).
+    pub entries: Vec<(String, f64, usize, usize)>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -383,6 +395,29 @@ impl Settings {
                 .unwrap_or_else(|| "experiment".into()),
         };
         let system = resolve_system(src, &raw)?;
+        let overrides = match (&raw.model.file, &raw.model.parameters) {
+            (Some(file), Some(table)) => {
+                let dir = src.path.parent().unwrap_or(Path::new("."));
+                // Read without error: the same file was just read successfully.
+                htfid_lang::Model::from_file(&dir.join(file.get_ref()))
+                    .ok()
+                    .map(|base| Overrides {
+                        base: Box::new(base),
+                        entries: table
+                            .get_ref()
+                            .iter()
+                            .filter_map(|(name, v)| {
+                                let value = v.as_float().or(v.as_integer().map(|i| i as f64))?;
+                                let at = src
+                                    .key_in_table(table.span().start, name)
+                                    .unwrap_or_else(|| table.span());
+                                Some((name.clone(), value, src.line_of(&at), src.column_of(&at)))
+                            })
+                            .collect(),
+                    })
+            }
+            _ => None,
+        };
         let period = match &system {
             System::Hopper { params, .. } => params.period,
             System::Model(model) => model.period().ok_or_else(|| {
@@ -513,6 +548,7 @@ impl Settings {
             theory,
             noise,
             estimation,
+            overrides,
         })
     }
 
