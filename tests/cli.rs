@@ -1633,16 +1633,16 @@ fn data_format_keys_and_their_messages() {
     for (extra, message) in [
         (
             "delimiter = \"|\"",
-            "8: data.delimiter: must be one of \",\", \";\", \"tab\", \"whitespace\", \"auto\" \
+            "8:13: data.delimiter: must be one of \",\", \";\", \"tab\", \"whitespace\", \"auto\" \
              (got \"|\")",
         ),
         (
             "units = { t = \"s\", y = \"m\" }",
-            "8: data.units: \"y\" is not a column this config reads (\"f\", \"x\", \"t\")",
+            "8:9: data.units: \"y\" is not a column this config reads (\"f\", \"x\", \"t\")",
         ),
         (
             "columns = [\"t\", \"t\"]",
-            "8: data.columns: \"t\" is listed twice",
+            "8:11: data.columns: \"t\" is listed twice",
         ),
     ] {
         let config = fixture_estimate_config(tmp.path(), "record.csv", extra);
