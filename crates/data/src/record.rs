@@ -187,7 +187,17 @@ pub fn read_record(path: impl AsRef<Path>, spec: &RecordSpec) -> Result<TimeSeri
         Format::Npz => {
             let mut vars = Vec::new();
             let mut unreadable = Vec::new();
-            for member in zip::read_members(&bytes, path)? {
+            let members = zip::read_members(&bytes, path)?;
+            // Spreadsheet workbooks (.xlsx, .ods) are ZIP archives too.
+            if !members.iter().any(|m| m.name.ends_with(".npy")) {
+                return Err(DataError::ZipUnsupported {
+                    path: path.to_path_buf(),
+                    what: "a ZIP archive without .npy members is not an .npz (a spreadsheet \
+                           workbook? export the sheet as CSV)"
+                        .to_owned(),
+                });
+            }
+            for member in members {
                 let name = member
                     .name
                     .strip_suffix(".npy")

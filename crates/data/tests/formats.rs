@@ -163,6 +163,29 @@ fn damaged_and_v73_files_are_refused_with_the_cause() {
         "{err}"
     );
 
+    // A ZIP archive of other members (as a spreadsheet workbook is) is not taken for an .npz.
+    let npz = std::fs::read(fixture("record.npz")).unwrap();
+    let mut renamed = Vec::with_capacity(npz.len());
+    let mut i = 0;
+    while i < npz.len() {
+        if npz[i..].starts_with(b".npy") {
+            renamed.extend_from_slice(b".xml");
+            i += 4;
+        } else {
+            renamed.push(npz[i]);
+            i += 1;
+        }
+    }
+    let (_d, path) = temp_file("book.xlsx", &renamed);
+    assert_eq!(
+        read_record(&path, &txf()).unwrap_err().to_string(),
+        format!(
+            "{}: unsupported .npz archive: a ZIP archive without .npy members is not an .npz (a \
+             spreadsheet workbook? export the sheet as CSV)",
+            path.display()
+        )
+    );
+
     // What MATLAB's save -v7.3 writes: a text header, then HDF5 from byte 512.
     let mut v73 =
         b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Tue Nov 24 2026 HDF5 schema 1.00 ."
