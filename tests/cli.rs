@@ -944,7 +944,7 @@ fn model_config_errors_are_located() {
     ]);
     let line = line_of(&path, "k99 = 1.0");
     assert!(
-        stderr(&o).contains(&format!("edited.toml:{line}: model.parameters")),
+        stderr(&o).contains(&format!("edited.toml:{line}:1: model.parameters")),
         "{}",
         stderr(&o)
     );
@@ -1212,10 +1212,7 @@ fn diagnose_prints_the_cause_and_the_gain() {
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("no gain line: {text}"));
     let half_digit = 0.5 * 10f64.powf(gain.abs().log10().floor() - 2.0);
-    assert!(
-        (shown - gain).abs() <= half_digit * 1.001,
-        "{gain}: {text}"
-    );
+    assert!((shown - gain).abs() <= half_digit * 1.001, "{gain}: {text}");
     for p in d["parameters"].as_array().unwrap() {
         let name = p["name"].as_str().unwrap();
         assert!(
@@ -2155,4 +2152,558 @@ fn a_mass_stuck_for_good_is_a_clear_error_and_theory_refuses_sticking_orbits() {
         "{err}"
     );
     assert!(!out.exists());
+}
+
+fn fixture(name: &str) -> PathBuf {
+    root().join("tests/fixtures/data").join(name)
+}
+
+/// An estimate config of the fixture record (see `tests/fixtures/data/make_fixtures.py`),
+/// with `extra` lines added to its `[data]` table.
+fn fixture_estimate_config(dir: &Path, file: &str, extra: &str) -> PathBuf {
+    let config = dir.join("formats.toml");
+    fs::write(
+        &config,
+        format!(
+            "name = \"formats\"\n\n[data]\nfile = {:?}\ntime = \"t\"\ninput = \"f\"\n\
+             outputs = [\"x\"]\n{extra}\n\n[period]\nvalue = 0.16\n\n[estimation]\n\
+             harmonics = [-1, 0, 1]\nomega_min = 5.0\nomega_max = 60.0\n",
+            fixture(file)
+        ),
+    )
+    .unwrap();
+    config
+}
+
+/// `htfid estimate --data` of the one record written by NumPy and SciPy in every format gives
+/// byte-identical estimates and orbit to the CSV, and carries `data.units` to summary.json.
+#[test]
+fn estimate_reads_every_data_format_identically() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = fixture_estimate_config(
+        tmp.path(),
+        "record.csv",
+        "columns = [\"t\", \"f\", \"x\"]   # names the matrix columns of binary files\n\
+         units = { t = \"s\", f = \"N\", x = \"m\" }",
+    );
+    let run = |file: &str| {
+        let out = tmp.path().join(file);
+        htfid_ok(&[
+            "estimate",
+            config.to_str().unwrap(),
+            "--data",
+            fixture(file).to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        out
+    };
+    let csv = run("record.csv");
+    let read = |dir: &Path, name: &str| fs::read_to_string(dir.join(name)).unwrap();
+    for file in [
+        "record.npy",
+        "record.npz",
+        "record_matrix.npz",
+        "record.mat",
+        "record_matrix.mat",
+    ] {
+        let out = run(file);
+        for name in ["estimate_siddiqi.csv", "orbit.csv"] {
+            assert_eq!(read(&out, name), read(&csv, name), "{file}: {name}");
+        }
+        let s = summary(&out);
+        assert_eq!(s["data"], fixture(file).display().to_string());
+        assert_eq!(
+            s["units"],
+            serde_json::json!({"t": "s", "f": "N", "x": "m"}),
+            "{file}"
+        );
+    }
+}
+
+/// The `[data]` table chooses a MAT-file's matrix by name and names its columns; a semicolon
+/// file, an unknown delimiter, a unit of an unread column, a missing matrix and a v7.3 file are
+/// each explained with the key to change.
+#[test]
+fn data_format_keys_and_their_messages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let run = |config: &Path, data: Option<&Path>| {
+        let mut args = vec![
+            "estimate".to_owned(),
+            config.display().to_string(),
+            "--out".to_owned(),
+            out.display().to_string(),
+            "--force".to_owned(),
+        ];
+        if let Some(d) = data {
+            args.extend(["--data".to_owned(), d.display().to_string()]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        htfid(&args)
+    };
+    let config = fixture_estimate_config(
+        tmp.path(),
+        "record_matrix.mat",
+        "matrix = \"rec\"\ncolumns = [\"t\", \"f\", \"x\"]",
+    );
+    let o = run(&config, None);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let semicolons = tmp.path().join("semi.csv");
+    fs::write(
+        &semicolons,
+        fs::read_to_string(fixture("record.csv"))
+            .unwrap()
+            .replace(',', ";"),
+    )
+    .unwrap();
+    let config = fixture_estimate_config(tmp.path(), "record.csv", "");
+    // The error line, after the progress lines.
+    let error = |o: &Output| {
+        stderr(o)
+            .lines()
+            .find(|l| l.starts_with("error: "))
+            .unwrap_or_default()
+            .to_owned()
+    };
+    let o = run(&config, Some(&semicolons));
+    assert_eq!(
+        error(&o),
+        format!(
+            "error: {}: [data] file (set data.delimiter = \";\" in the config): {}:1: no column \
+             \"t\" in the header \"t;f;x\": it looks semicolon-separated but cells are split at \
+             \",\"; set the delimiter to \";\"",
+            config.display(),
+            semicolons.display()
+        )
+    );
+    let config = fixture_estimate_config(tmp.path(), "record.csv", "delimiter = \";\"");
+    let o = run(&config, Some(&semicolons));
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    for (extra, message) in [
+        (
+            "delimiter = \"|\"",
+            "8:13: data.delimiter: must be one of \",\", \";\", \"tab\", \"whitespace\", \"auto\" \
+             (got \"|\")",
+        ),
+        (
+            "units = { t = \"s\", y = \"m\" }",
+            "8:9: data.units: \"y\" is not a column this config reads (\"f\", \"x\", \"t\")",
+        ),
+        (
+            "columns = [\"t\", \"t\"]",
+            "8:11: data.columns: \"t\" is listed twice",
+        ),
+    ] {
+        let config = fixture_estimate_config(tmp.path(), "record.csv", extra);
+        let o = run(&config, None);
+        assert_eq!(error(&o), format!("error: {}:{message}", config.display()),);
+    }
+
+    let config = fixture_estimate_config(tmp.path(), "record_matrix.mat", "matrix = \"data\"");
+    let o = run(&config, None);
+    assert!(
+        stderr(&o).ends_with(&format!(
+            "(data.matrix and data.columns name a matrix and its columns): {}: no readable \
+             matrix \"data\" in the MAT-file; it holds \"rec\"\n",
+            fixture("record_matrix.mat").display()
+        )),
+        "{}",
+        stderr(&o)
+    );
+
+    let v73 = tmp.path().join("v73.mat");
+    let mut bytes = b"MATLAB 7.3 MAT-file, Platform: GLNXA64".to_vec();
+    bytes.resize(512, b' ');
+    bytes.extend_from_slice(b"\x89HDF\r\n\x1a\n");
+    fs::write(&v73, bytes).unwrap();
+    let o = run(&config, Some(&v73));
+    assert!(
+        stderr(&o).contains("save the variables with save(FILE, ..., '-v7')"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(o.status.code(), Some(1));
+}
+
+/// `htfid diagnose --data` of a model-file diagnosis reads a `.npy` copy of the shipped CSV
+/// record (written here as NumPy lays it out) to the same diagnosis.
+#[test]
+fn diagnose_reads_a_npy_record_like_its_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = root().join("data/hopper-protocol.csv");
+    let rows: Vec<[f64; 3]> = fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|c| c.parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    // NPY 1.0: magic, version, header length, a dict padded with spaces to a 64-byte boundary
+    // ending in a newline, then the little-endian doubles in C order.
+    let mut header = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, 3), }}",
+        rows.len()
+    );
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    for v in rows.iter().flatten() {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    let npy = tmp.path().join("rec.npy");
+    fs::write(&npy, bytes).unwrap();
+    let config = tmp.path().join("d.toml");
+    fs::write(
+        &config,
+        fs::read_to_string(root().join("configs/diagnose-hopper-model.toml"))
+            .unwrap()
+            .replace("\"../", &format!("\"{}/", root().display()))
+            .replacen(
+                "outputs = [\"x\"]",
+                "outputs = [\"x\"]\ncolumns = [\"t\", \"f\", \"x\"]\nunits = { x = \"m\" }",
+                1,
+            ),
+    )
+    .unwrap();
+    let diagnose = |data: &Path, out: &Path| {
+        htfid_ok(&[
+            "diagnose",
+            config.to_str().unwrap(),
+            "--data",
+            data.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let json: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(out.join("diagnosis.json")).unwrap()).unwrap();
+        json
+    };
+    let a = diagnose(&csv, &tmp.path().join("csv"));
+    let b = diagnose(&npy, &tmp.path().join("npy"));
+    for key in ["cause", "gain", "parameters", "refitted"] {
+        assert_eq!(a[key], b[key], "{key}");
+    }
+    assert_eq!(b["units"], serde_json::json!({"x": "m"}));
+}
+
+/// `configs/NAME` with one textual replacement, written as `edited.toml` in `dir`; returns the
+/// path and the line and column where the replacement starts.
+fn edited(dir: &Path, name: &str, from: &str, to: &str) -> (PathBuf, usize, usize) {
+    let text = fs::read_to_string(root().join("configs").join(name)).unwrap();
+    let at = text
+        .find(from)
+        .unwrap_or_else(|| panic!("{name} contains {from:?}"));
+    let line = text[..at].matches('\n').count() + 1;
+    let column = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
+    let path = dir.join("edited.toml");
+    fs::write(&path, text.replacen(from, to, 1)).unwrap();
+    (path, line, column)
+}
+
+/// The error line `htfid COMMAND CONFIG` prints, with the config's folder removed.
+fn error_of(command: &str, config: &Path) -> String {
+    let out = config.with_file_name("out");
+    let o = htfid(&[
+        command,
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(!out.exists(), "an output directory was left behind");
+    stderr(&o)
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or_default()
+        .replace(&format!("{}/", config.parent().unwrap().display()), "")
+}
+
+/// Type errors name the key path, the line and the column in every kind of config, in words
+/// a reader knows ("an integer", "a list"), not Rust type names.
+#[test]
+fn type_errors_name_the_key_in_every_config_kind() {
+    let cases: &[(&str, &str, &str, &str, &str, usize, &str)] = &[
+        // (config, command, from, to, text at the error's column, its offset in `to`, message)
+        (
+            "paper.toml",
+            "simulate",
+            "copies = 9",
+            "copies = \"nine\"",
+            "\"nine\"",
+            9,
+            "excitation.copies: invalid type: string \"nine\", expected an integer",
+        ),
+        (
+            "paper.toml",
+            "theory",
+            "points = 400",
+            "points = 4.5",
+            "4.5",
+            9,
+            "theory.points: invalid type: floating point `4.5`, expected an integer",
+        ),
+        (
+            "paper.toml",
+            "run",
+            "harmonics = [-3, -2, -1, 0, 1, 2, 3]",
+            "harmonics = [-3, \"two\"]",
+            "\"two\"",
+            17,
+            "estimation.harmonics[1]: invalid type: string \"two\", expected an integer",
+        ),
+        (
+            "paper.toml",
+            "run",
+            "rtol = 1e-10",
+            "rtol = true",
+            "true",
+            7,
+            "simulation.rtol: invalid type: boolean `true`, expected a number",
+        ),
+        (
+            "paper-model.toml",
+            "run",
+            "settle_periods = 30",
+            "settle_periods = [30]",
+            "[30]",
+            17,
+            "simulation.settle_periods: invalid type: sequence, expected an integer",
+        ),
+        (
+            "estimate-hopper.toml",
+            "estimate",
+            "omega_min = 1.0",
+            "omega_min = \"low\"",
+            "\"low\"",
+            12,
+            "estimation.omega_min: invalid type: string \"low\", expected a number",
+        ),
+        (
+            "estimate-hopper.toml",
+            "estimate",
+            "outputs = [\"x\"]",
+            "outputs = \"x\"",
+            "\"x\"",
+            10,
+            "data.outputs: invalid type: string \"x\", expected a list",
+        ),
+        (
+            "diagnose-hopper.toml",
+            "diagnose",
+            "significance_sigma = 5.0",
+            "significance_sigma = \"five\"",
+            "\"five\"",
+            21,
+            "diagnose.significance_sigma: invalid type: string \"five\", expected a number",
+        ),
+        (
+            "diagnose-hopper-model.toml",
+            "diagnose",
+            "free = [\"k\", \"c\"]",
+            "free = [\"k\", 3]",
+            "3",
+            13,
+            "model.free[1]: invalid type: integer `3`, expected a string",
+        ),
+        (
+            "diagnose-hopper-model.toml",
+            "diagnose",
+            "fit_fraction = 0.7",
+            "fit_fraction = \"most\"",
+            "\"most\"",
+            15,
+            "diagnose.fit_fraction: invalid type: string \"most\", expected a number",
+        ),
+    ];
+    for &(name, command, from, to, at, offset, message) in cases {
+        assert_eq!(&to[offset..offset + at.len()], at, "{to}");
+        let tmp = tempfile::tempdir().unwrap();
+        let (config, line, column) = edited(tmp.path(), name, from, to);
+        // A replacement that starts with new lines moves the error to its last line.
+        let (line, column) = match to[..offset].rfind('\n') {
+            Some(nl) => (line + to[..offset].matches('\n').count(), offset - nl),
+            None => (line, column + offset),
+        };
+        assert_eq!(
+            error_of(command, &config),
+            format!("error: edited.toml:{line}:{column}: {message}"),
+            "{name}: {to}"
+        );
+    }
+}
+
+/// Finite values that leave no meaningful simulation are refused at their key, with the
+/// quantity that is out of range, instead of ending in an optimiser or integrator error.
+#[test]
+fn values_that_overflow_or_stall_the_simulation_are_refused_at_their_key() {
+    let cases: &[(&str, &str, &str, &str, &str)] = &[
+        (
+            "paper.toml",
+            "g = 9.81",
+            "g = 1e308",
+            "run",
+            "11:5: model.g: the spring's static sag m g / k = 5e305 m must be within +-1e6 m, \
+             or the simulation overflows (got g = 1e308)",
+        ),
+        (
+            "paper.toml",
+            "atol = 1e-12",
+            "atol = 1e-300",
+            "run",
+            "23:8: simulation.atol: must be in [1e-20, 0.1] (below 1e-20 the target is finer \
+             than the rounding of a state near zero, and the step size collapses) (got 1e-300)",
+        ),
+        (
+            "paper.toml",
+            "rtol = 1e-10",
+            "rtol = 1e-300",
+            "simulate",
+            "22:8: simulation.rtol: must be in [1e-14, 0.1] (below 1e-14 the target is finer \
+             than double-precision rounding) (got 1e-300)",
+        ),
+        (
+            "paper.toml",
+            "fit = [\"k\", \"c\"]",
+            "fit = []",
+            "run",
+            "36:7: estimation.fit: must name at least one parameter, among \"k\", \"c\", \"m\"",
+        ),
+        (
+            "paper.toml",
+            "k = 200.0",
+            "k = 1e300",
+            "simulate",
+            "9:5: model.k: the natural period 2 pi sqrt(m / k) = 6.283185307179586e-150 s must \
+             be within 1e4 times the forcing period 1 s either way, or one simulation cannot \
+             resolve both (got m = 1, k = 1e300)",
+        ),
+        (
+            "paper.toml",
+            "m = 1.0",
+            "m = 1e-300",
+            "simulate",
+            "8:5: model.m: the natural period 2 pi sqrt(m / k) = 4.442882938158366e-151 s must \
+             be within 1e4 times the forcing period 1 s either way, or one simulation cannot \
+             resolve both (got m = 1e-300, k = 200)",
+        ),
+        (
+            "paper.toml",
+            "c = 2.0",
+            "c = 1e300",
+            "simulate",
+            "10:5: model.c: the damping ratio c / (2 sqrt(k m)) = 3.5355339059327375e298 must \
+             be <= 1e4: beyond it the damper locks the mass and the equations are too stiff to \
+             integrate (got c = 1e300)",
+        ),
+        (
+            "paper.toml",
+            "amplitude = 1.0",
+            "amplitude = -1e308",
+            "simulate",
+            "16:13: forcing.amplitude: the static deflection amplitude / k = -5e305 m must be \
+             within +-1e6 m, or the simulation overflows (got amplitude = -1e308)",
+        ),
+        (
+            "paper.toml",
+            "sample_rate = 100.0",
+            "sample_rate = 1e12",
+            "simulate",
+            "21:15: simulation.sample_rate: must give at most 1e5 samples per forcing period \
+             (got 1e12 Hz x 1 s = 1e12); the record would not fit in memory",
+        ),
+        (
+            "hopper-truth.toml",
+            "c_f = 0.2",
+            "k3 = 1e308",
+            "simulate",
+            "40:6: effects.k3: the cubic force's share k3 L^2 / k at the hopper's length L = \
+             0.2 m = 2.000e304 must be <= 1e6, or the simulation overflows or stalls (got k3 = \
+             1e308)",
+        ),
+        (
+            "hopper-truth.toml",
+            "c_f = 0.2",
+            "tau = 1e308",
+            "simulate",
+            "40:7: effects.tau: the lag in forcing periods, tau / T = 1.000e308 must be <= 1e4, \
+             or the simulation overflows or stalls (got tau = 1e308)",
+        ),
+        (
+            "hopper-truth.toml",
+            "output_std = 2e-5",
+            "output_std = 1e308",
+            "simulate",
+            "43:14: noise.output_std: must be in [0, 1e6] (in the outputs' units) (got 1e308)",
+        ),
+        (
+            "paper.toml",
+            "waveform = \"paper\"",
+            "waveform = \"linear\"\nf_start_hz = 0.1\nf_end_hz = 5.0\nduration = 1e308\n\
+             amplitude = 0.004\n#",
+            "simulate",
+            "30:12: excitation.duration: the record would hold inf samples ((settling + \
+             excitation) x sample_rate), more than the 3e8 that fit in memory",
+        ),
+        (
+            "diagnose-hopper.toml",
+            "x0 = 0.2",
+            "x0 = 1e308",
+            "diagnose",
+            "x0 = 1e308",
+        ),
+    ];
+    for &(name, from, to, command, message) in cases {
+        let tmp = tempfile::tempdir().unwrap();
+        let (config, line, column) = edited(tmp.path(), name, from, to);
+        let err = error_of(command, &config);
+        if message == to {
+            // Only the place is asserted here; the wording is the one of paper.toml's x0.
+            assert!(
+                err.starts_with(&format!(
+                    "error: edited.toml:{line}:{}: model.x0: ",
+                    column + 5
+                )),
+                "{err}"
+            );
+        } else {
+            assert_eq!(err, format!("error: edited.toml:{message}"), "{name}: {to}");
+        }
+    }
+}
+
+/// A model file's parameter override that loses the limit cycle (g = 1e308 overflows the
+/// simulation) is named at its line, with the file's own value that has one.
+#[test]
+fn an_override_that_loses_the_limit_cycle_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = fs::read_to_string(root().join("configs/paper-model.toml"))
+        .unwrap()
+        .replace("\"../models/", &format!("\"{}/models/", root().display()))
+        .replacen(
+            "[simulation]",
+            "[model.parameters]\ng = 1e308\n\n[simulation]",
+            1,
+        );
+    let config = tmp.path().join("edited.toml");
+    fs::write(&config, &text).unwrap();
+    let line = line_of(&config, "g = 1e308");
+    assert_eq!(
+        error_of("simulate", &config),
+        format!(
+            "error: edited.toml:{line}:1: model.parameters.g: with g = 1e308 the model `hopper` \
+             has no stable limit cycle from its [initial] state (with the model file's value \
+             9.81 it has one): integration failed: step size 0e0 s fell below the minimum at \
+             t = 0 s"
+        )
+    );
 }

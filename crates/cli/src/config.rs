@@ -13,6 +13,8 @@ use toml::Spanned;
 pub struct ConfigError {
     pub path: PathBuf,
     pub line: Option<usize>,
+    /// 1-based column of the value (or key) on `line`, in characters.
+    pub column: Option<usize>,
     pub key: String,
     pub message: String,
 }
@@ -22,6 +24,9 @@ impl fmt::Display for ConfigError {
         write!(f, "{}", self.path.display())?;
         if let Some(line) = self.line {
             write!(f, ":{line}")?;
+            if let Some(column) = self.column {
+                write!(f, ":{column}")?;
+            }
         }
         // Parse errors carry no key of their own: the TOML message names it.
         if self.key != "toml" {
@@ -44,6 +49,16 @@ impl Source {
     pub fn line_of(&self, span: &Range<usize>) -> usize {
         let end = span.start.min(self.text.len());
         self.text[..end].bytes().filter(|&b| b == b'\n').count() + 1
+    }
+
+    /// The 1-based column (in characters) where `span` starts, as editors count.
+    pub fn column_of(&self, span: &Range<usize>) -> usize {
+        let mut end = span.start.min(self.text.len());
+        while !self.text.is_char_boundary(end) {
+            end -= 1;
+        }
+        let start = self.text[..end].rfind('\n').map_or(0, |i| i + 1);
+        self.text[start..end].chars().count() + 1
     }
 
     /// Where `key = ...` is written inside the table that starts at `table_start` (a
@@ -79,6 +94,7 @@ impl Source {
         ConfigError {
             path: self.path.clone(),
             line: span.map(|s| self.line_of(s)),
+            column: span.map(|s| self.column_of(s)),
             key: key.to_string(),
             message: message.into(),
         }
@@ -99,7 +115,7 @@ impl Source {
             Err(self.error(
                 Some(&value.span()),
                 key,
-                format!("must be {expected} (got {v})"),
+                format!("must be {expected} (got {})", show(v)),
             ))
         }
     }
@@ -179,6 +195,16 @@ impl Source {
     }
 }
 
+/// A number as a config's reader would write it: plain for everyday magnitudes, in exponent
+/// form beyond them (`1e308`, not 309 digits).
+pub fn show(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e6).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 pub fn quote_list(choices: &[&str]) -> String {
     choices
         .iter()
@@ -195,6 +221,7 @@ pub fn load<T: for<'de> Deserialize<'de>>(
     let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
         path: path.to_path_buf(),
         line: None,
+        column: None,
         key: "file".into(),
         message: format!("cannot read: {e}"),
     })?;
@@ -203,16 +230,71 @@ pub fn load<T: for<'de> Deserialize<'de>>(
         text,
     };
     check_kind(&source, kind)?;
-    let raw: T = toml::from_str(&source.text).map_err(|e| {
-        let line = e.span().map(|s| source.line_of(&s));
-        ConfigError {
-            path: path.to_path_buf(),
-            line,
-            key: "toml".into(),
-            message: e.message().trim().to_string(),
-        }
-    })?;
+    // serde_path_to_error keeps the key path that toml's own messages lack
+    // ("invalid type: string \"nine\", expected i64" names no key).
+    let raw: T =
+        serde_path_to_error::deserialize(toml::Deserializer::new(&source.text)).map_err(|e| {
+            let key = key_path(e.path());
+            let inner = e.into_inner();
+            ConfigError {
+                path: path.to_path_buf(),
+                line: inner.span().map(|s| source.line_of(&s)),
+                column: inner.span().map(|s| source.column_of(&s)),
+                key: if key.is_empty() { "toml".into() } else { key },
+                message: plain_types(inner.message().trim()),
+            }
+        })?;
     Ok((raw, source))
+}
+
+/// The dotted key of a path, without the segments serde uses inside `Spanned` values.
+fn key_path(path: &serde_path_to_error::Path) -> String {
+    use serde_path_to_error::Segment;
+    let mut key = String::new();
+    for segment in path.iter() {
+        let part = match segment {
+            Segment::Map { key } | Segment::Enum { variant: key } => key.clone(),
+            Segment::Seq { index } => format!("[{index}]"),
+            Segment::Unknown => continue,
+        };
+        if part.starts_with("$__") {
+            continue;
+        }
+        if !key.is_empty() && !part.starts_with('[') {
+            key.push('.');
+        }
+        key.push_str(&part);
+    }
+    key
+}
+
+/// Rust type names in serde's messages, said the way a config's reader knows them.
+fn plain_types(message: &str) -> String {
+    let mut m = message.to_owned();
+    for (rust, plain) in [
+        ("expected i64", "expected an integer"),
+        ("expected i32", "expected an integer"),
+        ("expected u64", "expected an integer >= 0"),
+        ("expected u32", "expected an integer >= 0"),
+        ("expected usize", "expected an integer >= 0"),
+        ("expected f64", "expected a number"),
+        ("expected f32", "expected a number"),
+        (
+            "expected an array of length 2",
+            "expected a list of 2 items [start, end)",
+        ),
+        ("expected a sequence", "expected a list"),
+    ] {
+        m = m.replace(rust, plain);
+    }
+    // "expected struct RawForcing": the reader wrote a value where a table belongs.
+    if let Some(at) = m.find("expected struct ") {
+        let name_end = m[at + 16..]
+            .find(|c: char| !c.is_alphanumeric() && c != '_')
+            .map_or(m.len(), |i| at + 16 + i);
+        m.replace_range(at..name_end, "expected a table");
+    }
+    m
 }
 
 /// The kinds of config: experiments (`simulate`, `theory`, `run`), diagnoses, and
@@ -266,6 +348,7 @@ fn check_kind(source: &Source, kind: Kind) -> Result<(), ConfigError> {
     Err(ConfigError {
         path: source.path.clone(),
         line: None,
+        column: None,
         key: "config".into(),
         message,
     })

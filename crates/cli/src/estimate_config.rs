@@ -7,6 +7,8 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::config::{load, ConfigError, Kind, Source};
+use crate::raw_format;
+use crate::records::{resolve_format, DataFormat};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -27,6 +29,10 @@ struct RawEstimateData {
     outputs: Spanned<Vec<String>>,
     start: Option<Spanned<f64>>,
     time_tolerance: Option<Spanned<f64>>,
+    delimiter: Option<Spanned<String>>,
+    matrix: Option<Spanned<String>>,
+    columns: Option<Spanned<Vec<String>>>,
+    units: Option<Spanned<std::collections::BTreeMap<String, String>>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -70,6 +76,8 @@ pub struct EstimateSettings {
     pub band: (f64, f64),
     /// `None`: generalised cross-validation.
     pub alpha: Option<f64>,
+    /// `data.delimiter`, `data.matrix`, `data.columns`, `data.units`.
+    pub format: DataFormat,
 }
 
 impl EstimateSettings {
@@ -129,6 +137,10 @@ impl EstimateSettings {
                 ));
             }
         }
+        let mut used: Vec<&str> = vec![d.input.get_ref()];
+        used.extend(d.outputs.get_ref().iter().map(String::as_str));
+        used.extend(d.time.as_ref().map(|t| t.get_ref().as_str()));
+        let format = resolve_format(&src, raw_format!(d), &used)?;
         let start = match &d.start {
             Some(v) => src.number(v, "data.start", "a finite time (s)", |_| true)?,
             None => f64::NEG_INFINITY,
@@ -218,6 +230,7 @@ impl EstimateSettings {
             harmonics,
             band: (lo, hi),
             alpha,
+            format,
         })
     }
 }

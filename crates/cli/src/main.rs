@@ -98,8 +98,8 @@ enum Command {
     Estimate {
         /// Estimate config (TOML).
         config: PathBuf,
-        /// Measured data (CSV), overriding the config's data file.
-        #[arg(long, value_name = "CSV")]
+        /// Measured data (CSV, .npy, .npz or MAT-file), overriding the config's data file.
+        #[arg(long, value_name = "FILE")]
         data: Option<PathBuf>,
         #[command(flatten)]
         out: OutArgs,
@@ -108,8 +108,8 @@ enum Command {
     Diagnose {
         /// Diagnosis config (TOML).
         config: PathBuf,
-        /// Measured data (CSV), overriding the config's data file.
-        #[arg(long, value_name = "CSV")]
+        /// Measured data (CSV, .npy, .npz or MAT-file), overriding the config's data file.
+        #[arg(long, value_name = "FILE")]
         data: Option<PathBuf>,
         #[command(flatten)]
         out: OutArgs,

@@ -7,6 +7,8 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::config::{load, ConfigError, Kind, Source};
+use crate::raw_format;
+use crate::records::{resolve_format, DataFormat};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -27,6 +29,10 @@ struct RawData {
     outputs: Spanned<Vec<String>>,
     time_tolerance: Option<Spanned<f64>>,
     validation: Option<Spanned<String>>,
+    delimiter: Option<Spanned<String>>,
+    matrix: Option<Spanned<String>>,
+    columns: Option<Spanned<Vec<String>>>,
+    units: Option<Spanned<std::collections::BTreeMap<String, String>>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -59,6 +65,8 @@ pub struct ModelDiagnoseSettings {
     pub input: String,
     pub outputs: Vec<String>,
     pub time_tolerance: f64,
+    /// `data.delimiter`, `data.matrix`, `data.columns`, `data.units`.
+    pub format: DataFormat,
     pub model: htfid_lang::Model,
     pub options: htfid_diagnose::ModelFitOptions,
 }
@@ -94,6 +102,7 @@ impl ModelDiagnoseSettings {
         let mut model = htfid_lang::Model::from_file(&model_path).map_err(|e| ConfigError {
             path: src.path.clone(),
             line: Some(src.line_of(&raw.model.file.span())),
+            column: Some(src.column_of(&raw.model.file.span())),
             key: "model.file".into(),
             message: e.to_string(),
         })?;
@@ -124,6 +133,10 @@ impl ModelDiagnoseSettings {
                 format!("\"{}\" is also the input column", d.input.get_ref()),
             ));
         }
+        let mut used: Vec<&str> = vec![d.input.get_ref()];
+        used.extend(outputs.iter().map(String::as_str));
+        used.extend(d.time.as_ref().map(|t| t.get_ref().as_str()));
+        let format = resolve_format(&src, raw_format!(d), &used)?;
         let free = match &raw.model.free {
             Some(list) => {
                 for (i, f) in list.get_ref().iter().enumerate() {
@@ -199,6 +212,7 @@ impl ModelDiagnoseSettings {
                 })?,
                 None => htfid_data::DEFAULT_TIME_TOLERANCE,
             },
+            format,
             model,
             options,
         })

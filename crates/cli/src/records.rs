@@ -1,10 +1,17 @@
-//! Measured records read for the commands: one CSV, an input column and an output column, with
-//! the config's time column or sample rate and time-step tolerance.
+//! Measured records read for the commands: a file of any format `htfid-data` reads (CSV,
+//! `.npy`, `.npz`, MAT-file), an input column and an output column, with the config's time
+//! column or sample rate, time-step tolerance and format keys (`delimiter`, `matrix`,
+//! `columns`, `units`), which every `[data]` table shares.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
-use anyhow::{Context, Result};
-use htfid_data::{read_csv, CsvSpec, TimeSeries};
+use anyhow::{anyhow, Result};
+use htfid_data::{read_record as read_any, DataError, Delimiter, RecordSpec, TimeSeries};
+use serde_json::Value;
+use toml::Spanned;
+
+use crate::config::{quote_list, ConfigError, Source};
 
 /// How a config names the columns of its record.
 #[derive(Debug, Clone, Copy)]
@@ -16,11 +23,164 @@ pub struct Columns<'a> {
     pub sample_rate: Option<f64>,
     /// Relative tolerance on the time step (`data.time_tolerance`).
     pub time_tolerance: f64,
+    /// `data.delimiter`, `data.matrix`, `data.columns`.
+    pub format: &'a DataFormat,
 }
 
-/// Reads `file`; errors name the config and the key that relaxes the time-step check.
+/// The format keys of a `[data]` table, resolved.
+#[derive(Debug, Clone, Default)]
+pub struct DataFormat {
+    /// `None`: not set (comma-separated).
+    pub delimiter: Option<Delimiter>,
+    pub matrix: Option<String>,
+    pub columns: Option<Vec<String>>,
+    /// Unit of each column that has one, by column name (`data.units`).
+    pub units: BTreeMap<String, String>,
+}
+
+impl DataFormat {
+    /// The unit of `column`, if the config gives one.
+    pub fn unit(&self, column: &str) -> Option<&str> {
+        self.units.get(column).map(String::as_str)
+    }
+
+    /// `data.units` as a JSON object (empty when none are given).
+    pub fn units_json(&self) -> Value {
+        Value::Object(
+            self.units
+                .iter()
+                .map(|(k, v)| (k.clone(), Value::String(v.clone())))
+                .collect(),
+        )
+    }
+
+    /// `" (unit)"` for an axis label, or nothing.
+    pub fn label_suffix(&self, column: &str) -> String {
+        self.unit(column)
+            .map_or_else(String::new, |u| format!(" ({u})"))
+    }
+}
+
+/// The raw format keys of a `[data]` table, borrowed from whichever config kind holds them.
+#[derive(Debug, Clone, Copy)]
+pub struct RawFormat<'a> {
+    pub delimiter: &'a Option<Spanned<String>>,
+    pub matrix: &'a Option<Spanned<String>>,
+    pub columns: &'a Option<Spanned<Vec<String>>>,
+    pub units: &'a Option<Spanned<BTreeMap<String, String>>>,
+}
+
+/// The [`RawFormat`] of a raw `[data]` table `d` (every kind names the keys alike).
+#[macro_export]
+macro_rules! raw_format {
+    ($d:expr) => {
+        $crate::records::RawFormat {
+            delimiter: &$d.delimiter,
+            matrix: &$d.matrix,
+            columns: &$d.columns,
+            units: &$d.units,
+        }
+    };
+}
+
+/// Checks the format keys; `used` are the columns the config reads (time, input, outputs),
+/// the only ones a unit can be given for.
+pub fn resolve_format(
+    src: &Source,
+    raw: RawFormat<'_>,
+    used: &[&str],
+) -> Result<DataFormat, ConfigError> {
+    let delimiter = match raw.delimiter {
+        Some(d) => Some(Delimiter::parse(d.get_ref()).ok_or_else(|| {
+            src.error(
+                Some(&d.span()),
+                "data.delimiter",
+                format!(
+                    "must be one of {} (got \"{}\")",
+                    quote_list(&[",", ";", "tab", "whitespace", "auto"]),
+                    d.get_ref()
+                ),
+            )
+        })?),
+        None => None,
+    };
+    let matrix = match raw.matrix {
+        Some(m) if m.get_ref().trim().is_empty() => {
+            return Err(src.error(
+                Some(&m.span()),
+                "data.matrix",
+                "must name a .npz member or MAT-file variable",
+            ))
+        }
+        Some(m) => Some(m.get_ref().clone()),
+        None => None,
+    };
+    let columns = match raw.columns {
+        Some(c) => {
+            let names = c.get_ref();
+            if names.is_empty() {
+                return Err(src.error(
+                    Some(&c.span()),
+                    "data.columns",
+                    "must name the matrix's columns in order (got an empty list)",
+                ));
+            }
+            for (i, n) in names.iter().enumerate() {
+                if n.trim().is_empty() {
+                    return Err(src.error(
+                        Some(&c.span()),
+                        "data.columns",
+                        format!("name {} is empty", i + 1),
+                    ));
+                }
+                if names[..i].contains(n) {
+                    return Err(src.error(
+                        Some(&c.span()),
+                        "data.columns",
+                        format!("\"{n}\" is listed twice"),
+                    ));
+                }
+            }
+            Some(names.clone())
+        }
+        None => None,
+    };
+    let units = match raw.units {
+        Some(u) => {
+            for (column, unit) in u.get_ref() {
+                if !used.contains(&column.as_str()) {
+                    return Err(src.error(
+                        Some(&u.span()),
+                        "data.units",
+                        format!(
+                            "\"{column}\" is not a column this config reads ({})",
+                            quote_list(used)
+                        ),
+                    ));
+                }
+                if unit.trim().is_empty() {
+                    return Err(src.error(
+                        Some(&u.span()),
+                        "data.units",
+                        format!("the unit of \"{column}\" is empty"),
+                    ));
+                }
+            }
+            u.get_ref().clone()
+        }
+        None => BTreeMap::new(),
+    };
+    Ok(DataFormat {
+        delimiter,
+        matrix,
+        columns,
+        units,
+    })
+}
+
+/// Reads `file`; errors name the config and the key that changes what went wrong.
 pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSeries> {
-    let mut spec = CsvSpec::default()
+    let mut spec = RecordSpec::default()
         .with_columns(c.input.to_string(), c.output.to_string())
         .with_min_samples(64)
         .with_time_tolerance(c.time_tolerance);
@@ -29,13 +189,33 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
         (None, Some(fs)) => spec.with_sample_rate(fs, 0.0),
         (None, None) => spec,
     };
-    read_csv(file, &spec).with_context(|| {
-        format!(
-            "{}: [data] file (a non-uniform time step can be allowed with data.time_tolerance, \
-             now {:e})",
-            config.display(),
-            c.time_tolerance
-        )
+    if let Some(d) = c.format.delimiter {
+        spec = spec.with_delimiter(d);
+    }
+    spec.matrix.clone_from(&c.format.matrix);
+    spec.columns.clone_from(&c.format.columns);
+    read_any(file, &spec).map_err(|e| {
+        let config = config.display();
+        let context = match &e {
+            DataError::NonUniformTime { .. } => format!(
+                "{config}: [data] file (a non-uniform time step can be allowed with \
+                 data.time_tolerance, now {:e})",
+                c.time_tolerance
+            ),
+            DataError::LooksDelimited { found, .. } => format!(
+                "{config}: [data] file (set data.delimiter = {} in the config)",
+                Delimiter::for_char(*found).map_or("\"auto\"", Delimiter::describe)
+            ),
+            DataError::NoSuchColumn { .. }
+            | DataError::NoSuchMatrix { .. }
+            | DataError::WhichMatrix { .. }
+            | DataError::ColumnNames { .. } => format!(
+                "{config}: [data] file (data.matrix and data.columns name a matrix and its \
+                 columns)"
+            ),
+            _ => format!("{config}: [data] file"),
+        };
+        anyhow!(e).context(context)
     })
 }
 

@@ -2,6 +2,7 @@
 //!
 //! Every key is documented in `docs/config.md`.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use htfid_hybrid::{Method, Options};
@@ -9,7 +10,7 @@ use htfid_model::{DamperLaw, Effects, HopperParams};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::config::{load, quote_list, ConfigError, Kind, Source};
+use crate::config::{load, quote_list, show, ConfigError, Kind, Source};
 
 type Num = Spanned<f64>;
 type OptNum = Option<Spanned<f64>>;
@@ -222,6 +223,18 @@ pub struct Settings {
     pub theory: TheorySettings,
     pub noise: Option<NoiseSettings>,
     pub estimation: EstimationSettings,
+    /// A model file's `[model.parameters]` overrides and the model as the file has it, so a
+    /// failure of the configured model can be traced to the override that causes it.
+    pub overrides: Option<Overrides>,
+}
+
+/// The parameter overrides of a model-file config.
+#[derive(Debug, Clone)]
+pub struct Overrides {
+    /// The model with the file's own values.
+    pub base: Box<htfid_lang::Model>,
+    /// Each override: name, value and where it is written (line, column).
+    pub entries: Vec<(String, f64, usize, usize)>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -383,6 +396,29 @@ impl Settings {
                 .unwrap_or_else(|| "experiment".into()),
         };
         let system = resolve_system(src, &raw)?;
+        let overrides = match (&raw.model.file, &raw.model.parameters) {
+            (Some(file), Some(table)) => {
+                let dir = src.path.parent().unwrap_or(Path::new("."));
+                // Read without error: the same file was just read successfully.
+                htfid_lang::Model::from_file(&dir.join(file.get_ref()))
+                    .ok()
+                    .map(|base| Overrides {
+                        base: Box::new(base),
+                        entries: table
+                            .get_ref()
+                            .iter()
+                            .filter_map(|(name, v)| {
+                                let value = v.as_float().or(v.as_integer().map(|i| i as f64))?;
+                                let at = src
+                                    .key_in_table(table.span().start, name)
+                                    .unwrap_or_else(|| table.span());
+                                Some((name.clone(), value, src.line_of(&at), src.column_of(&at)))
+                            })
+                            .collect(),
+                    })
+            }
+            _ => None,
+        };
         let period = match &system {
             System::Hopper { params, .. } => params.period,
             System::Model(model) => model.period().ok_or_else(|| {
@@ -405,11 +441,40 @@ impl Settings {
             "> 0 (Hz)",
             |v| v > 0.0,
         )?;
+        // The record holds every sample of settling and excitation; a sample rate meant in
+        // another unit (kHz read as Hz) would allocate without bound.
+        let per_period = sample_rate * period;
+        if per_period > 1e5 {
+            return Err(src.error(
+                s.sample_rate.as_ref().map(Spanned::span).as_ref(),
+                "simulation.sample_rate",
+                format!(
+                    "must give at most 1e5 samples per forcing period (got {} Hz x {} s = \
+                     {per_period:e}); the record would not fit in memory",
+                    show(sample_rate),
+                    show(period)
+                ),
+            ));
+        }
         let mut integrator = Options {
-            rtol: src.opt_number(&s.rtol, 1e-10, "simulation.rtol", "in (0, 0.1]", |v| {
-                v > 0.0 && v <= 0.1
-            })?,
-            atol: src.opt_number(&s.atol, 1e-12, "simulation.atol", "> 0", |v| v > 0.0)?,
+            // Below these the error target is finer than double-precision rounding of the
+            // states (rtol: a few dozen ulps; atol: of a state crossing zero), the step size
+            // collapses and the message would wrongly say "no limit cycle".
+            rtol: src.opt_number(
+                &s.rtol,
+                1e-10,
+                "simulation.rtol",
+                "in [1e-14, 0.1] (below 1e-14 the target is finer than double-precision rounding)",
+                |v| (1e-14..=0.1).contains(&v),
+            )?,
+            atol: src.opt_number(
+                &s.atol,
+                1e-12,
+                "simulation.atol",
+                "in [1e-20, 0.1] (below 1e-20 the target is finer than the rounding of a state \
+                 near zero, and the step size collapses)",
+                |v| (1e-20..=0.1).contains(&v),
+            )?,
             ..Options::default()
         };
         if let Some(v) = &s.max_steps {
@@ -426,11 +491,48 @@ impl Settings {
             None => Excitation::None,
             Some(e) => resolve_excitation(src, e, period)?,
         };
+        // Every sample of settling and excitation is held in memory.
+        let (key, span, excited) = match (&excitation, &raw.excitation) {
+            (
+                Excitation::ChirpTrain {
+                    duration, copies, ..
+                },
+                Some(e),
+            ) => (
+                "excitation.duration",
+                e.duration.as_ref().map(Spanned::span),
+                *copies as f64 * (duration + period / *copies as f64),
+            ),
+            (Excitation::MultisineDesign { max_record, .. }, Some(e)) => (
+                "excitation.max_record",
+                e.max_record.as_ref().map(Spanned::span),
+                *max_record,
+            ),
+            _ => ("simulation.settle_periods", None, 0.0),
+        };
+        let samples = (settle_periods as f64 * period + excited) * sample_rate;
+        if samples > MAX_RECORD_SAMPLES {
+            return Err(src.error(
+                span.as_ref(),
+                key,
+                format!(
+                    "the record would hold {samples:.3e} samples ((settling + excitation) x \
+                     sample_rate), more than the {MAX_RECORD_SAMPLES:e} that fit in memory"
+                ),
+            ));
+        }
         let theory = resolve_theory(src, raw.theory.as_ref())?;
         let noise = match &raw.noise {
             None => None,
             Some(n) => Some(NoiseSettings {
-                output_std: src.non_negative(&n.output_std, "noise.output_std")?,
+                // Noise beyond 1e6 output units swamps any measurement, and past 1e307 its
+                // samples overflow to inf in the written record.
+                output_std: src.number(
+                    &n.output_std,
+                    "noise.output_std",
+                    "in [0, 1e6] (in the outputs' units)",
+                    |v| (0.0..=1e6).contains(&v),
+                )?,
                 seed: match &n.seed {
                     Some(v) => int_in(src, v, "noise.seed", 0, i64::MAX)? as u64,
                     None => 1,
@@ -450,6 +552,7 @@ impl Settings {
             theory,
             noise,
             estimation,
+            overrides,
         })
     }
 
@@ -482,6 +585,7 @@ impl Settings {
             System::Model(_) => Err(ConfigError {
                 path: self.path.clone(),
                 line: None,
+                column: None,
                 key: "model".into(),
                 message: format!(
                     "this part of `htfid {command}` takes the built-in hopper ([model] m, k, c, \
@@ -490,6 +594,215 @@ impl Settings {
             }),
         }
     }
+}
+
+/// Where the built-in hopper's numbers are written.
+struct HopperSpans {
+    m: Option<Range<usize>>,
+    k: Option<Range<usize>>,
+    c: Option<Range<usize>>,
+    g: Option<Range<usize>>,
+    x0: Option<Range<usize>>,
+    amplitude: Option<Range<usize>>,
+}
+
+/// Samples of a simulated record (settling and excitation) beyond which it does not fit in
+/// memory with its states: about 2.4 GB per column of doubles.
+const MAX_RECORD_SAMPLES: f64 = 3e8;
+
+/// Lengths beyond this (m) mean a unit slip, not a hopper, and overflow the simulation's squares.
+const MAX_LENGTH: f64 = 1e6;
+/// The natural period may be this many times shorter or longer than the forcing period: one
+/// adaptive simulation still resolves both with steps of sensible size.
+const MAX_PERIOD_RATIO: f64 = 1e4;
+/// Damping ratios beyond this lock the damper rigidly and make the equations stiff.
+const MAX_DAMPING_RATIO: f64 = 1e4;
+
+/// Refuses hopper parameters that are each finite but leave no meaningful simulation: an
+/// overflowing static sag (`g = 1e308`), a natural period no step size can share with the
+/// forcing period (`k = 1e300` hangs the integrator, `m = 1e-300` collapses its step).
+fn check_hopper_scales(
+    src: &Source,
+    p: &HopperParams,
+    forced: bool,
+    at: &HopperSpans,
+) -> Result<(), ConfigError> {
+    let natural = 2.0 * std::f64::consts::PI * (p.m / p.k).sqrt();
+    let ratio = natural / p.period;
+    if forced && !(1.0 / MAX_PERIOD_RATIO..=MAX_PERIOD_RATIO).contains(&ratio) {
+        // Name the parameter further from the forcing's scale.
+        let (key, span) = if p.m.log10().abs() > p.k.log10().abs() {
+            ("model.m", &at.m)
+        } else {
+            ("model.k", &at.k)
+        };
+        return Err(src.error(
+            span.as_ref(),
+            key,
+            format!(
+                "the natural period 2 pi sqrt(m / k) = {natural:e} s must be within \
+                 {MAX_PERIOD_RATIO:e} times the forcing period {} s either way, or one simulation \
+                 cannot resolve both (got m = {}, k = {})",
+                show(p.period),
+                show(p.m),
+                show(p.k)
+            ),
+        ));
+    }
+    let zeta = p.c / (2.0 * (p.k * p.m).sqrt());
+    if zeta > MAX_DAMPING_RATIO {
+        return Err(src.error(
+            at.c.as_ref(),
+            "model.c",
+            format!(
+                "the damping ratio c / (2 sqrt(k m)) = {zeta:e} must be <= {MAX_DAMPING_RATIO:e}: \
+                 beyond it the damper locks the mass and the equations are too stiff to \
+                 integrate (got c = {})",
+                show(p.c)
+            ),
+        ));
+    }
+    for (key, span, what, length, got) in [
+        (
+            "model.g",
+            &at.g,
+            "the spring's static sag m g / k",
+            p.m * p.g / p.k,
+            format!("g = {}", show(p.g)),
+        ),
+        (
+            "model.x0",
+            &at.x0,
+            "the spring rest length x0",
+            p.x0,
+            format!("x0 = {}", show(p.x0)),
+        ),
+        (
+            "forcing.amplitude",
+            &at.amplitude,
+            "the static deflection amplitude / k",
+            p.forcing_amplitude / p.k,
+            format!("amplitude = {}", show(p.forcing_amplitude)),
+        ),
+    ] {
+        if length.is_nan() || length.abs() > MAX_LENGTH {
+            return Err(src.error(
+                span.as_ref(),
+                key,
+                format!(
+                    "{what} = {length:e} m must be within +-{MAX_LENGTH:e} m, or the simulation \
+                     overflows (got {got})"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses effects that are finite but swamp the hopper they are added to (a cubic spring a
+/// million times the linear one at the hopper's size, a lag of ten thousand periods): such
+/// values overflow or stall the simulation, whose message could not name the key.
+fn check_effect_scales(
+    src: &Source,
+    p: &HopperParams,
+    e: &Effects,
+    raw: &RawEffects,
+    table: &str,
+) -> Result<(), ConfigError> {
+    // The hopper's length scale: its static sag, forced deflection or rest length, and at
+    // least 1 mm so an unforced, weightless hopper still has one.
+    let length = (p.m * p.g / p.k)
+        .abs()
+        .max((p.forcing_amplitude / p.k).abs())
+        .max(p.x0.abs())
+        .max(1e-3);
+    let omega = (p.k / p.m).sqrt();
+    let critical = 2.0 * (p.k * p.m).sqrt();
+    let stop_k = e.hard_stop.map_or(0.0, |h| h.k_stop);
+    let stop_x = e.hard_stop.map_or(0.0, |h| h.x_stop);
+    let checks: [(&str, &OptNum, f64, f64, String); 9] = [
+        (
+            "k3",
+            &raw.k3,
+            (e.k3 * length * length / p.k).abs(),
+            1e6,
+            format!(
+                "the cubic force's share k3 L^2 / k at the hopper's length L = {} m",
+                show(length)
+            ),
+        ),
+        (
+            "c2",
+            &raw.c2,
+            e.c2 * length * omega / critical,
+            MAX_DAMPING_RATIO,
+            "the quadratic drag's damping ratio c2 L wn / (2 sqrt(k m))".to_owned(),
+        ),
+        (
+            "c_f",
+            &raw.c_f,
+            e.c_f / critical,
+            MAX_DAMPING_RATIO,
+            "the flight damping ratio c_f / (2 sqrt(k m))".to_owned(),
+        ),
+        (
+            "mu",
+            &raw.mu,
+            e.mu / p.k,
+            MAX_LENGTH,
+            "the friction force's deflection mu / k (m)".to_owned(),
+        ),
+        (
+            "input_offset",
+            &raw.input_offset,
+            (e.input_offset / p.k).abs(),
+            MAX_LENGTH,
+            "the offset's deflection |input_offset| / k (m)".to_owned(),
+        ),
+        (
+            "tau",
+            &raw.tau,
+            e.tau / p.period,
+            MAX_PERIOD_RATIO,
+            "the lag in forcing periods, tau / T".to_owned(),
+        ),
+        (
+            "delay",
+            &raw.delay,
+            e.delay / p.period,
+            MAX_PERIOD_RATIO,
+            "the delay in forcing periods, delay / T".to_owned(),
+        ),
+        (
+            "k_stop",
+            &raw.k_stop,
+            stop_k / p.k,
+            MAX_PERIOD_RATIO * MAX_PERIOD_RATIO,
+            "the stop's stiffness against the spring's, k_stop / k".to_owned(),
+        ),
+        (
+            "x_stop",
+            &raw.x_stop,
+            stop_x.abs(),
+            MAX_LENGTH,
+            "the stop's position |x_stop| (m)".to_owned(),
+        ),
+    ];
+    for (name, raw_value, value, limit, what) in checks {
+        if value.is_nan() || value > limit {
+            let got = raw_value.as_ref().map_or(0.0, |v| *v.get_ref());
+            return Err(src.error(
+                raw_value.as_ref().map(Spanned::span).as_ref(),
+                &format!("{table}.{name}"),
+                format!(
+                    "{what} = {value:.3e} must be <= {limit:e}, or the simulation overflows or \
+                     stalls (got {name} = {})",
+                    show(got)
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Reads `[model]` (and `[forcing]`, `[effects]` for the built-in hopper).
@@ -523,6 +836,20 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
             forcing_amplitude: src.finite(&forcing.amplitude, "forcing.amplitude")?,
             period: src.positive(&forcing.period, "forcing.period")?,
         };
+        let span = |v: &OptNum| v.as_ref().map(Spanned::span);
+        check_hopper_scales(
+            src,
+            &params,
+            true,
+            &HopperSpans {
+                m: span(&m.m),
+                k: span(&m.k),
+                c: span(&m.c),
+                g: span(&m.g),
+                x0: span(&m.x0),
+                amplitude: Some(forcing.amplitude.span()),
+            },
+        )?;
         let damper = match &m.damper {
             None => DamperLaw::Switching,
             Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
@@ -530,10 +857,14 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
                 _ => DamperLaw::Switching,
             },
         };
+        let effects = resolve_effects(src, raw.effects.as_ref(), "effects")?;
+        if let Some(e) = &raw.effects {
+            check_effect_scales(src, &params, &effects, e, "effects")?;
+        }
         return Ok(System::Hopper {
             params,
             damper,
-            effects: resolve_effects(src, raw.effects.as_ref(), "effects")?,
+            effects,
         });
     }
     let why = "with a model-language model (its parameters are in [model.parameters])";
@@ -564,6 +895,7 @@ fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, ConfigError> 
     let lang_error = |e: htfid_lang::ModelError| ConfigError {
         path: src.path.clone(),
         line: None,
+        column: None,
         key: "model".into(),
         message: e.to_string(),
     };
@@ -1112,6 +1444,10 @@ pub struct RawData {
     pub validation: Option<Spanned<Vec<[i64; 2]>>>,
     pub test: Option<Spanned<Vec<[i64; 2]>>>,
     pub time_tolerance: OptNum,
+    pub delimiter: Option<Spanned<String>>,
+    pub matrix: Option<Spanned<String>>,
+    pub columns: Option<Spanned<Vec<String>>>,
+    pub units: Option<Spanned<std::collections::BTreeMap<String, String>>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -1156,6 +1492,8 @@ pub struct DataSettings {
     pub test: Vec<std::ops::Range<usize>>,
     /// Relative tolerance on the time step.
     pub time_tolerance: f64,
+    /// `data.delimiter`, `data.matrix`, `data.columns`, `data.units`.
+    pub format: crate::records::DataFormat,
 }
 
 #[derive(Debug, Clone)]
@@ -1266,7 +1604,13 @@ impl DiagnoseSettings {
                 format!("\"{output}\" is also the input column; the output must be another column"),
             ));
         }
+        let used: Vec<&str> = [Some(input.as_str()), Some(output.as_str()), time.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect();
+        let format = crate::records::resolve_format(&src, crate::raw_format!(d), &used)?;
         let data = DataSettings {
+            format,
             file,
             time,
             sample_rate,
@@ -1318,6 +1662,19 @@ impl DiagnoseSettings {
             forcing_amplitude: amplitude,
             period,
         };
+        check_hopper_scales(
+            &src,
+            &params,
+            raw.forcing.is_some(),
+            &HopperSpans {
+                m: Some(m.m.span()),
+                k: Some(m.k.span()),
+                c: Some(m.c.span()),
+                g: m.g.as_ref().map(Spanned::span),
+                x0: m.x0.as_ref().map(Spanned::span),
+                amplitude: raw.forcing.as_ref().map(|f| f.amplitude.span()),
+            },
+        )?;
         let damper = match &m.damper {
             None => DamperLaw::Switching,
             Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {

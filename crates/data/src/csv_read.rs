@@ -38,6 +38,42 @@ pub enum Delimiter {
     Whitespace,
 }
 
+impl Delimiter {
+    /// The delimiter a config spells `","`, `";"`, `"tab"`, `"whitespace"` or `"auto"` (a tab
+    /// character itself also reads as `"tab"`).
+    pub fn parse(text: &str) -> Option<Delimiter> {
+        Some(match text {
+            "," => Delimiter::Comma,
+            ";" => Delimiter::Semicolon,
+            "tab" | "\t" => Delimiter::Tab,
+            "whitespace" => Delimiter::Whitespace,
+            "auto" => Delimiter::Auto,
+            _ => return None,
+        })
+    }
+
+    /// The spelling [`Delimiter::parse`] reads, quoted: `","`, `"tab"`, ...
+    pub fn describe(self) -> &'static str {
+        match self {
+            Delimiter::Comma => "\",\"",
+            Delimiter::Semicolon => "\";\"",
+            Delimiter::Tab => "\"tab\"",
+            Delimiter::Whitespace => "\"whitespace\"",
+            Delimiter::Auto => "\"auto\"",
+        }
+    }
+
+    /// The single-character delimiter `c`, if it is one.
+    pub fn for_char(c: char) -> Option<Delimiter> {
+        match c {
+            ',' => Some(Delimiter::Comma),
+            ';' => Some(Delimiter::Semicolon),
+            '\t' => Some(Delimiter::Tab),
+            _ => None,
+        }
+    }
+}
+
 /// What to read from a CSV file. [`CsvSpec::default`] is the project's format: columns `t`
 /// (time, s), `f` (input force, N) and `x` (output position, m), comma-separated, `#` comments.
 #[derive(Debug, Clone, PartialEq)]
@@ -151,13 +187,21 @@ pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<TimeSeries, Da
         path: path.to_path_buf(),
         source,
     })?;
-    let text = match std::str::from_utf8(&bytes) {
+    read_csv_bytes(&bytes, path, spec)
+}
+
+/// [`read_csv`] of the bytes of the file `path`.
+pub(crate) fn read_csv_bytes(
+    bytes: &[u8],
+    path: &Path,
+    spec: &CsvSpec,
+) -> Result<TimeSeries, DataError> {
+    spec.validate()?;
+    let text = match std::str::from_utf8(bytes) {
         Ok(text) => text,
         Err(e) => {
-            let line = 1 + bytes[..e.valid_up_to()]
-                .iter()
-                .filter(|&&b| b == b'\n')
-                .count();
+            // The valid prefix ends inside the line of the first invalid byte.
+            let line = split_lines(&String::from_utf8_lossy(&bytes[..e.valid_up_to()])).count();
             return Err(DataError::NotUtf8 {
                 path: path.to_path_buf(),
                 line,
@@ -170,15 +214,34 @@ pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<TimeSeries, Da
     parse_csv(text, path, spec)
 }
 
+/// The lines of `text`, ended by `\n`, `\r\n` or a lone `\r` (classic Mac OS and some
+/// instrument software end lines with CR alone; reading those as one line would hide the data).
+fn split_lines(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = Some(text);
+    std::iter::from_fn(move || {
+        let s = rest?;
+        match s.find(['\n', '\r']) {
+            None => {
+                rest = None;
+                Some(s)
+            }
+            Some(i) => {
+                let end = if s[i..].starts_with("\r\n") { 2 } else { 1 };
+                rest = Some(&s[i + end..]);
+                Some(&s[..i])
+            }
+        }
+    })
+}
+
 fn parse_csv(text: &str, path: &Path, spec: &CsvSpec) -> Result<TimeSeries, DataError> {
     let skipped = |line: &str| {
         let t = line.trim();
         t.is_empty() || spec.comment.is_some_and(|c| t.starts_with(c))
     };
-    let mut lines = text
-        .split('\n')
+    let mut lines = split_lines(text)
         .enumerate()
-        .map(|(i, l)| (i + 1, l.strip_suffix('\r').unwrap_or(l)))
+        .map(|(i, l)| (i + 1, l))
         .filter(|&(_, l)| !skipped(l));
 
     let Some((header_line, header)) = lines.next() else {
@@ -214,7 +277,23 @@ fn parse_csv(text: &str, path: &Path, spec: &CsvSpec) -> Result<TimeSeries, Data
             line: header_line,
         });
     }
-    let find = |name: &str| find_column(&names, name, path, header_line);
+    let find = |name: &str| {
+        find_column(&names, name, path, header_line).map_err(|e| match e {
+            DataError::MissingColumn { .. } if names.len() == 1 => {
+                looks_delimited(header, spec.delimiter)
+                    .map(|found| DataError::LooksDelimited {
+                        path: path.to_path_buf(),
+                        line: header_line,
+                        column: name.to_owned(),
+                        header: header.to_owned(),
+                        found,
+                        used: spec.delimiter,
+                    })
+                    .unwrap_or(e)
+            }
+            e => e,
+        })
+    };
 
     let time_col = match &spec.time {
         TimeSource::Column(name) => Some(find(name)?),
@@ -273,6 +352,14 @@ fn parse_csv(text: &str, path: &Path, spec: &CsvSpec) -> Result<TimeSeries, Data
         dt,
         path.to_path_buf(),
     ))
+}
+
+/// The separator a one-cell header seems to use instead of `used`: the first of `;`, tab and
+/// `,` that it contains.
+fn looks_delimited(header: &str, used: Delimiter) -> Option<char> {
+    [';', '\t', ',']
+        .into_iter()
+        .find(|&c| header.contains(c) && Delimiter::for_char(c) != Some(used))
 }
 
 fn find_column(names: &[String], name: &str, path: &Path, line: usize) -> Result<usize, DataError> {

@@ -287,6 +287,163 @@ pub enum DataError {
         /// Bytes present after the header.
         found: u64,
     },
+    /// The `.npz` file is not a ZIP archive numpy could have written, or is damaged.
+    #[error("{}: not a valid .npz (ZIP) file: {reason}", path.display())]
+    ZipFormat {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The `.npz` archive uses a ZIP feature this crate does not read.
+    #[error("{}: unsupported .npz archive: {what}", path.display())]
+    ZipUnsupported {
+        /// The file.
+        path: PathBuf,
+        /// What is unsupported.
+        what: String,
+    },
+    /// The MAT-file is malformed.
+    #[error("{}: not a valid MAT-file: {reason}", path.display())]
+    MatFormat {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The MAT-file is of a version this crate does not read (v4, v7.3).
+    #[error("{}: unsupported MAT-file: {what}", path.display())]
+    MatUnsupported {
+        /// The file.
+        path: PathBuf,
+        /// What is unsupported and how to save the file instead.
+        what: String,
+    },
+    /// A column name that a binary file (`.npy`, `.npz`, MAT) does not hold.
+    #[error(
+        "{}: no column \"{column}\" in the {format}; it holds {}{}",
+        path.display(),
+        if available.is_empty() { "no named column".to_owned() } else { quoted_list(available) },
+        if hint.is_empty() { String::new() } else { format!(" ({hint})") }
+    )]
+    NoSuchColumn {
+        /// The file.
+        path: PathBuf,
+        /// The file's format.
+        format: crate::Format,
+        /// The requested name.
+        column: String,
+        /// The columns the file does hold.
+        available: Vec<String>,
+        /// Matrices not chosen, unnamed columns, unreadable variables.
+        hint: String,
+    },
+    /// The matrix named by the spec is not in the file (or cannot be read).
+    #[error(
+        "{}: no readable matrix \"{matrix}\" in the {format}{}; it holds {}",
+        path.display(),
+        why.as_ref().map(|w| format!(" (it {w})")).unwrap_or_default(),
+        quoted_list(available)
+    )]
+    NoSuchMatrix {
+        /// The file.
+        path: PathBuf,
+        /// The file's format.
+        format: crate::Format,
+        /// The requested member or variable.
+        matrix: String,
+        /// The readable members or variables.
+        available: Vec<String>,
+        /// Why a variable of that name cannot be read, when it exists.
+        why: Option<String>,
+    },
+    /// Column names were given but the file has no single matrix to give them to.
+    #[error(
+        "{}: column names are given for a matrix, but the {format} holds several: {}; name \
+         the matrix to use",
+        path.display(),
+        quoted_list(matrices)
+    )]
+    WhichMatrix {
+        /// The file.
+        path: PathBuf,
+        /// The file's format.
+        format: crate::Format,
+        /// The matrices the file holds.
+        matrices: Vec<String>,
+    },
+    /// The number of column names differs from the matrix's columns.
+    #[error(
+        "{}: {named} column names given, but the {format} matrix{} is {rows}x{cols} \
+         (one sample per row, one signal per column{})",
+        path.display(),
+        if matrix.is_empty() { String::new() } else { format!(" \"{matrix}\"") },
+        if *rows == *named && *rows != *cols { "; it looks transposed: save its transpose" } else { "" }
+    )]
+    ColumnNames {
+        /// The file.
+        path: PathBuf,
+        /// The file's format.
+        format: crate::Format,
+        /// The matrix's member or variable name (empty for a `.npy` file).
+        matrix: String,
+        /// Names given.
+        named: usize,
+        /// Rows of the matrix.
+        rows: usize,
+        /// Columns of the matrix.
+        cols: usize,
+    },
+    /// Two columns of a binary file share a name (a vector and a named matrix column).
+    #[error("{}: two columns are named \"{column}\"; rename one", path.display())]
+    AmbiguousColumn {
+        /// The file.
+        path: PathBuf,
+        /// The shared name.
+        column: String,
+    },
+    /// Two used columns of a binary file differ in length.
+    #[error(
+        "{}: column {first} has {first_len} values but column {second} has {second_len} \
+         (every signal needs one value per sample)",
+        path.display()
+    )]
+    ColumnLengths {
+        /// The file.
+        path: PathBuf,
+        /// The input column.
+        first: ColumnId,
+        /// Its length.
+        first_len: usize,
+        /// The column of another length.
+        second: ColumnId,
+        /// Its length.
+        second_len: usize,
+    },
+    /// A requested column is not in the header, and the header looks separated by another
+    /// character than the delimiter in use.
+    #[error(
+        "{}:{line}: no column \"{column}\" in the header {header:?}: it looks {} but cells are \
+         split at {}; set the delimiter to {}",
+        path.display(),
+        match found { ';' => "semicolon-separated", '\t' => "tab-separated", _ => "comma-separated" },
+        used.describe(),
+        crate::Delimiter::for_char(*found).map(|d| d.describe()).unwrap_or_default()
+    )]
+    LooksDelimited {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the header.
+        line: usize,
+        /// The requested name.
+        column: String,
+        /// The header line as read.
+        header: String,
+        /// The separator the header seems to use.
+        found: char,
+        /// The delimiter in use.
+        used: crate::Delimiter,
+    },
     /// Two vectors that must have one value per sample differ in length.
     #[error("{}: column \"{column}\" has {found} values, the time vector has {expected}", path.display())]
     LengthMismatch {

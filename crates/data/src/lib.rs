@@ -1,8 +1,10 @@
 //! Measured time series in, result files out.
 //!
-//! Reading: [`read_csv`] (with a [`CsvSpec`]) and [`read_npy`] (with an [`NpySpec`]) turn a
-//! measurement file into a [`TimeSeries`]: a uniformly sampled record of an input and an output
-//! with absolute sample times. Writing: [`CsvWriter`], [`write_timeseries_csv`] and
+//! Reading: [`read_record`] (with a [`RecordSpec`]) turns a measurement file of any [`Format`]
+//! (CSV, NumPy `.npy` and `.npz`, MATLAB level-5 MAT-files), told from its first bytes, into a
+//! [`TimeSeries`]: a uniformly sampled record of an input and an output with absolute sample
+//! times, its columns chosen by name. [`read_csv`] (with a [`CsvSpec`]) and [`read_npy`] (with
+//! an [`NpySpec`], columns by index) read one format each. Writing: [`CsvWriter`], [`write_timeseries_csv`] and
 //! [`write_json_atomic`] write complete files or nothing, and [`OutputDir`] stages all files of a
 //! run and moves them into place only when the run succeeds, refusing to overwrite unless asked.
 //! Every failure is a [`DataError`] whose message names the file, line and column.
@@ -15,8 +17,8 @@
 //! their columns in the spec, or give a sample rate instead of a time column.
 //!
 //! Precisely, a file is read as follows.
-//! - Text is UTF-8 (ASCII is UTF-8); a leading byte-order mark is ignored. Lines end in `\n` or
-//!   `\r\n`. Line numbers in messages are 1-based and count every line of the file.
+//! - Text is UTF-8 (ASCII is UTF-8); a leading byte-order mark is ignored. Lines end in `\n`,
+//!   `\r\n` or a lone `\r`. Line numbers in messages are 1-based and count every line of the file.
 //! - Blank lines, and lines whose first non-blank character is the comment character (`#` by
 //!   default), are skipped anywhere. There are no end-of-line comments. A header written as a
 //!   comment (as `numpy.savetxt(..., header=...)` does) is therefore not seen as a header.
@@ -24,7 +26,8 @@
 //!   `""` for a quote inside). A header of numbers only is an error: every file needs names.
 //! - Cells are separated by `,` by default, or `;`, tab, runs of blanks, or a separator guessed
 //!   from the header ([`Delimiter`]). Blanks around cells are ignored; a quoted cell may contain
-//!   the separator.
+//!   the separator. A requested column missing from a one-cell header that contains `;`, a tab
+//!   or `,` is reported as a file in another separator, naming the delimiter to set.
 //! - Every data row has as many cells as the header has names. A trailing separator on the
 //!   header and the rows (`"V1","V2",` then `0.0057756,0.0093978,`) makes an empty last column,
 //!   which is dropped.
@@ -37,8 +40,25 @@
 //!   `(t_last - t_first) / (n - 1)`. With a sample rate `fs` instead, `t_k = start + k / fs`.
 //! - At least [`CsvSpec::min_samples`] rows (never fewer than 2) are required.
 //!
-//! `.npy` files hold a 2-D little-endian `float64` or `float32` array in C order, one row per
-//! sample, columns chosen by 0-based index; see [`read_npy`].
+//! # Binary formats
+//!
+//! - `.npy`: a 2-D little-endian `float64` or `float32` array in C order, one row per sample;
+//!   its columns are named by [`RecordSpec::columns`] or answer to `"0"`, `"1"`, ...
+//!   ([`read_npy`] takes 0-based indices).
+//! - `.npz` (`numpy.savez`, stored, or `savez_compressed`, deflated; ZIP64 headers read): each
+//!   member is an `.npy` array named by its member name without `.npy`. A vector (`(n,)`,
+//!   `(n, 1)`, `(1, n)`) is one column; a matrix is used through [`RecordSpec::matrix`] and
+//!   [`RecordSpec::columns`].
+//! - MAT-files of level 5 (MATLAB `save -v6`/`-v7`, `scipy.io.savemat`), plain or with
+//!   `miCOMPRESSED` elements, either byte order: real numeric variables of every class (double,
+//!   single, 8- to 64-bit integers; 64-bit values beyond 2^53 are refused as inexact), vectors
+//!   or matrices as for `.npz`. Cells, structs, strings, sparse, complex and N-D arrays are
+//!   named as unreadable when asked for. Version 7.3 files are HDF5 and are refused with the
+//!   advice to save with `-v7`: no well-kept pure-Rust HDF5 reader exists.
+//!
+//! Binary values are widened exactly to `f64`; messages give 0-based rows. Whatever the format,
+//! the same checks follow: finite values, one value per sample in every used column, strictly
+//! increasing and uniform times (float32 times at their own rounding).
 //!
 //! # Written files
 //!
@@ -68,14 +88,18 @@
 
 mod csv_read;
 mod error;
+mod mat;
 mod npy;
 mod outdir;
+mod record;
 mod series;
 mod write;
+mod zip;
 
 pub use csv_read::{read_csv, CsvSpec, Delimiter, TimeSource};
 pub use error::{ColumnId, DataError, Location};
 pub use npy::{read_npy, NpySpec};
 pub use outdir::OutputDir;
+pub use record::{read_record, Format, RecordSpec};
 pub use series::{TimeSeries, DEFAULT_TIME_TOLERANCE};
 pub use write::{write_json_atomic, write_timeseries_csv, CsvWriter};

@@ -2,11 +2,9 @@ use std::fs;
 use std::path::Path;
 
 use crate::csv_read::TimeSource;
-use crate::error::{ColumnId, DataError, Location};
-use crate::series::{
-    check_count, check_rate, check_tolerance, check_uniform, uniform_times, TimeSeries,
-    DEFAULT_TIME_TOLERANCE,
-};
+use crate::error::{ColumnId, DataError};
+use crate::record::{assemble, Picked};
+use crate::series::{check_rate, check_tolerance, TimeSeries, DEFAULT_TIME_TOLERANCE};
 
 /// What to read from a `.npy` file: columns of a 2-D array by 0-based index.
 /// [`NpySpec::default`] mirrors the CSV format: column 0 time (s), 1 input, 2 output.
@@ -110,6 +108,68 @@ pub fn read_npy(path: impl AsRef<Path>, spec: &NpySpec) -> Result<TimeSeries, Da
         path: path.to_path_buf(),
         source,
     })?;
+    let array = parse_npy(&bytes, path, false)?;
+    let cols = array.columns.len();
+    for index in [spec.input, spec.output]
+        .into_iter()
+        .chain(match spec.time {
+            TimeSource::Column(index) => Some(index),
+            TimeSource::SampleRate { .. } => None,
+        })
+    {
+        if index >= cols {
+            return Err(DataError::NpyColumn {
+                path: path.to_path_buf(),
+                index,
+                columns: cols,
+            });
+        }
+    }
+    let column = |index: usize| Picked {
+        id: ColumnId::Index(index),
+        values: &array.columns[index],
+        eps: array.eps,
+    };
+    assemble(
+        path,
+        match spec.time {
+            TimeSource::Column(index) => TimeSource::Column(column(index)),
+            TimeSource::SampleRate { rate_hz, start } => TimeSource::SampleRate { rate_hz, start },
+        },
+        column(spec.input),
+        column(spec.output),
+        array.eps,
+        spec.min_samples,
+        spec.time_tolerance,
+    )
+}
+
+/// A numeric array decoded from a `.npy` stream: one `f64` vector per column (a 1-D array is
+/// one column), and the machine epsilon of the stored values.
+#[derive(Debug)]
+pub(crate) struct NpyArray {
+    pub rows: usize,
+    pub columns: Vec<Vec<f64>>,
+    pub eps: f64,
+}
+
+impl NpyArray {
+    /// The array as a named variable (column-major).
+    pub(crate) fn into_variable(self, name: String) -> crate::record::Variable {
+        let cols = self.columns.len();
+        crate::record::Variable {
+            name,
+            rows: self.rows,
+            cols,
+            data: self.columns.into_iter().flatten().collect(),
+            eps: self.eps,
+        }
+    }
+}
+
+/// Decodes the `.npy` bytes of `path` (a file, or a member of an `.npz` named like a file).
+/// `allow_1d` accepts a 1-D shape `(n,)` as one column, as `.npz` members of single signals are.
+pub(crate) fn parse_npy(bytes: &[u8], path: &Path, allow_1d: bool) -> Result<NpyArray, DataError> {
     let format_err = |reason: String| DataError::NpyFormat {
         path: path.to_path_buf(),
         reason,
@@ -201,6 +261,7 @@ pub fn read_npy(path: impl AsRef<Path>, spec: &NpySpec) -> Result<TimeSeries, Da
                 .collect();
             match dims.as_deref() {
                 Some(&[r, c]) => (r, c),
+                Some(&[n]) if allow_1d => (n, 1),
                 Some(other) => {
                     return Err(unsupported(format!(
                         "{}-D shape {other:?}; need a 2-D array (samples, columns), e.g. \
@@ -228,74 +289,32 @@ pub fn read_npy(path: impl AsRef<Path>, spec: &NpySpec) -> Result<TimeSeries, Da
     // The length check bounds rows * cols by the file size, so both fit in usize.
     let (rows, cols) = (rows as usize, cols as usize);
     let data = &bytes[data_start..];
-
-    for index in [spec.input, spec.output]
-        .into_iter()
-        .chain(match spec.time {
-            TimeSource::Column(index) => Some(index),
-            TimeSource::SampleRate { .. } => None,
+    let columns = (0..cols)
+        .map(|index| {
+            (0..rows)
+                .map(|row| {
+                    let at = (row * cols + index) * float.size();
+                    match float {
+                        Float::F8 => {
+                            let mut cell = [0; 8];
+                            cell.copy_from_slice(&data[at..at + 8]);
+                            f64::from_le_bytes(cell)
+                        }
+                        Float::F4 => {
+                            let mut cell = [0; 4];
+                            cell.copy_from_slice(&data[at..at + 4]);
+                            f64::from(f32::from_le_bytes(cell))
+                        }
+                    }
+                })
+                .collect()
         })
-    {
-        if index >= cols {
-            return Err(DataError::NpyColumn {
-                path: path.to_path_buf(),
-                index,
-                columns: cols,
-            });
-        }
-    }
-    check_count(path, rows, spec.min_samples.max(2))?;
-
-    let column = |index: usize| -> Result<Vec<f64>, DataError> {
-        let mut out = Vec::with_capacity(rows);
-        for row in 0..rows {
-            let at = (row * cols + index) * float.size();
-            let v = match float {
-                Float::F8 => {
-                    let mut cell = [0; 8];
-                    cell.copy_from_slice(&data[at..at + 8]);
-                    f64::from_le_bytes(cell)
-                }
-                Float::F4 => {
-                    let mut cell = [0; 4];
-                    cell.copy_from_slice(&data[at..at + 4]);
-                    f64::from(f32::from_le_bytes(cell))
-                }
-            };
-            if !v.is_finite() {
-                return Err(DataError::NonFinite {
-                    path: path.to_path_buf(),
-                    location: Location::Row(row),
-                    column: ColumnId::Index(index),
-                    value: v.to_string(),
-                });
-            }
-            out.push(v);
-        }
-        Ok(out)
-    };
-
-    let input = column(spec.input)?;
-    let output = column(spec.output)?;
-    let (time, dt) = match spec.time {
-        TimeSource::Column(index) => {
-            let time = column(index)?;
-            let dt = check_uniform(&time, spec.time_tolerance, float.eps())
-                .map_err(|fault| fault.into_error(path, ColumnId::Index(index), Location::Row))?;
-            (time, dt)
-        }
-        TimeSource::SampleRate { rate_hz, start } => {
-            let dt = check_rate(rate_hz, start)?;
-            (uniform_times(start, dt, rows), dt)
-        }
-    };
-    Ok(TimeSeries::from_checked(
-        time,
-        input,
-        output,
-        dt,
-        path.to_path_buf(),
-    ))
+        .collect();
+    Ok(NpyArray {
+        rows,
+        columns,
+        eps: float.eps(),
+    })
 }
 
 /// The subset of Python literals a `.npy` header uses.

@@ -105,6 +105,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "sample_rate": 1.0 / record.dt(),
         "fit_ranges": ranges_json(&report.fit_ranges),
         "validation_ranges": ranges_json(&report.validation_ranges),
+        "units": settings.data.format.units_json(),
     });
     json["noise_floor"] = json!(report.noise_floor);
     json["burn_in_s"] = json!(report.burn_in_s);
@@ -140,6 +141,7 @@ fn read_series(settings: &DiagnoseSettings) -> Result<TimeSeries> {
         time: d.time.as_deref(),
         sample_rate: d.sample_rate,
         time_tolerance: d.time_tolerance,
+        format: &d.format,
     };
     read_record(&settings.path, &d.file, columns)
 }
@@ -436,9 +438,10 @@ fn draw(
     let cause = report.diagnosis.cause.clone();
     let ext_label = format!("extended ({cause})");
     // Residuals in time (one point per gap-free piece is fine: ranges are drawn as one series).
+    let unit = s.data.format.unit(&s.data.output).unwrap_or("output units");
     let panel = time_panel(
         "held-out residual: measured - simulated",
-        "residual (output units)",
+        &format!("residual ({unit})"),
         &t,
         [("nominal", r0.clone()), (ext_label.as_str(), r1.clone())],
     );
@@ -494,10 +497,11 @@ fn draw(
                 .collect()
         };
         let (measured, nom, ext) = (col(0), col(1), col(2));
+        let suffix = s.data.format.label_suffix(&s.data.output);
         let mut p = Panel::new(
             "period-averaged orbit (held-out data)",
             "phase (s)",
-            "position",
+            format!("position{suffix}"),
         );
         p.series = vec![
             Series::new("measured", phase.clone(), measured.clone(), Style::Markers),
@@ -508,7 +512,7 @@ fn draw(
         let mut q = Panel::new(
             "model - measured, period-averaged",
             "phase (s)",
-            "difference",
+            format!("difference{suffix}"),
         );
         q.series = vec![
             Series::new("nominal", phase.clone(), diff(&nom), Style::Line),
@@ -527,7 +531,7 @@ fn draw(
         let tt = record.t()[a..b].to_vec();
         let panel = time_panel(
             "one second of held-out data",
-            "position",
+            &format!("position{}", s.data.format.label_suffix(&s.data.output)),
             &tt,
             [
                 ("measured", record.x()[a..b].to_vec()),

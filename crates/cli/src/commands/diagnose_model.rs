@@ -71,6 +71,7 @@ pub fn run(
         "config": s.path.display().to_string(),
         "data": s.file.display().to_string(),
         "validation_data": s.validation.as_ref().map(|p| p.display().to_string()),
+        "units": s.format.units_json(),
         "model": s.model.name(),
         "cause": d.cause,
         "gain": d.gain,
@@ -96,9 +97,11 @@ pub fn run(
     let start = n.saturating_sub((WINDOW_S / dt) as usize);
     let mut panels: Vec<Panel> = Vec::new();
     for (o, name) in s.outputs.iter().enumerate() {
-        let unit = s.model.outputs()[o]
-            .unit
-            .as_deref()
+        // The unit the data are measured in (data.units), else the model's.
+        let unit = s
+            .format
+            .unit(name)
+            .or(s.model.outputs()[o].unit.as_deref())
             .map_or(String::new(), |u| format!(" ({u})"));
         let tw = shown.t[start..].to_vec();
         let mut panel = time_panel(
@@ -160,6 +163,7 @@ fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Resul
             time: s.time.as_deref(),
             sample_rate: s.sample_rate,
             time_tolerance: s.time_tolerance,
+            format: &s.format,
         };
         let series = read_record(&s.path, file, columns)?;
         if o == 0 {

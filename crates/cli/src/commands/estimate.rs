@@ -30,6 +30,7 @@ fn read(settings: &EstimateSettings, output: &str) -> Result<TimeSeries> {
         time: settings.time.as_deref(),
         sample_rate: settings.sample_rate,
         time_tolerance: settings.time_tolerance,
+        format: &settings.format,
     };
     read_record(&settings.path, &settings.file, columns)
 }
@@ -263,6 +264,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "name": settings.name,
         "config": settings.path.display().to_string(),
         "data": settings.file.display().to_string(),
+        "units": settings.format.units_json(),
         "htfid_version": env!("CARGO_PKG_VERSION"),
         "period": {
             "value": period,
@@ -379,8 +381,17 @@ fn figure(settings: &EstimateSettings, output: &str, e: &HtfEstimate) -> htfid_p
             )
         })
         .collect();
+    // |G_n| carries the output's unit per the input's (data.units), when both are given.
+    let f = &settings.format;
+    let unit = match (f.unit(output), f.unit(&settings.input)) {
+        (Some(y), Some(u)) => format!(", dB re 1 {y}/{u}"),
+        _ => String::new(),
+    };
     plots::harmonics(
-        &format!("{}: |G_n| of {output} from data (Siddiqi)", settings.name),
+        &format!(
+            "{}: |G_n| of {output} from data (Siddiqi{unit})",
+            settings.name
+        ),
         &per,
     )
 }

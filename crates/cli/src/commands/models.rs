@@ -41,17 +41,39 @@ fn limit_cycle(
         settle_periods: settings.settle_periods.max(30),
         ..ShootingOptions::default()
     };
-    stages
-        .run("limit cycle", || {
-            model.limit_cycle(&shooting, &settings.integrator)
-        })
-        .with_context(|| {
-            format!(
-                "{}: no stable limit cycle of model `{}` from its [initial] state",
-                settings.path.display(),
-                model.name()
-            )
-        })
+    let found = stages.run("limit cycle", || {
+        model.limit_cycle(&shooting, &settings.integrator)
+    });
+    let Err(e) = found else {
+        return Ok(found?);
+    };
+    // A model file's own values have a limit cycle but the configured ones do not: name the
+    // override that loses it (g = 1e308 overflows the simulation), tried one at a time.
+    if let Some(o) = &settings.overrides {
+        if o.base.limit_cycle(&shooting, &settings.integrator).is_ok() {
+            for (name, value, line, column) in &o.entries {
+                let Ok(one) = o.base.with_parameters(&[(name.as_str(), *value)]) else {
+                    continue;
+                };
+                if one.limit_cycle(&shooting, &settings.integrator).is_err() {
+                    let file_value = o.base.parameter_index(name).map(|i| o.base.values()[i]);
+                    return Err(anyhow::Error::new(e).context(format!(
+                        "{}:{line}:{column}: model.parameters.{name}: with {name} = {value:e} \
+                         the model `{}` has no stable limit cycle from its [initial] state (with \
+                         the model file's value{} it has one)",
+                        settings.path.display(),
+                        model.name(),
+                        file_value.map_or(String::new(), |v| format!(" {v}"))
+                    )));
+                }
+            }
+        }
+    }
+    Err(anyhow::Error::new(e).context(format!(
+        "{}: no stable limit cycle of model `{}` from its [initial] state",
+        settings.path.display(),
+        model.name()
+    )))
 }
 
 /// The `model` block of `summary.json`.
