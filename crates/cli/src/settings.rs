@@ -441,21 +441,6 @@ impl Settings {
             "> 0 (Hz)",
             |v| v > 0.0,
         )?;
-        // The record holds every sample of settling and excitation; a sample rate meant in
-        // another unit (kHz read as Hz) would allocate without bound.
-        let per_period = sample_rate * period;
-        if per_period > 1e5 {
-            return Err(src.error(
-                s.sample_rate.as_ref().map(Spanned::span).as_ref(),
-                "simulation.sample_rate",
-                format!(
-                    "must give at most 1e5 samples per forcing period (got {} Hz x {} s = \
-                     {per_period:e}); the record would not fit in memory",
-                    show(sample_rate),
-                    show(period)
-                ),
-            ));
-        }
         let mut integrator = Options {
             // Below these the error target is finer than double-precision rounding of the
             // states (rtol: a few dozen ulps; atol: of a state crossing zero), the step size
@@ -491,36 +476,6 @@ impl Settings {
             None => Excitation::None,
             Some(e) => resolve_excitation(src, e, period)?,
         };
-        // Every sample of settling and excitation is held in memory.
-        let (key, span, excited) = match (&excitation, &raw.excitation) {
-            (
-                Excitation::ChirpTrain {
-                    duration, copies, ..
-                },
-                Some(e),
-            ) => (
-                "excitation.duration",
-                e.duration.as_ref().map(Spanned::span),
-                *copies as f64 * (duration + period / *copies as f64),
-            ),
-            (Excitation::MultisineDesign { max_record, .. }, Some(e)) => (
-                "excitation.max_record",
-                e.max_record.as_ref().map(Spanned::span),
-                *max_record,
-            ),
-            _ => ("simulation.settle_periods", None, 0.0),
-        };
-        let samples = (settle_periods as f64 * period + excited) * sample_rate;
-        if samples > MAX_RECORD_SAMPLES {
-            return Err(src.error(
-                span.as_ref(),
-                key,
-                format!(
-                    "the record would hold {samples:.3e} samples ((settling + excitation) x \
-                     sample_rate), more than the {MAX_RECORD_SAMPLES:e} that fit in memory"
-                ),
-            ));
-        }
         let theory = resolve_theory(src, raw.theory.as_ref())?;
         let noise = match &raw.noise {
             None => None,
@@ -605,10 +560,6 @@ struct HopperSpans {
     x0: Option<Range<usize>>,
     amplitude: Option<Range<usize>>,
 }
-
-/// Samples of a simulated record (settling and excitation) beyond which it does not fit in
-/// memory with its states: about 2.4 GB per column of doubles.
-const MAX_RECORD_SAMPLES: f64 = 3e8;
 
 /// Lengths beyond this (m) mean a unit slip, not a hopper, and overflow the simulation's squares.
 const MAX_LENGTH: f64 = 1e6;

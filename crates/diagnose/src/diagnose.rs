@@ -436,13 +436,26 @@ pub fn diagnose_with_progress(
         noise.map_or("unknown".to_string(), |s| format!("{s:.3e}"))
     ));
 
-    let configured = match ctx.fit_fixed(&start) {
-        Ok(f) => evaluate(&ctx, &f.point, &f.stepping)
-            .map(|e| e.score)
-            .unwrap_or(Score::unknown()),
-        Err(_) => Score::unknown(),
-    };
-    let mismatch = mismatch_checks(&ctx, &nominal_val, &nominal_val.score);
+    let configured_val = ctx
+        .fit_fixed(&start)
+        .ok()
+        .and_then(|f| evaluate(&ctx, &f.point, &f.stepping).ok());
+    let configured = configured_val
+        .as_ref()
+        .map_or(Score::unknown(), |e| e.score);
+    let mut mismatch = mismatch_checks(&ctx, &nominal_val, &nominal_val.score);
+    // A refit of the free parameters can hide a flipped sign or a unit slip behind absurd
+    // values; the model as configured shows them plainly.
+    if !mismatch.is_empty() {
+        if let Some(c) = &configured_val {
+            for reason in mismatch_checks(&ctx, c, &c.score) {
+                let kind = reason.split(':').next().unwrap_or_default().to_string();
+                if !mismatch.iter().any(|m| m.starts_with(&kind)) {
+                    mismatch.push(format!("{reason} (the model as configured)"));
+                }
+            }
+        }
+    }
     let selection = mismatch.is_empty().then(|| {
         select::select(
             &ctx,
@@ -1324,6 +1337,7 @@ fn conclude(
             cause = causes
                 .iter()
                 .find(|c| c.effect != "parameter_error")
+                .or(causes.first())
                 .map_or("none".to_string(), |c| c.effect.clone());
             evidence.push(match noise {
                 Some(s) => format!(

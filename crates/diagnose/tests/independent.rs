@@ -53,6 +53,10 @@ fn equivalents(e: &EffectLabel, all: &[EffectLabel]) -> Vec<&'static str> {
         {
             shift.to_vec()
         }
+        // The hopper is piecewise linear with its switch at a velocity of zero, so a reading
+        // scaled by g is the position of a hopper with m, k and c scaled by 1 / g and a
+        // constant force added: the same records, told apart only by the configured mass.
+        "sensor_offset_gain" => vec!["parameter_error"],
         "parameter_error" if e.params.keys().all(|k| k == "g" || k == "x0") => shift.to_vec(),
         _ => Vec::new(),
     }
@@ -182,6 +186,28 @@ fn clean_data_give_none() {
 #[test]
 fn an_effect_outside_the_library_is_not_claimed() {
     run(&cell("-second_mode-large")).unwrap();
+}
+
+/// Data the model cannot describe at all are named as such, with the likely reason, and no
+/// effect is claimed: the position column's sign flipped, and the position in mm instead of m.
+#[test]
+fn garbage_data_are_a_model_mismatch_with_the_reason() {
+    let s = cell("-coulomb_friction-large");
+    let r = generate(&s).unwrap();
+    for (scale, reason) in [(-1.0, "sign:"), (1000.0, "scale:")] {
+        let x: Vec<f64> = r.x.iter().map(|v| scale * v).collect();
+        let record = Record::new(r.t.clone(), r.f.clone(), x).unwrap();
+        let d = diagnose(&record, &nominal(), &DiagnoseOptions::default())
+            .unwrap()
+            .diagnosis;
+        assert_eq!(d.cause, "model_mismatch", "{scale}: {:?}", d.evidence);
+        assert!(d.causes.is_empty(), "{:?}", d.causes);
+        assert!(
+            d.mismatch.iter().any(|m| m.starts_with(reason)),
+            "{scale}: {:?}",
+            d.mismatch
+        );
+    }
 }
 
 /// Floors of the wide sweep, each a little below the share measured on 2026-11-24 (see
