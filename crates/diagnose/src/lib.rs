@@ -176,6 +176,7 @@
 
 mod deriv;
 mod diagnose;
+mod discover;
 mod effect;
 mod error;
 mod fit;
@@ -193,6 +194,7 @@ pub use diagnose::{
     diagnose, diagnose_with_progress, simulate_record, Candidate, Cause, DiagnoseOptions,
     Diagnosis, DiagnosisReport, FittedModel, Score,
 };
+pub use discover::{Discovered, DiscoveredTerm};
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use interp::Interpolation;
