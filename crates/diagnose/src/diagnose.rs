@@ -8,8 +8,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::deriv::{local_fit, window_half_width};
+use crate::discover::{self, Discovered};
 use crate::effect::Slot;
-use crate::fit::{Context, FitResult, ModelPoint, Scales, Segment};
+use crate::fit::{Context, Driven, FitResult, ModelPoint, Scales, Segment};
 use crate::interp::Interpolation;
 use crate::noise::noise_floor;
 use crate::screen::Screening;
@@ -268,6 +269,12 @@ pub struct Diagnosis {
     /// With `model_mismatch`: why the model does not describe the data at all.
     #[serde(default)]
     pub mismatch: Vec<String>,
+    /// A formula found outside the library by the sparse term search on the final model's
+    /// residual ([`Discovered`]), when clear structure remained and the formula, refitted by
+    /// output error, predicts the held-out data at least `min_gain` better. A hint beside
+    /// the cause, never a cause: absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub discovered: Option<Discovered>,
 }
 
 /// One effect of the selected model.
@@ -473,7 +480,7 @@ pub fn diagnose_with_progress(
         Some(_) => check_parameters(&ctx, &nominal_fit, nominal, opts),
         None => None,
     };
-    let decision = conclude(
+    let mut decision = conclude(
         &nominal_fit,
         &nominal_val.score,
         &configured,
@@ -485,6 +492,16 @@ pub fn diagnose_with_progress(
         nominal,
     );
     let extended_fit = decision.extended.as_ref().unwrap_or(&nominal_fit);
+    // Outside the library: a term search on what the final model leaves, run only while clear
+    // structure remains (module `discover`). It adds a hint, never changes the cause.
+    let remains =
+        noise.is_some_and(|s| decision.diagnosis.extended.rmse > opts.unexplained_ratio * s);
+    if decision.diagnosis.mismatch.is_empty() && remains {
+        progress("searching for terms outside the library");
+        let (found, sentence) = discover::discover(&ctx, half, extended_fit, opts);
+        decision.diagnosis.evidence.push(sentence);
+        decision.diagnosis.discovered = found;
+    }
     let nominal_output = plot_output(&ctx, &nominal_fit);
     let extended_output = plot_output(&ctx, extended_fit);
     let evaluations = nominal_fit.evaluations + decision.evaluations;
@@ -799,6 +816,15 @@ fn validation_inits(
     stepping: &Stepping,
 ) -> Result<Vec<[f64; 2]>, (f64, String)> {
     let hopper = ctx.hopper(p).map_err(|e| (ctx.record.t()[0], e))?;
+    validation_inits_of(ctx, &hopper, stepping)
+}
+
+/// [`validation_inits`] of a model already driven (one with an extra force too).
+pub(crate) fn validation_inits_of(
+    ctx: &Context<'_>,
+    hopper: &Driven,
+    stepping: &Stepping,
+) -> Result<Vec<[f64; 2]>, (f64, String)> {
     let x = ctx.record.x();
     let steps = [1e-4 * ctx.scales.x_std, 1e-4 * ctx.scales.v_std];
     let mut inits = Vec::with_capacity(ctx.validation.len());
@@ -816,7 +842,7 @@ fn validation_inits(
         let measured = &x[head.range.clone()];
         let mut y = Vec::new();
         let residual = |init: [f64; 2], y: &mut Vec<f64>| -> Option<f64> {
-            ctx.simulate(&hopper, &head, init, stepping, y).ok()?;
+            ctx.simulate(hopper, &head, init, stepping, y).ok()?;
             let ss: f64 = y.iter().zip(measured).map(|(a, b)| (a - b) * (a - b)).sum();
             ss.is_finite().then_some(ss)
         };
@@ -885,12 +911,23 @@ fn evaluate_on(
     inits: &[[f64; 2]],
 ) -> Result<Evaluation, (f64, String)> {
     let hopper = ctx.hopper(p).map_err(|e| (ctx.record.t()[0], e))?;
+    evaluate_driven(ctx, &hopper, stepping, segs, inits)
+}
+
+/// [`evaluate_on`] for a model already driven (one with an extra force too).
+pub(crate) fn evaluate_driven(
+    ctx: &Context<'_>,
+    hopper: &Driven,
+    stepping: &Stepping,
+    segs: &[Segment],
+    inits: &[[f64; 2]],
+) -> Result<Evaluation, (f64, String)> {
     let x = ctx.record.x();
     let mut residuals = Vec::with_capacity(segs.len());
     let mut measured = Vec::new();
     let mut buf = Vec::new();
     for (seg, &init) in segs.iter().zip(inits) {
-        ctx.simulate(&hopper, seg, init, stepping, &mut buf)
+        ctx.simulate(hopper, seg, init, stepping, &mut buf)
             .map_err(|e| (e.time, e.reason))?;
         let scored = seg.scored();
         residuals.push(
@@ -1367,6 +1404,7 @@ fn conclude(
             configured: *configured,
             gain_vs_configured: 1.0 - extended.rmse / configured.rmse,
             mismatch,
+            discovered: None,
         },
         extended: extended_fit,
         evaluations,

@@ -2,6 +2,7 @@
 //! Levenberg-Marquardt call and standard errors that allow for correlated residuals.
 
 use std::ops::Range;
+use std::sync::Arc;
 
 use htfid_estimate::{levenberg_marquardt, FdScheme, LmOptions};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
@@ -9,7 +10,9 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 use crate::effect::Slot;
-use crate::sim::{simulate_positions, Extent, MeasuredForce, SimFailure, SimMethod, Stepping};
+use crate::sim::{
+    simulate_positions_with, Extent, ExtraForce, MeasuredForce, SimFailure, SimMethod, Stepping,
+};
 use crate::{Record, Sensor};
 
 /// Relative finite-difference step of the Jacobians.
@@ -79,6 +82,8 @@ impl ModelPoint {
 pub(crate) struct Driven {
     pub hopper: Hopper,
     pub sensor: Sensor,
+    /// A force beyond the library's terms (a formula from the term search), if any.
+    pub extra: Option<Arc<ExtraForce>>,
 }
 
 /// The result of one output-error fit.
@@ -147,6 +152,7 @@ impl Context<'_> {
         Ok(Driven {
             hopper,
             sensor: p.sensor,
+            extra: None,
         })
     }
 
@@ -176,7 +182,15 @@ impl Context<'_> {
     ) -> Result<(), SimFailure> {
         out.resize(seg.range.len(), 0.0);
         let t0 = self.record.t()[seg.range.start];
-        simulate_positions(&model.hopper, t0, init, self.record.dt(), stepping, out)?;
+        simulate_positions_with(
+            &model.hopper,
+            model.extra.as_deref(),
+            t0,
+            init,
+            self.record.dt(),
+            stepping,
+            out,
+        )?;
         model.sensor.apply(self.record.dt(), out);
         Ok(())
     }

@@ -6,7 +6,8 @@
 //! measures its gain on held-out data. The answer is a [`DiagnosisReport`] whose
 //! [`Diagnosis`] serialises to the JSON contract (`cause`, `parameters`, `stderr`, `nominal`,
 //! `extended`, `gain`, `candidates`, `evidence`, and `causes` (each [`Cause`]), `alternatives`,
-//! `configured`, `gain_vs_configured`, `mismatch`). Several effects can be named at once; the
+//! `configured`, `gain_vs_configured`, `mismatch`, and `discovered` ([`Discovered`]) when a
+//! formula outside the library was found). Several effects can be named at once; the
 //! measurement chain ([`Sensor`]: a lag, an offset and a gain of the position sensor) is part
 //! of every model.
 //!
@@ -99,6 +100,12 @@
 //!   more than `significance_sigma` (5) standard errors and predicts at least `min_gain` better,
 //!   `unexplained` when `rmse_0 > unexplained_ratio * sigma`, else `none`.
 //!
+//! When clear structure remains (the final held-out RMSE above `unexplained_ratio * sigma`,
+//! and no `model_mismatch`), a sparse term search outside the library (STLSQ on the residual
+//! acceleration over a dictionary of functions of position, velocity, forcing phase and the
+//! input's past; threshold by held-out error; output-error refit) may report a formula in
+//! `discovered`. It is a hint: the cause stays as decided above.
+//!
 //! `causes` lists every selected effect (and a significant refit of the configured parameters
 //! as `parameter_error`), strongest first, with its share of the held-out mean-square error the
 //! final model explains against the configured one: by how much that error grows when the
@@ -176,6 +183,7 @@
 
 mod deriv;
 mod diagnose;
+mod discover;
 mod effect;
 mod error;
 mod fit;
@@ -193,6 +201,7 @@ pub use diagnose::{
     diagnose, diagnose_with_progress, simulate_record, Candidate, Cause, DiagnoseOptions,
     Diagnosis, DiagnosisReport, FittedModel, Score,
 };
+pub use discover::{Discovered, DiscoveredTerm};
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use interp::Interpolation;

@@ -136,6 +136,11 @@ impl MeasuredForce {
     /// simulated with `tau = 0` and the lagged force: the dynamics of the model's lag state,
     /// without a stiff third state that would need sub-steps shorter than `tau`. A delay then
     /// shifts the lagged force, which equals lagging the delayed one.
+    /// The measured force at time `t`, read between samples as the simulation reads it.
+    pub(crate) fn at(&self, t: f64) -> f64 {
+        self.signal.eval(t)
+    }
+
     pub(crate) fn drive(
         &self,
         params: HopperParams,
@@ -167,16 +172,18 @@ impl MeasuredForce {
 /// parameters).
 struct Located<'a> {
     hopper: &'a Hopper,
+    extra: Option<&'a ExtraForce>,
     base: [usize; 2],
     contact: Option<f64>,
     friction: bool,
 }
 
 impl<'a> Located<'a> {
-    fn new(hopper: &'a Hopper) -> Self {
+    fn new(hopper: &'a Hopper, extra: Option<&'a ExtraForce>) -> Self {
         let e = hopper.effects();
         Located {
             hopper,
+            extra,
             base: [
                 hopper.num_guards(HopperMode::Damped),
                 hopper.num_guards(HopperMode::Free),
@@ -214,6 +221,9 @@ impl HybridSystem for Located<'_> {
 
     fn vector_field(&self, mode: HopperMode, t: f64, x: &[f64], dxdt: &mut [f64]) {
         self.hopper.vector_field(mode, t, x, dxdt);
+        if let Some(extra) = self.extra {
+            dxdt[1] += extra(t, x[0], x[1]) / self.hopper.params().m;
+        }
     }
 
     fn num_guards(&self, mode: HopperMode) -> usize {
@@ -246,10 +256,27 @@ impl HybridSystem for Located<'_> {
     }
 }
 
+/// A force `F(t, x, v)` added to the model's (terms found outside the library by the term
+/// search of `discover`); smooth, so it needs no guard of its own.
+pub(crate) type ExtraForce = dyn Fn(f64, f64, f64) -> f64 + Send + Sync;
+
 /// Simulates `out.len()` samples from `t0` (step `dt`) starting at position and velocity
 /// `xv0`, writing positions. A lag state starts at the commanded force.
 pub(crate) fn simulate_positions(
     hopper: &Hopper,
+    t0: f64,
+    xv0: [f64; 2],
+    dt: f64,
+    stepping: &Stepping,
+    out: &mut [f64],
+) -> Result<(), SimFailure> {
+    simulate_positions_with(hopper, None, t0, xv0, dt, stepping, out)
+}
+
+/// [`simulate_positions`] with an extra force in the vector field.
+pub(crate) fn simulate_positions_with(
+    hopper: &Hopper,
+    extra: Option<&ExtraForce>,
     t0: f64,
     xv0: [f64; 2],
     dt: f64,
@@ -261,7 +288,7 @@ pub(crate) fn simulate_positions(
         state.push(hopper.commanded_force(t0 - hopper.effects().delay));
     }
     let mode0 = hopper.mode_of(xv0[1]);
-    let sys = Located::new(hopper);
+    let sys = Located::new(hopper, extra);
     match stepping {
         Stepping::Fixed { substeps } => {
             htfid_hybrid::simulate_fixed_step(&sys, mode0, t0, &state, dt, *substeps, 0, out)

@@ -596,6 +596,25 @@ fn report_md(
         c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {:.1} %.", 100.0 * d.gain),
     };
     let _ = writeln!(m, "{verdict}\n");
+    if let Some(found) = &d.discovered {
+        // A hint beside the verdict, never a cause: the library did not hold this term.
+        let _ = writeln!(
+            m,
+            "**Outside the library**, a term search on the residual proposes the extra force `{}` N (`x_eq` = {:.4e} m{}): it lowers the held-out RMSE from {:.3e} to {:.3e} (gain {:.1} %). Coefficients with standard errors: {}.\n",
+            found.formula,
+            found.x_eq,
+            if found.period > 0.0 { format!(", `T` = {} s", found.period) } else { String::new() },
+            found.rmse_before,
+            found.rmse_after,
+            100.0 * found.gain,
+            found
+                .terms
+                .iter()
+                .map(|t| format!("`{}` {:.4e} +/- {:.2e}", t.term, t.coefficient, t.stderr))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let _ = writeln!(
         m,
         "Data: `{}`, {} samples at {:.6} Hz. Fitted on samples {:?}, judged on held-out samples {:?} (the first {:.3} s of each range are a burn-in, simulated but not scored).\n",
