@@ -593,7 +593,7 @@ pub(crate) fn run_plots(
         .iter()
         .map(|&n| (n, omegas.iter().map(|&w| theory.g(n, w)).collect()))
         .collect();
-    type Series = (String, Vec<f64>, Vec<Complex64>);
+    type Series = (String, Vec<f64>, Vec<Complex64>, Vec<f64>);
     let est_vals: Vec<(i32, Vec<Series>)> = harmonics
         .iter()
         .map(|&n| {
@@ -611,6 +611,7 @@ pub(crate) fn run_plots(
                         format!("estimate ({})", est.name()),
                         rows.iter().map(|r| r.omega).collect(),
                         rows.iter().map(|r| r.value).collect(),
+                        rows.iter().map(|r| r.stderr).collect(),
                     )
                 })
                 .collect();
@@ -623,7 +624,7 @@ pub(crate) fn run_plots(
         let mut c = Vec::new();
         for (m, per) in &est_vals {
             if *m == n {
-                for (label, w, v) in per {
+                for (label, w, v, se) in per {
                     let style = if w.len() > 3 * MAX_MARKERS {
                         Style::Line
                     } else {
@@ -634,6 +635,7 @@ pub(crate) fn run_plots(
                         omega: w,
                         values: v,
                         style,
+                        stderr: Some(se),
                     });
                 }
             }
@@ -645,6 +647,7 @@ pub(crate) fn run_plots(
                     omega: &omegas,
                     values: v,
                     style: Style::Line,
+                    stderr: None,
                 });
             }
         }
