@@ -77,6 +77,10 @@ pub fn role_of(label: &str) -> Option<Role> {
 fn confidence(panel: &mut htfid_plot::Panel, curves: &[Curve<'_>], phase: bool) {
     for (i, c) in curves.iter().enumerate() {
         if let Some(se) = c.stderr {
+            // Derived series (band, faded and lone points) copy the estimate's role.
+            if let Some(s) = panel.series.get_mut(i) {
+                s.role = s.role.or_else(|| role_of(&s.label));
+            }
             if phase {
                 add_phase_confidence(panel, i, c.values, se);
             } else {
@@ -84,6 +88,23 @@ fn confidence(panel: &mut htfid_plot::Panel, curves: &[Curve<'_>], phase: bool) 
             }
         }
     }
+}
+
+/// The HTF unit `output unit / input unit` when both are known.
+pub fn htf_unit(output: Option<&str>, input: Option<&str>) -> Option<String> {
+    Some(format!("{}/{}", output?, input?))
+}
+
+/// Magnitude axes labelled `|G| (dB re 1 <unit>)` when the unit is known.
+pub fn with_htf_unit(mut fig: Figure, unit: Option<&str>) -> Figure {
+    if let Some(unit) = unit {
+        for p in &mut fig.panels {
+            if p.y_label == htfid_plot::MAGNITUDE_DB_LABEL {
+                p.y_label = format!("|G| (dB re 1 {unit})");
+            }
+        }
+    }
+    fig
 }
 
 /// Magnitude and phase of one harmonic (the paper's figure 4 for `G_0`).

@@ -283,6 +283,25 @@ fn add_confidence(
         fx.clear();
         fy.clear();
     }
+    // A significant bin between two left-out ones would vanish from a line: mark it.
+    let isolated: Vec<usize> = if omit {
+        (0..y.len())
+            .filter(|&i| {
+                y[i].is_finite()
+                    && (i == 0 || y[i - 1].is_nan())
+                    && (i + 1 == y.len() || y[i + 1].is_nan())
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut lone = Series::new(
+        "",
+        isolated.iter().map(|&i| x[i]).collect(),
+        isolated.iter().map(|&i| y[i]).collect(),
+        Style::Markers,
+    );
+    lone.role = role;
     let mut band = Series::band(band_label, x, lo, hi);
     band.role = role;
     let mut faded = Series::new(
@@ -296,6 +315,9 @@ fn add_confidence(
     panel.series.push(band);
     if !faded.x.is_empty() {
         panel.series.push(faded);
+    }
+    if !lone.x.is_empty() {
+        panel.series.push(lone);
     }
 }
 

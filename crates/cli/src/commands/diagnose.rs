@@ -571,9 +571,12 @@ fn htf_figure(
             )
         })
         .collect();
-    let fig = plots::harmonics(
-        &format!("{}: HTFs of the data against the models", s.name),
-        &per_harmonic,
+    let fig = plots::with_htf_unit(
+        plots::harmonics(
+            &format!("{}: HTFs of the data against the models", s.name),
+            &per_harmonic,
+        ),
+        Some("m/N"),
     );
     plots::write(out, "htf_data", &fig)
 }

@@ -139,7 +139,13 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     })?;
     if !no_plots {
         stages.run("plots", || {
-            run_plots(&mut outdir, &settings, &theory.exact, &estimates)
+            run_plots(
+                &mut outdir,
+                &settings,
+                &theory.exact,
+                &estimates,
+                Some("m/N"),
+            )
         })?;
     }
 
@@ -585,6 +591,7 @@ pub(crate) fn run_plots(
     settings: &Settings,
     theory: &dyn HarmonicTransferFunction,
     estimates: &[(Estimator, HtfEstimate)],
+    unit: Option<&str>,
 ) -> Result<()> {
     let (lo, hi) = settings.estimation.band;
     let omegas = crate::settings::log_grid(lo, hi, 600);
@@ -654,16 +661,22 @@ pub(crate) fn run_plots(
         c
     };
     if harmonics.contains(&0) {
-        let fig = plots::bode(
-            &format!("{}: G_0, estimate against theory", settings.name),
-            &curves_for(0),
+        let fig = plots::with_htf_unit(
+            plots::bode(
+                &format!("{}: G_0, estimate against theory", settings.name),
+                &curves_for(0),
+            ),
+            unit,
         );
         plots::write(out, "htf_g0", &fig)?;
     }
     let per: Vec<(i32, Vec<Curve<'_>>)> = harmonics.iter().map(|&n| (n, curves_for(n))).collect();
-    let fig = plots::harmonics(
-        &format!("{}: |G_n|, estimates against theory", settings.name),
-        &per,
+    let fig = plots::with_htf_unit(
+        plots::harmonics(
+            &format!("{}: |G_n|, estimates against theory", settings.name),
+            &per,
+        ),
+        unit,
     );
     plots::write(out, "htf_harmonics", &fig)?;
     Ok(())
