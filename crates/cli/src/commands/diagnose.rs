@@ -138,12 +138,35 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "## 5. Validation",
         &[&check],
         &format!("{} model", ext_label(&report)),
-        "applied force `f`",
+        &format!("input `{}`", settings.data.input),
     ));
     outdir.write_text("report.md", &text)?;
     let written = outdir.commit()?;
     crate::results::diagnose(&json, &dir, &written);
     Ok(())
+}
+
+/// Units of the record: the hopper's SI units (m, N) when its columns are the hopper's own
+/// position `x` and force `f`; otherwise the columns' names, whose units the config does not
+/// state.
+fn output_label(s: &DiagnoseSettings) -> String {
+    if s.data.output == "x" {
+        "position x (m)".into()
+    } else {
+        format!("{} (data units)", s.data.output)
+    }
+}
+
+fn residual_label(s: &DiagnoseSettings) -> String {
+    if s.data.output == "x" {
+        "residual (m)".into()
+    } else {
+        format!("residual of {} (data units)", s.data.output)
+    }
+}
+
+fn htf_unit(s: &DiagnoseSettings) -> Option<&'static str> {
+    (s.data.output == "x" && s.data.input == "f").then_some("m/N")
 }
 
 /// The extended model's name in legends.
@@ -232,8 +255,11 @@ fn draw_validation(
         },
     ];
     let compare = crate::validation::compare_panel(
-        "position: measured and simulated (held-out data; fit over all of it)",
-        "position x (m)",
+        &format!(
+            "{}: measured and simulated (held-out data; fit over all of it)",
+            s.data.output
+        ),
+        &output_label(s),
         record.t(),
         record.x(),
         &models,
@@ -246,7 +272,7 @@ fn draw_validation(
     let mut res = Panel::new(
         "residual, measured minus simulated",
         htfid_plot::TIME_LABEL,
-        "residual (m)",
+        residual_label(s),
     );
     res.series = vec![
         Series::new(
@@ -271,7 +297,7 @@ fn draw_validation(
             ext_label(report)
         ),
         &[check],
-        "force f",
+        &format!("input {}", s.data.input),
         record.dt(),
     ) {
         plots::write(out, "resid", &fig)?;
@@ -576,7 +602,7 @@ fn htf_figure(
             &format!("{}: HTFs of the data against the models", s.name),
             &per_harmonic,
         ),
-        Some("m/N"),
+        htf_unit(s),
     );
     plots::write(out, "htf_data", &fig)
 }
@@ -593,7 +619,7 @@ fn draw(
     // Residuals in time (one point per gap-free piece is fine: ranges are drawn as one series).
     let panel = time_panel(
         "held-out residual: measured - simulated",
-        "residual (m)",
+        &residual_label(s),
         &t,
         [("nominal", r0.clone()), (ext_label.as_str(), r1.clone())],
     );
@@ -652,7 +678,7 @@ fn draw(
         let mut p = Panel::new(
             "period-averaged orbit (held-out data)",
             "phase (s)",
-            "position x (m)",
+            output_label(s),
         );
         p.series = vec![
             Series::new("measured", phase.clone(), measured.clone(), Style::Markers),
@@ -663,7 +689,7 @@ fn draw(
         let mut q = Panel::new(
             "model - measured, period-averaged",
             "phase (s)",
-            "difference (m)",
+            residual_label(s).replace("residual", "difference"),
         );
         q.series = vec![
             Series::new("nominal", phase.clone(), diff(&nom), Style::Line),
@@ -682,7 +708,7 @@ fn draw(
         let tt = record.t()[a..b].to_vec();
         let panel = time_panel(
             "one second of held-out data",
-            "position x (m)",
+            &output_label(s),
             &tt,
             [
                 ("measured", record.x()[a..b].to_vec()),
