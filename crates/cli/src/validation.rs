@@ -13,8 +13,8 @@ use serde_json::{json, Value};
 /// Periods of the forcing shown in a comparison window: enough to see the cycle repeat,
 /// few enough that the waveform reads.
 const WINDOW_PERIODS: f64 = 4.0;
-/// Samples shown when no period is known.
-const WINDOW_SAMPLES: usize = 2000;
+/// Samples shown when no period is known: a few hundred keep a broadband record readable.
+const WINDOW_SAMPLES: usize = 500;
 
 /// One simulated output of a model.
 pub struct Simulated<'a> {

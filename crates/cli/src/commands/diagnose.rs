@@ -196,9 +196,8 @@ fn validate(
     let pick = |v: &[f64]| -> Vec<f64> { idx.iter().map(|&i| v[i]).collect() };
     let (x, f) = (pick(record.x()), pick(record.f()));
     let (nom, ext) = (pick(&report.nominal_output), pick(&report.extended_output));
-    let _ = s;
     crate::validation::validate(
-        "x",
+        &s.data.output,
         &x,
         &f,
         &[
