@@ -471,10 +471,29 @@ fn diagnose_hopper_names_the_hidden_flight_damping() {
         "residual_spectrum.png",
         "orbit.png",
         "htf_data.png",
+        "compare.png",
+        "resid.png",
     ] {
         assert!(out.join(f).exists(), "{f} missing");
         assert!(report.contains(f), "report.md does not show {f}");
     }
+    // Validation as compare/resid give it: the extended model fits better than the nominal,
+    // and its residual is white and independent of the force at the 1 % level (the record's
+    // noise is white and the extended model holds the true effect), while N, the bounds and
+    // the degrees of freedom are those stated.
+    let v = &d["validation"];
+    let fit = |k: &str| v["fit_percent"][k].as_f64().unwrap();
+    assert!(fit("extended (flight_damping)") > fit("nominal"), "{v}");
+    assert!(fit("nominal") > 90.0 && fit("nominal") <= 100.0, "{v}");
+    for test in ["whiteness", "independence"] {
+        let t = &v[test];
+        assert_eq!(t["passed"], true, "{test}: {t}");
+        let n = t["samples"].as_f64().unwrap();
+        assert!((t["bound"].as_f64().unwrap() - 2.5758293035489 / n.sqrt()).abs() < 1e-12);
+    }
+    assert_eq!(v["whiteness"]["dof"], 25);
+    assert_eq!(v["independence"]["dof"], 26);
+    assert!(report.contains("## 5. Validation"));
 }
 
 /// The truth config regenerates the committed record exactly (so the data are reproducible).
@@ -1178,6 +1197,16 @@ fn diagnose_hopper_model_config_runs() {
     let report = fs::read_to_string(out.join("report.md")).unwrap();
     assert!(report.contains("held-out NRMSE"), "{report}");
     assert!(out.join("compare.png").exists());
+    assert!(out.join("resid.png").exists());
+    // The hopper file lacks the record's flight damping: the refitted model's residual keeps
+    // structure, which the whiteness test must see (p far below 1 %).
+    let d = diagnosis(&out);
+    let v = &d["validation"];
+    assert_eq!(v["whiteness"]["passed"], false, "{v}");
+    assert!(v["whiteness"]["p_value"].as_f64().unwrap() < 1e-6, "{v}");
+    assert!(v["fit_percent"]["refitted model"].as_f64().unwrap() > 90.0);
+    assert!(!v["by_output"]["x"].is_null());
+    assert!(report.contains("**not white**"), "{report}");
 }
 
 /// The diagnosis on the terminal: cause, gain, refitted parameters with standard errors and

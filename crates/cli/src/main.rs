@@ -28,6 +28,7 @@ mod records;
 mod results;
 mod settings;
 mod signals;
+mod validation;
 
 #[derive(Debug, Parser)]
 #[command(

@@ -53,12 +53,6 @@ impl DataFormat {
                 .collect(),
         )
     }
-
-    /// `" (unit)"` for an axis label, or nothing.
-    pub fn label_suffix(&self, column: &str) -> String {
-        self.unit(column)
-            .map_or_else(String::new, |u| format!(" ({u})"))
-    }
 }
 
 /// The raw format keys of a `[data]` table, borrowed from whichever config kind holds them.

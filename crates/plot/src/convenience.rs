@@ -175,6 +175,152 @@ fn align_branch(ref_omega: &[f64], reference: &[f64], omega: &[f64], phase: &mut
     }
 }
 
+/// Two-sided 95 % quantile of the standard normal distribution: confidence regions are
+/// `estimate +- Z_95 stderr`.
+pub const Z_95: f64 = 1.959_963_984_540_054;
+/// An estimate with `|G| / stderr` below this is not significant (about 95 % two-sided for a
+/// complex estimate whose parts each carry `stderr / sqrt(2)`).
+pub const SIGNIFICANT_RATIO: f64 = 2.0;
+
+/// Is `|g|` significant against its standard error (NaN standard errors count as significant:
+/// nothing says otherwise)?
+fn significant(g: Complex64, stderr: f64) -> bool {
+    !(stderr.is_finite() && g.norm() < SIGNIFICANT_RATIO * stderr)
+}
+
+/// Adds the 95 % confidence region of series `index` of a [`magnitude_panel`], whose
+/// response and standard errors (same length, same order) are given, as a shaded band in dB;
+/// its points that are not significant (`|G| < 2 stderr`) are taken out of the series and
+/// drawn as faded markers (left out altogether for a series drawn as a line, where the band
+/// alone shows the noise floor, as its legend entry says). Where `|G| - 1.96 stderr <= 0` the band reaches the bottom of the
+/// axes: the estimate cannot be told from zero there. New series' labels start with the
+/// series' own label. Does nothing when `index` is out of range or the lengths differ.
+pub fn add_magnitude_confidence(
+    panel: &mut Panel,
+    index: usize,
+    response: &[Complex64],
+    stderr: &[f64],
+) {
+    add_confidence(panel, index, response, stderr, true, |g, se| {
+        let m = g.norm();
+        let lo = m - Z_95 * se;
+        (
+            if lo > 0.0 {
+                20.0 * lo.log10()
+            } else {
+                f64::NAN
+            },
+            20.0 * (m + Z_95 * se).log10(),
+        )
+    });
+}
+
+/// As [`add_magnitude_confidence`] for a [`phase_panel`]: the band is the phase +-
+/// `asin(1.96 stderr / |G|)` degrees, drawn only where the estimate is significant.
+pub fn add_phase_confidence(
+    panel: &mut Panel,
+    index: usize,
+    response: &[Complex64],
+    stderr: &[f64],
+) {
+    let phase = match panel.series.get(index) {
+        Some(s) => s.y.clone(),
+        None => return,
+    };
+    let mut i = 0usize;
+    add_confidence(panel, index, response, stderr, false, move |g, se| {
+        let p = phase.get(i).copied().unwrap_or(f64::NAN);
+        i += 1;
+        let half = (Z_95 * se / g.norm()).min(1.0).asin().to_degrees();
+        (p - half, p + half)
+    });
+}
+
+fn add_confidence(
+    panel: &mut Panel,
+    index: usize,
+    response: &[Complex64],
+    stderr: &[f64],
+    keep_insignificant: bool,
+    mut edges: impl FnMut(Complex64, f64) -> (f64, f64),
+) {
+    let Some(series) = panel.series.get(index) else {
+        return;
+    };
+    if response.len() != series.x.len() || stderr.len() != series.x.len() {
+        return;
+    }
+    let label = series.label.clone();
+    let x = series.x.clone();
+    let mut y = series.y.clone();
+    let (mut lo, mut hi) = (Vec::with_capacity(x.len()), Vec::with_capacity(x.len()));
+    let (mut fx, mut fy) = (Vec::new(), Vec::new());
+    for i in 0..x.len() {
+        let (a, b) = edges(response[i], stderr[i]);
+        if significant(response[i], stderr[i]) {
+            lo.push(a);
+            hi.push(b);
+        } else {
+            fx.push(x[i]);
+            fy.push(y[i]);
+            y[i] = f64::NAN;
+            // The band is kept on the magnitude, where it shows the noise floor; on the
+            // phase an insignificant estimate has no confidence region worth drawing.
+            lo.push(a);
+            hi.push(if keep_insignificant { b } else { f64::NAN });
+        }
+    }
+    let role = series.role;
+    // A dense estimate drawn as a line would bury the band under hundreds of faded markers:
+    // its insignificant bins are left out, and the band alone shows the noise floor there.
+    let omit = matches!(series.style, Style::Line | Style::Dashed);
+    let band_label = if omit && !fx.is_empty() {
+        format!("{label}: 95 % confidence; |G| < 2 stderr not drawn")
+    } else {
+        format!("{label}: 95 % confidence")
+    };
+    if omit {
+        fx.clear();
+        fy.clear();
+    }
+    // A significant bin between two left-out ones would vanish from a line: mark it.
+    let isolated: Vec<usize> = if omit {
+        (0..y.len())
+            .filter(|&i| {
+                y[i].is_finite()
+                    && (i == 0 || y[i - 1].is_nan())
+                    && (i + 1 == y.len() || y[i + 1].is_nan())
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut lone = Series::new(
+        "",
+        isolated.iter().map(|&i| x[i]).collect(),
+        isolated.iter().map(|&i| y[i]).collect(),
+        Style::Markers,
+    );
+    lone.role = role;
+    let mut band = Series::band(band_label, x, lo, hi);
+    band.role = role;
+    let mut faded = Series::new(
+        format!("{label}: not significant (|G| < 2 stderr)"),
+        fx,
+        fy,
+        Style::FadedMarkers,
+    );
+    faded.role = role;
+    panel.series[index].y = y;
+    panel.series.push(band);
+    if !faded.x.is_empty() {
+        panel.series.push(faded);
+    }
+    if !lone.x.is_empty() {
+        panel.series.push(lone);
+    }
+}
+
 /// A figure of `panels` in `columns` columns, sized 520 x 360 px per cell plus room for the
 /// title. Suits a grid of harmonics `G_k` (one panel per `k`).
 ///
@@ -358,6 +504,59 @@ mod tests {
         assert_eq!(mag.y_label, MAGNITUDE_DB_LABEL);
         assert_eq!(phase.y_label, PHASE_DEG_LABEL);
         assert_eq!(phase.title, "G: phase");
+    }
+
+    #[test]
+    fn confidence_band_and_faded_points_follow_significance() {
+        // |G| = 1 everywhere; stderr 0.1 (significant), 0.6 (|G| < 2 se: faded, and
+        // 1 - 1.96 * 0.6 < 0 so the band's lower edge is undrawable).
+        let w = [1.0, 2.0];
+        let g = [Complex64::new(1.0, 0.0); 2];
+        let se = [0.1, 0.6];
+        let mut mag = magnitude_panel(
+            "",
+            &[BodeSeries {
+                label: "est",
+                omega: &w,
+                response: &g,
+                style: Style::Markers,
+            }],
+        );
+        add_magnitude_confidence(&mut mag, 0, &g, &se);
+        assert_eq!(mag.series.len(), 3);
+        assert!(mag.series[0].y[1].is_nan() && mag.series[0].y[0].is_finite());
+        let band = &mag.series[1];
+        assert_eq!(band.style, Style::Band);
+        // 20 log10(1 -+ 1.96 * 0.1), exactly as defined.
+        assert_abs_diff_eq!(
+            band.y[0],
+            20.0 * (1.0 - Z_95 * 0.1).log10(),
+            epsilon = 1e-12
+        );
+        assert_abs_diff_eq!(
+            band.upper[0],
+            20.0 * (1.0 + Z_95 * 0.1).log10(),
+            epsilon = 1e-12
+        );
+        assert!(band.y[1].is_nan() && band.upper[1].is_finite());
+        assert_eq!(mag.series[2].style, Style::FadedMarkers);
+        assert_eq!(mag.series[2].x, vec![2.0]);
+        assert!(mag.series[2].label.starts_with("est"));
+
+        let mut ph = phase_panel(
+            "",
+            &[BodeSeries {
+                label: "est",
+                omega: &w,
+                response: &g,
+                style: Style::Markers,
+            }],
+        );
+        add_phase_confidence(&mut ph, 0, &g, &se);
+        // asin(0.196) in degrees either side of 0; none for the insignificant point.
+        let half = (Z_95 * 0.1f64).asin().to_degrees();
+        assert_abs_diff_eq!(ph.series[1].upper[0], half, epsilon = 1e-12);
+        assert!(ph.series[1].upper[1].is_nan());
     }
 
     #[test]

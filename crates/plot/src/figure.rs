@@ -10,6 +10,16 @@ pub enum Style {
     Markers,
     /// Solid line with a hollow circle at every finite point.
     LineMarkers,
+    /// Small, faded hollow circles: estimates that are not significant, drawn so that they
+    /// read as the noise floor rather than as data.
+    FadedMarkers,
+    /// A shaded region between `y` (lower edge) and [`Series::upper`] (upper edge), for
+    /// confidence regions. A lower edge that is not drawable (NaN, or not positive on a log
+    /// axis) while the upper edge is, reaches down to the bottom of the axes.
+    Band,
+    /// A vertical line from zero (or the nearest edge of the axes) to each value, with a dot:
+    /// correlations over lags.
+    Stems,
 }
 
 impl Style {
@@ -18,8 +28,35 @@ impl Style {
     }
 
     pub(crate) fn has_markers(self) -> bool {
-        matches!(self, Style::Markers | Style::LineMarkers)
+        matches!(
+            self,
+            Style::Markers | Style::LineMarkers | Style::FadedMarkers | Style::Stems
+        )
     }
+}
+
+/// What a series shows. Every figure draws one meaning in one colour, so the measured data
+/// or the nominal model look the same in every file; a series without a role takes the
+/// palette colour of its index in the panel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Role {
+    /// Measured data: near-black.
+    Measured,
+    /// The nominal (or configured) model: blue.
+    Nominal,
+    /// The extended (or refitted) model: orange.
+    Extended,
+    /// The exact theory of the simulated system: green.
+    Theory,
+    /// A non-parametric estimate and its confidence band: red.
+    Estimate,
+    /// A second estimate beside the first (another estimator): purple.
+    EstimateAlt,
+    /// A third estimate: brown.
+    EstimateAlt2,
+    /// Significance bounds and reference lines: grey.
+    Bound,
 }
 
 /// Axis scale.
@@ -50,6 +87,10 @@ pub struct Series {
     pub y: Vec<f64>,
     /// Drawing style.
     pub style: Style,
+    /// Colour by meaning; `None` takes the palette colour of the series' index.
+    pub role: Option<Role>,
+    /// Upper edge of a [`Style::Band`] (same length as `x`); empty for other styles.
+    pub upper: Vec<f64>,
 }
 
 impl Series {
@@ -60,7 +101,28 @@ impl Series {
             x,
             y,
             style,
+            role: None,
+            upper: Vec::new(),
         }
+    }
+
+    /// A shaded band between `lower` and `upper` at `x` ([`Style::Band`]).
+    pub fn band(label: impl Into<String>, x: Vec<f64>, lower: Vec<f64>, upper: Vec<f64>) -> Self {
+        Self {
+            label: label.into(),
+            x,
+            y: lower,
+            style: Style::Band,
+            role: None,
+            upper,
+        }
+    }
+
+    /// The series coloured by its meaning.
+    #[must_use]
+    pub fn with_role(mut self, role: Role) -> Self {
+        self.role = Some(role);
+        self
     }
 }
 

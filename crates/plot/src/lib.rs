@@ -15,8 +15,11 @@
 //!   the image. Lines leaving an explicit range are clipped at the axes.
 //! - Automatic ranges fit the finite data exactly along x (with a small margin when markers are
 //!   drawn) and with a 5 % margin along y, counting only points inside the x range.
-//! - Series take their colour from a fixed ten-colour palette by their index in the panel, so
-//!   the same index has the same colour in every panel of a figure.
+//! - A series with a [`Role`] (measured, nominal, extended, theory, estimate, bound) takes that
+//!   meaning's colour, the same in every figure; one without takes its colour from a fixed
+//!   ten-colour palette by its index in the panel.
+//! - [`Style::Band`] shades a confidence region; [`Style::FadedMarkers`] draws estimates that
+//!   are not significant; [`Style::Stems`] draws correlations over lags.
 //! - The legend lists series with a non-empty label. It sits in the corner of the plot where it
 //!   covers the fewest line segments and markers, on a translucent white background.
 //! - Text is set in DejaVu Sans, embedded in the crate, so PNG output needs no system fonts.
@@ -49,10 +52,11 @@ mod render;
 mod ticks;
 
 pub use convenience::{
-    bode_panels, bode_panels_each, grid_figure, magnitude_panel, phase_panel, spectrum_panel,
-    stacked_figure, time_panel, BodeSeries, SpectrumScale, FREQUENCY_LABEL, MAGNITUDE_DB_LABEL,
-    PHASE_DEG_LABEL, TIME_LABEL,
+    add_magnitude_confidence, add_phase_confidence, bode_panels, bode_panels_each, grid_figure,
+    magnitude_panel, phase_panel, spectrum_panel, stacked_figure, time_panel, BodeSeries,
+    SpectrumScale, FREQUENCY_LABEL, MAGNITUDE_DB_LABEL, PHASE_DEG_LABEL, SIGNIFICANT_RATIO,
+    TIME_LABEL, Z_95,
 };
 pub use error::PlotError;
-pub use figure::{Figure, Panel, Scale, Series, Style};
+pub use figure::{Figure, Panel, Role, Scale, Series, Style};
 pub use output::save;

@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::PlotError;
-use crate::figure::{Figure, Scale, Style};
+use crate::figure::{Figure, Role, Scale, Style};
 use crate::ticks::{angle_ticks, linear_ticks, log_ticks, Ticks};
 
 /// Smallest and largest accepted image side in pixels. The upper bound keeps the RGB buffer of
@@ -31,6 +31,26 @@ const PALETTE: [RGBColor; 10] = [
     RGBColor(0x17, 0xbe, 0xcf),
 ];
 
+/// The colour of each [`Role`], defined once for every figure.
+pub(crate) fn role_colour(role: Role) -> RGBColor {
+    match role {
+        Role::Measured => RGBColor(0x26, 0x26, 0x26),
+        Role::Nominal => PALETTE[0],
+        Role::Extended => PALETTE[1],
+        Role::Theory => PALETTE[2],
+        Role::Estimate => PALETTE[3],
+        Role::EstimateAlt => PALETTE[4],
+        Role::EstimateAlt2 => PALETTE[5],
+        Role::Bound => PALETTE[7],
+    }
+}
+
+/// `colour` blended towards white, keeping `share` of it.
+fn faded(colour: RGBColor, share: f64) -> RGBColor {
+    let f = |c: u8| (f64::from(c) * share + 255.0 * (1.0 - share)).round() as u8;
+    RGBColor(f(colour.0), f(colour.1), f(colour.2))
+}
+
 const TEXT: RGBColor = RGBColor(0x20, 0x20, 0x20);
 const AXIS: RGBColor = RGBColor(0x40, 0x40, 0x40);
 const GRID_MAJOR: RGBColor = RGBColor(0xdc, 0xdc, 0xdc);
@@ -45,6 +65,8 @@ const TICK_PX: f64 = 13.0;
 const LEGEND_PX: f64 = 13.0;
 
 const LINE_WIDTH: u32 = 2;
+/// Opacity of a confidence band: light enough that lines and markers read through it.
+const BAND_ALPHA: f64 = 0.18;
 const MARKER_RADIUS: i32 = 4;
 const TICK_LEN: i32 = 5;
 /// plotters puts tick labels this far from the axis line.
@@ -65,6 +87,8 @@ pub(crate) struct PlotSeries {
     pub style: Style,
     pub color: RGBColor,
     pub points: Vec<(f64, f64)>,
+    /// Upper edge of a band, in plot space (NaN where not drawable).
+    pub upper: Vec<f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -154,33 +178,48 @@ pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotE
 
         let mut series = Vec::with_capacity(panel.series.len());
         for (is, s) in panel.series.iter().enumerate() {
-            if s.x.len() != s.y.len() {
+            if s.x.len() != s.y.len() || (s.style == Style::Band && s.upper.len() != s.x.len()) {
                 return Err(PlotError::LengthMismatch {
                     path: path.to_path_buf(),
                     panel: ip,
                     title: panel.title.clone(),
                     series: s.label.clone(),
                     x_len: s.x.len(),
-                    y_len: s.y.len(),
+                    y_len: if s.x.len() == s.y.len() {
+                        s.upper.len()
+                    } else {
+                        s.y.len()
+                    },
                 });
             }
+            // A band's lower edge may be undrawable (a magnitude bound below zero on a dB or
+            // log axis) while its upper edge is: keep the x of such points.
+            let band = s.style == Style::Band;
             let points =
                 s.x.iter()
                     .zip(&s.y)
                     .map(|(&x, &y)| {
                         let (px, py) = (to_plot(x, panel.x_scale), to_plot(y, panel.y_scale));
-                        if px.is_nan() || py.is_nan() {
+                        if band && !px.is_nan() {
+                            (px, py)
+                        } else if px.is_nan() || py.is_nan() {
                             (f64::NAN, f64::NAN)
                         } else {
                             (px, py)
                         }
                     })
                     .collect();
+            let upper = if band {
+                s.upper.iter().map(|&v| to_plot(v, panel.y_scale)).collect()
+            } else {
+                Vec::new()
+            };
             series.push(PlotSeries {
                 label: s.label.clone(),
                 style: s.style,
-                color: PALETTE[is % PALETTE.len()],
+                color: s.role.map_or(PALETTE[is % PALETTE.len()], role_colour),
                 points,
+                upper,
             });
         }
 
@@ -200,10 +239,17 @@ pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotE
             None => {
                 // Fit only what is visible horizontally.
                 let (lo, hi) = data_extent(series.iter().flat_map(|s| {
+                    let upper = s
+                        .points
+                        .iter()
+                        .zip(&s.upper)
+                        .filter(|(p, _)| p.0 >= x.0 && p.0 <= x.1)
+                        .map(|(_, u)| *u);
                     s.points
                         .iter()
                         .filter(|p| p.0 >= x.0 && p.0 <= x.1)
                         .map(|p| p.1)
+                        .chain(upper)
                 }));
                 pad_extent(lo, hi, 0.05, panel.y_scale)
             }
@@ -411,6 +457,26 @@ fn draw_panel<DB: DrawingBackend>(
         .map(|pts| dedup(pts.iter().map(|pt| round(to_fpx(pt)))))
         .collect();
 
+    // Bands under everything else, each contiguous drawable stretch one polygon.
+    for s in p.series.iter().filter(|s| s.style == Style::Band) {
+        let fill = s.color.mix(BAND_ALPHA).filled();
+        for poly in band_polygons(s, &p.x, &p.y) {
+            let px: Vec<(i32, i32)> = poly.iter().map(|pt| round(to_fpx(pt))).collect();
+            plot.draw(&Polygon::new(px, fill))?;
+        }
+    }
+    // Stems from zero (or the nearest horizontal edge) to each visible value.
+    let zero = 0.0f64.clamp(p.y.lo, p.y.hi);
+    for (s, pts) in p.series.iter().zip(&markers) {
+        if s.style != Style::Stems {
+            continue;
+        }
+        for pt in pts {
+            let a = round(to_fpx(&(pt.0, zero)));
+            let b = round(to_fpx(pt));
+            stroke(&plot, &[a, b], s.color, raster)?;
+        }
+    }
     for (s, lines) in p.series.iter().zip(&px_lines) {
         for line in lines {
             if s.style == Style::Dashed {
@@ -423,9 +489,8 @@ fn draw_panel<DB: DrawingBackend>(
         }
     }
     for (s, pts) in p.series.iter().zip(&px_markers) {
-        let style = s.color.stroke_width(LINE_WIDTH);
         for &pt in pts {
-            plot.draw(&Circle::new(pt, MARKER_RADIUS, style))?;
+            draw_marker(&plot, pt, s)?;
         }
     }
 
@@ -437,6 +502,62 @@ fn draw_panel<DB: DrawingBackend>(
     ))?;
 
     draw_legend(&plot, &p.series, &px_lines, &px_markers, raster)
+}
+
+/// One marker in the style of its series.
+fn draw_marker<DB: DrawingBackend>(
+    plot: &DrawingArea<DB, Shift>,
+    pt: (i32, i32),
+    s: &PlotSeries,
+) -> DrawResult<DB> {
+    match s.style {
+        Style::FadedMarkers => {
+            plot.draw(&Circle::new(
+                pt,
+                MARKER_RADIUS - 1,
+                faded(s.color, 0.45).stroke_width(1),
+            ))?;
+        }
+        Style::Stems => {
+            plot.draw(&Circle::new(pt, MARKER_RADIUS - 1, s.color.filled()))?;
+        }
+        _ => {
+            plot.draw(&Circle::new(
+                pt,
+                MARKER_RADIUS,
+                s.color.stroke_width(LINE_WIDTH),
+            ))?;
+        }
+    }
+    Ok(())
+}
+
+/// The polygons of a band in plot space: upper edge forward, lower edge back, over each run of
+/// points whose x and upper edge are drawable, clipped to the axes vertically. An undrawable
+/// lower edge reaches the bottom of the axes.
+fn band_polygons(s: &PlotSeries, x: &AxisRange, y: &AxisRange) -> Vec<Vec<(f64, f64)>> {
+    let mut out = Vec::new();
+    let mut run: Vec<(f64, f64, f64)> = Vec::new();
+    let flush = |run: &mut Vec<(f64, f64, f64)>, out: &mut Vec<Vec<(f64, f64)>>| {
+        if run.len() >= 2 {
+            let mut poly: Vec<(f64, f64)> = run.iter().map(|r| (r.0, r.2)).collect();
+            poly.extend(run.iter().rev().map(|r| (r.0, r.1)));
+            out.push(poly);
+        }
+        run.clear();
+    };
+    for (pt, &up) in s.points.iter().zip(&s.upper) {
+        let inside = pt.0.is_finite() && pt.0 >= x.lo && pt.0 <= x.hi && up.is_finite();
+        if !inside {
+            flush(&mut run, &mut out);
+            continue;
+        }
+        let lo = if pt.1.is_finite() { pt.1 } else { y.lo };
+        let (lo, hi) = (lo.min(up), lo.max(up));
+        run.push((pt.0, lo.clamp(y.lo, y.hi), hi.clamp(y.lo, y.hi)));
+    }
+    flush(&mut run, &mut out);
+    out
 }
 
 fn dedup(points: impl Iterator<Item = (i32, i32)>) -> Vec<(i32, i32)> {
@@ -832,11 +953,25 @@ fn draw_legend<DB: DrawingBackend>(
                     stroke(plot, &dash, s.color, raster)?;
                 }
             }
-            Style::Markers => {}
+            Style::Band => {
+                plot.draw(&Rectangle::new(
+                    [(xs, yc - 6), (xs + sample_w, yc + 6)],
+                    s.color.mix(BAND_ALPHA).filled(),
+                ))?;
+            }
+            Style::Stems => {
+                let xm = xs + sample_w / 2;
+                stroke(plot, &[(xm, yc + 7), (xm, yc - 3)], s.color, raster)?;
+            }
+            Style::Markers | Style::FadedMarkers => {}
         }
         if s.style.has_markers() {
-            let style = s.color.stroke_width(LINE_WIDTH);
-            plot.draw(&Circle::new((xs + sample_w / 2, yc), MARKER_RADIUS, style))?;
+            let c = if s.style == Style::Stems {
+                (xs + sample_w / 2, yc - 3)
+            } else {
+                (xs + sample_w / 2, yc)
+            };
+            draw_marker(plot, c, s)?;
         }
         plot.draw(&Text::new(
             s.label.as_str(),
@@ -851,6 +986,58 @@ fn draw_legend<DB: DrawingBackend>(
 mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
+
+    #[test]
+    fn roles_colour_series_whatever_their_index() {
+        use crate::figure::{Panel, Series};
+        let mut panel = Panel::new("", "", "");
+        panel.series = vec![
+            Series::new("a", vec![0.0, 1.0], vec![0.0, 1.0], Style::Line),
+            Series::new("m", vec![0.0, 1.0], vec![1.0, 0.0], Style::Line).with_role(Role::Measured),
+        ];
+        let fig = crate::grid_figure("", vec![panel], 1);
+        let p = prepare(&fig, Path::new("x")).unwrap();
+        assert_eq!(p[0].series[0].color, PALETTE[0]);
+        assert_eq!(p[0].series[1].color, role_colour(Role::Measured));
+    }
+
+    #[test]
+    fn band_with_an_undrawable_lower_edge_reaches_the_bottom() {
+        // On a log axis a lower edge of -1 cannot be drawn: the band runs from the axis bottom
+        // (plot-space 0 = log10 1) to the upper edge (log10 100 = 2).
+        use crate::figure::{Panel, Series};
+        let mut panel = Panel::new("", "", "");
+        panel.y_scale = Scale::Log10;
+        panel.series = vec![
+            Series::new("g", vec![0.0, 1.0, 2.0], vec![1.0, 10.0, 1.0], Style::Line),
+            Series::band(
+                "band",
+                vec![0.0, 1.0, 2.0],
+                vec![1.0, -1.0, 1.0],
+                vec![10.0, 100.0, 10.0],
+            ),
+        ];
+        let fig = crate::grid_figure("", vec![panel], 1);
+        let p = prepare(&fig, Path::new("x")).unwrap();
+        // The y range covers the upper edge (2 in log10) with its 5 % margin.
+        assert!(p[0].y.hi >= 2.0);
+        let polys = band_polygons(&p[0].series[1], &p[0].x, &p[0].y);
+        assert_eq!(polys.len(), 1);
+        let lowest = polys[0].iter().map(|q| q.1).fold(f64::INFINITY, f64::min);
+        assert_abs_diff_eq!(lowest, p[0].y.lo, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn band_with_a_short_upper_edge_is_an_error() {
+        use crate::figure::{Panel, Series};
+        let mut panel = Panel::new("", "", "");
+        panel.series = vec![Series::band("b", vec![0.0, 1.0], vec![0.0, 1.0], vec![1.0])];
+        let fig = crate::grid_figure("", vec![panel], 1);
+        assert!(matches!(
+            prepare(&fig, Path::new("x")),
+            Err(PlotError::LengthMismatch { .. })
+        ));
+    }
 
     fn axis(lo: f64, hi: f64) -> AxisRange {
         AxisRange {

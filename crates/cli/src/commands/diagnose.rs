@@ -17,7 +17,8 @@ use htfid_diagnose::{
 };
 use htfid_model::Effects;
 use htfid_plot::{
-    grid_figure, spectrum_panel, stacked_figure, time_panel, Panel, Series, SpectrumScale, Style,
+    grid_figure, spectrum_panel, stacked_figure, time_panel, Panel, Role, Series, SpectrumScale,
+    Style,
 };
 use num_complex::Complex64;
 use rustfft::FftPlanner;
@@ -27,7 +28,13 @@ use crate::output::{json_text, open, resolve_dir};
 use crate::plots;
 use crate::settings::DiagnoseSettings;
 
-const PLOTS: [&str; 3] = ["residual_time", "residual_spectrum", "orbit"];
+const PLOTS: [&str; 5] = [
+    "residual_time",
+    "residual_spectrum",
+    "orbit",
+    "compare",
+    "resid",
+];
 
 /// Harmonics of the data-against-theory HTF figure.
 const HTF_HARMONICS: [i32; 5] = [-2, -1, 0, 1, 2];
@@ -115,21 +122,190 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     if !tests.is_empty() {
         json["test"] = Value::Array(tests.clone());
     }
+    let check = validate(&settings, &record, &report);
+    json["validation"] = crate::validation::json(&check, &ext_label(&report));
     json["elapsed_s"] = json!(started.elapsed().as_secs_f64());
     outdir.write_text("diagnosis.json", &json_text(&json))?;
     let mut figures = draw(&mut outdir, &settings, &record, &report)?;
+    draw_validation(&mut outdir, &settings, &record, &report, &check)?;
     if periodic {
         figures.htf = match htf_figure(&mut outdir, &settings, &record, &report) {
             Ok(()) => Some(String::new()),
             Err(e) => Some(format!("{e:#}")),
         };
     }
-    outdir.write_text(
-        "report.md",
-        &report_md(&settings, &record, &report, &tests, &figures),
-    )?;
+    let mut text = report_md(&settings, &record, &report, &tests, &figures);
+    text.push_str(&crate::validation::report(
+        "## 5. Validation",
+        &[&check],
+        &format!("{} model", ext_label(&report)),
+        &format!("input `{}`", settings.data.input),
+    ));
+    outdir.write_text("report.md", &text)?;
     let written = outdir.commit()?;
     crate::results::diagnose(&json, &dir, &written);
+    Ok(())
+}
+
+/// Units of the record: the hopper's SI units (m, N) when its columns are the hopper's own
+/// position `x` and force `f`; otherwise the columns' names, whose units the config does not
+/// state.
+fn output_label(s: &DiagnoseSettings) -> String {
+    if let Some(unit) = s.data.format.unit(&s.data.output) {
+        format!("{} ({unit})", s.data.output)
+    } else if s.data.output == "x" {
+        "position x (m)".into()
+    } else {
+        format!("{} (data units)", s.data.output)
+    }
+}
+
+fn residual_label(s: &DiagnoseSettings) -> String {
+    if let Some(unit) = s.data.format.unit(&s.data.output) {
+        format!("residual of {} ({unit})", s.data.output)
+    } else if s.data.output == "x" {
+        "residual (m)".into()
+    } else {
+        format!("residual of {} (data units)", s.data.output)
+    }
+}
+
+fn htf_unit(s: &DiagnoseSettings) -> Option<&'static str> {
+    (s.data.output == "x" && s.data.input == "f").then_some("m/N")
+}
+
+/// The extended model's name in legends.
+fn ext_label(report: &DiagnosisReport) -> String {
+    format!("extended ({})", report.diagnosis.cause)
+}
+
+/// Held-out samples after each range's burn-in, in order.
+fn held_out(record: &Record, report: &DiagnosisReport) -> Vec<usize> {
+    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
+    report
+        .validation_ranges
+        .iter()
+        .flat_map(|r| (r.start + burn).min(r.end)..r.end)
+        .filter(|&i| report.nominal_output[i].is_finite() && report.extended_output[i].is_finite())
+        .collect()
+}
+
+/// Fit percent of both models and the residual analysis of the extended model against the
+/// applied force, on the held-out samples (ranges joined end to end).
+fn validate(
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+) -> crate::validation::OutputValidation {
+    let idx = held_out(record, report);
+    let pick = |v: &[f64]| -> Vec<f64> { idx.iter().map(|&i| v[i]).collect() };
+    let (x, f) = (pick(record.x()), pick(record.f()));
+    let (nom, ext) = (pick(&report.nominal_output), pick(&report.extended_output));
+    crate::validation::validate(
+        &s.data.output,
+        &x,
+        &f,
+        &[
+            crate::validation::Simulated {
+                label: "nominal".into(),
+                role: Role::Nominal,
+                style: Style::Dashed,
+                y: &nom,
+            },
+            crate::validation::Simulated {
+                label: ext_label(report),
+                role: Role::Extended,
+                style: Style::Line,
+                y: &ext,
+            },
+        ],
+        0..x.len(),
+    )
+}
+
+/// `compare.png` (a few forcing periods at the end of the last held-out range) and `resid.png`.
+fn draw_validation(
+    out: &mut OutputDir,
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+    check: &crate::validation::OutputValidation,
+) -> Result<()> {
+    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
+    let last = report
+        .validation_ranges
+        .last()
+        .cloned()
+        .unwrap_or(0..record.len());
+    let period = (s.params.forcing_amplitude.abs() > 0.0).then_some(s.params.period);
+    let win = crate::validation::window(
+        (last.start + burn).min(last.end)..last.end,
+        record.dt(),
+        period,
+    );
+    let ext = ext_label(report);
+    let models = [
+        crate::validation::Simulated {
+            label: "nominal".into(),
+            role: Role::Nominal,
+            style: Style::Dashed,
+            y: &report.nominal_output,
+        },
+        crate::validation::Simulated {
+            label: ext.clone(),
+            role: Role::Extended,
+            style: Style::Line,
+            y: &report.extended_output,
+        },
+    ];
+    let compare = crate::validation::compare_panel(
+        &format!(
+            "{}: measured and simulated (held-out data; fit over all of it)",
+            s.data.output
+        ),
+        &output_label(s),
+        record.t(),
+        record.x(),
+        &models,
+        &check.fits,
+        win.clone(),
+    );
+    let tw = record.t()[win.clone()].to_vec();
+    let residual =
+        |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.x()[i] - sim[i]).collect() };
+    let mut res = Panel::new(
+        "residual, measured minus simulated",
+        htfid_plot::TIME_LABEL,
+        residual_label(s),
+    );
+    res.series = vec![
+        Series::new(
+            "nominal",
+            tw.clone(),
+            residual(&report.nominal_output),
+            Style::Dashed,
+        )
+        .with_role(Role::Nominal),
+        Series::new(ext, tw, residual(&report.extended_output), Style::Line)
+            .with_role(Role::Extended),
+    ];
+    let fig = stacked_figure(
+        format!("{}: measured against simulated", s.name),
+        vec![compare, res],
+    );
+    plots::write(out, "compare", &fig)?;
+    if let Some(fig) = crate::validation::resid_figure(
+        &format!(
+            "{}: residual analysis of the {} model (held-out data)",
+            s.name,
+            ext_label(report)
+        ),
+        &[check],
+        &format!("input {}", s.data.input),
+        record.dt(),
+    ) {
+        plots::write(out, "resid", &fig)?;
+    }
     Ok(())
 }
 
@@ -372,7 +548,8 @@ fn htf_figure(
     let extended = theory(&report.extended_model)?;
     let omegas = crate::settings::log_grid(1.0, 40.0, 400);
     let ext_label = format!("extended ({}), theory", report.diagnosis.cause);
-    let data: Vec<(i32, Vec<f64>, Vec<Complex64>)> = HTF_HARMONICS
+    type Data = (i32, Vec<f64>, Vec<Complex64>, Vec<f64>);
+    let data: Vec<Data> = HTF_HARMONICS
         .iter()
         .map(|&n| {
             let rows: Vec<_> = est.rows().filter(|r| r.n == n).collect();
@@ -380,6 +557,7 @@ fn htf_figure(
                 n,
                 rows.iter().map(|r| r.omega).collect(),
                 rows.iter().map(|r| r.value).collect(),
+                rows.iter().map(|r| r.stderr).collect(),
             )
         })
         .collect();
@@ -395,35 +573,41 @@ fn htf_figure(
     let per_harmonic: Vec<(i32, Vec<plots::Curve<'_>>)> = data
         .iter()
         .zip(&th)
-        .map(|((n, w, v), (g0, g1))| {
+        .map(|((n, w, v, se), (g0, g1))| {
             (
                 *n,
                 vec![
                     plots::Curve {
-                        label: "data (Siddiqi estimate)",
+                        label: "measured (Siddiqi estimate)",
                         omega: w,
                         values: v,
                         style: Style::Line,
+                        stderr: Some(se),
                     },
                     plots::Curve {
                         label: "nominal, theory",
                         omega: &omegas,
                         values: g0,
                         style: Style::Line,
+                        stderr: None,
                     },
                     plots::Curve {
                         label: &ext_label,
                         omega: &omegas,
                         values: g1,
                         style: Style::Dashed,
+                        stderr: None,
                     },
                 ],
             )
         })
         .collect();
-    let fig = plots::harmonics(
-        &format!("{}: HTFs of the data against the models", s.name),
-        &per_harmonic,
+    let fig = plots::with_htf_unit(
+        plots::harmonics(
+            &format!("{}: HTFs of the data against the models", s.name),
+            &per_harmonic,
+        ),
+        htf_unit(s),
     );
     plots::write(out, "htf_data", &fig)
 }
@@ -438,10 +622,9 @@ fn draw(
     let cause = report.diagnosis.cause.clone();
     let ext_label = format!("extended ({cause})");
     // Residuals in time (one point per gap-free piece is fine: ranges are drawn as one series).
-    let unit = s.data.format.unit(&s.data.output).unwrap_or("output units");
     let panel = time_panel(
         "held-out residual: measured - simulated",
-        &format!("residual ({unit})"),
+        &residual_label(s),
         &t,
         [("nominal", r0.clone()), (ext_label.as_str(), r1.clone())],
     );
@@ -497,11 +680,10 @@ fn draw(
                 .collect()
         };
         let (measured, nom, ext) = (col(0), col(1), col(2));
-        let suffix = s.data.format.label_suffix(&s.data.output);
         let mut p = Panel::new(
             "period-averaged orbit (held-out data)",
             "phase (s)",
-            format!("position{suffix}"),
+            output_label(s),
         );
         p.series = vec![
             Series::new("measured", phase.clone(), measured.clone(), Style::Markers),
@@ -512,7 +694,7 @@ fn draw(
         let mut q = Panel::new(
             "model - measured, period-averaged",
             "phase (s)",
-            format!("difference{suffix}"),
+            residual_label(s).replace("residual", "difference"),
         );
         q.series = vec![
             Series::new("nominal", phase.clone(), diff(&nom), Style::Line),
@@ -531,7 +713,7 @@ fn draw(
         let tt = record.t()[a..b].to_vec();
         let panel = time_panel(
             "one second of held-out data",
-            &format!("position{}", s.data.format.label_suffix(&s.data.output)),
+            &output_label(s),
             &tt,
             [
                 ("measured", record.x()[a..b].to_vec()),

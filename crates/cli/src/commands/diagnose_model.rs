@@ -6,15 +6,12 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis, ModelRecord};
-use htfid_plot::{stacked_figure, time_panel, Panel, Series, Style};
+use htfid_plot::{stacked_figure, Panel, Role, Series, Style};
 use serde_json::json;
 
 use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::output::{json_text, open, resolve_dir};
 use crate::records::{read_record, Columns};
-
-/// Seconds of the held-out part drawn in the comparison figure (a readable window).
-const WINDOW_S: f64 = 10.0;
 
 pub fn run(
     config: &std::path::Path,
@@ -31,7 +28,14 @@ pub fn run(
     let mut outdir = open(
         &dir,
         force,
-        &["diagnosis.json", "report.md", "compare.svg", "compare.png"],
+        &[
+            "diagnosis.json",
+            "report.md",
+            "compare.svg",
+            "compare.png",
+            "resid.svg",
+            "resid.png",
+        ],
     )?;
     let record = read_model_record(&s, &s.file)?;
     let validation = match &s.validation {
@@ -65,6 +69,44 @@ pub fn run(
         })?;
     // The figure shows the held-out data: the validation record when there is one.
     let shown = validation.as_ref().unwrap_or(&record);
+    let n = shown.t.len();
+    let dt = (shown.t[n - 1] - shown.t[0]) / (n - 1).max(1) as f64;
+    // The samples the library scores as held-out: the validation record after its burn-in,
+    // or the part of the record after the fit fraction.
+    let held_out = match &validation {
+        Some(_) => ((s.options.burn_in / dt).ceil() as usize).min(n / 4)..n,
+        None => ((n as f64 * s.options.fit_fraction) as usize).min(n)..n,
+    };
+    let checks: Vec<crate::validation::OutputValidation> = s
+        .outputs
+        .iter()
+        .enumerate()
+        .map(|(o, name)| {
+            crate::validation::validate(
+                name,
+                &shown.y[o],
+                &shown.u,
+                &models_of(&d, o),
+                held_out.clone(),
+            )
+        })
+        .collect();
+    let mut validation_json = checks.first().map_or(serde_json::Value::Null, |v| {
+        crate::validation::json(v, "refitted model")
+    });
+    if validation_json.is_object() {
+        validation_json["by_output"] = serde_json::Value::Object(
+            checks
+                .iter()
+                .map(|v| {
+                    (
+                        v.output.clone(),
+                        crate::validation::json(v, "refitted model"),
+                    )
+                })
+                .collect(),
+        );
+    }
 
     let json = json!({
         "name": s.name,
@@ -81,6 +123,7 @@ pub fn run(
         "stderr_inflation": d.stderr_inflation,
         "iterations": d.iterations,
         "stop": d.stop,
+        "validation": validation_json,
         "options": {
             "free": s.options.free,
             "fit_fraction": s.options.fit_fraction,
@@ -90,11 +133,16 @@ pub fn run(
         },
     });
     outdir.write_text("diagnosis.json", &json_text(&json))?;
-    outdir.write_text("report.md", &report(&s, &d))?;
-    // The last WINDOW_S seconds of the held-out part: measured, configured, refitted.
-    let n = shown.t.len();
-    let dt = (shown.t[n - 1] - shown.t[0]) / (n - 1) as f64;
-    let start = n.saturating_sub((WINDOW_S / dt) as usize);
+    let mut text = report(&s, &d);
+    text.push_str(&crate::validation::report(
+        "## Validation",
+        &checks.iter().collect::<Vec<_>>(),
+        "refitted model",
+        &format!("input `{}`", s.input),
+    ));
+    outdir.write_text("report.md", &text)?;
+    // A few forcing periods at the end of the held-out part: measured, configured, refitted.
+    let win = crate::validation::window(held_out.clone(), dt, s.model.period());
     let mut panels: Vec<Panel> = Vec::new();
     for (o, name) in s.outputs.iter().enumerate() {
         // The unit the data are measured in (data.units), else the model's.
@@ -103,45 +151,49 @@ pub fn run(
             .unit(name)
             .or(s.model.outputs()[o].unit.as_deref())
             .map_or(String::new(), |u| format!(" ({u})"));
-        let tw = shown.t[start..].to_vec();
-        let mut panel = time_panel(
-            &format!("{name}: measured and simulated (held-out data)"),
+        panels.push(crate::validation::compare_panel(
+            &format!("{name}: measured and simulated (held-out data; fit over all of it)"),
             &format!("{name}{unit}"),
-            &tw,
-            [("measured", &shown.y[o][start..])],
-        );
-        panel.series.push(Series::new(
-            "configured model",
-            tw.clone(),
-            d.simulated_configured[o][start..].to_vec(),
-            Style::Dashed,
+            &shown.t,
+            &shown.y[o],
+            &models_of(&d, o),
+            &checks[o].fits,
+            win.clone(),
         ));
-        panel.series.push(Series::new(
-            "refitted model",
-            tw.clone(),
-            d.simulated[o][start..].to_vec(),
-            Style::Line,
-        ));
-        panels.push(panel);
+        let tw = shown.t[win.clone()].to_vec();
         let residual =
-            |sim: &[f64]| -> Vec<f64> { (start..n).map(|i| shown.y[o][i] - sim[i]).collect() };
-        let mut panel = time_panel(
-            &format!("{name}: residual, measured minus simulated"),
-            &format!("residual{unit}"),
-            &tw,
-            [("configured model", residual(&d.simulated_configured[o]))],
+            |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| shown.y[o][i] - sim[i]).collect() };
+        let mut panel = Panel::new(
+            format!("{name}: residual, measured minus simulated"),
+            htfid_plot::TIME_LABEL,
+            format!("residual{unit}"),
         );
-        panel.series[0].style = Style::Dashed;
-        panel.series.push(Series::new(
-            "refitted model",
-            tw,
-            residual(&d.simulated[o]),
-            Style::Line,
-        ));
+        panel.series = vec![
+            Series::new(
+                "configured model",
+                tw.clone(),
+                residual(&d.simulated_configured[o]),
+                Style::Dashed,
+            )
+            .with_role(Role::Nominal),
+            Series::new("refitted model", tw, residual(&d.simulated[o]), Style::Line)
+                .with_role(Role::Extended),
+        ];
         panels.push(panel);
     }
     let fig = stacked_figure(format!("{}: {}", s.name, d.cause.name()), panels);
     crate::plots::write(&mut outdir, "compare", &fig)?;
+    if let Some(fig) = crate::validation::resid_figure(
+        &format!(
+            "{}: residual analysis of the refitted model (held-out data)",
+            s.name
+        ),
+        &checks.iter().collect::<Vec<_>>(),
+        &s.input,
+        dt,
+    ) {
+        crate::plots::write(&mut outdir, "resid", &fig)?;
+    }
     let written = outdir.commit()?;
     let unit = |name: &str| {
         s.model
@@ -152,6 +204,24 @@ pub fn run(
     };
     crate::results::diagnose_model(&json, &unit, &dir, &written);
     Ok(())
+}
+
+/// The configured and the refitted simulation of output `o`, the refitted last.
+fn models_of(d: &ModelDiagnosis, o: usize) -> Vec<crate::validation::Simulated<'_>> {
+    vec![
+        crate::validation::Simulated {
+            label: "configured model".into(),
+            role: Role::Nominal,
+            style: Style::Dashed,
+            y: &d.simulated_configured[o],
+        },
+        crate::validation::Simulated {
+            label: "refitted model".into(),
+            role: Role::Extended,
+            style: Style::Line,
+            y: &d.simulated[o],
+        },
+    ]
 }
 
 fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<ModelRecord> {
@@ -283,7 +353,7 @@ fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
     let _ = writeln!(
         r,
         "\nStandard errors are inflated by {:.2} for the residuals' correlation in time. \
-         Figure: `compare.png` (the last {WINDOW_S} s of the held-out data).",
+         Figures: `compare.png` (a few periods at the end of the held-out data), `resid.png`.",
         d.stderr_inflation
     );
     r

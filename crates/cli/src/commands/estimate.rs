@@ -331,53 +331,37 @@ fn excited_band(u: &[f64], dt: f64) -> Option<(f64, f64)> {
     ))
 }
 
-/// `|G_n|` of one output with its 95 % confidence bounds (`|G| +- 1.96 stderr`) dashed.
+/// `|G_n|` of one output with its 95 % confidence region (`|G| +- 1.96 stderr`) shaded and
+/// the estimates that are not significant (`|G| < 2 stderr`) faded.
 fn figure(settings: &EstimateSettings, output: &str, e: &HtfEstimate) -> htfid_plot::Figure {
-    type Series = (Vec<f64>, Vec<Complex64>, Vec<Complex64>, Vec<Complex64>);
+    type Series = (Vec<f64>, Vec<Complex64>, Vec<f64>);
     let series: Vec<(i32, Series)> = settings
         .harmonics
         .iter()
         .map(|&k| {
             let rows: Vec<_> = e.rows().filter(|r| r.n == k).collect();
-            let w = rows.iter().map(|r| r.omega).collect();
-            let g = rows.iter().map(|r| r.value).collect();
-            // Bounds on the magnitude, drawn as real values.
-            let up = rows
-                .iter()
-                .map(|r| Complex64::new(r.value.norm() + 1.96 * r.stderr, 0.0))
-                .collect();
-            let low = rows
-                .iter()
-                .map(|r| Complex64::new((r.value.norm() - 1.96 * r.stderr).max(0.0), 0.0))
-                .collect();
-            (k, (w, g, up, low))
+            (
+                k,
+                (
+                    rows.iter().map(|r| r.omega).collect(),
+                    rows.iter().map(|r| r.value).collect(),
+                    rows.iter().map(|r| r.stderr).collect(),
+                ),
+            )
         })
         .collect();
     let per: Vec<(i32, Vec<Curve<'_>>)> = series
         .iter()
-        .map(|(k, (w, g, up, low))| {
+        .map(|(k, (w, g, se))| {
             (
                 *k,
-                vec![
-                    Curve {
-                        label: "estimate",
-                        omega: w,
-                        values: g,
-                        style: Style::Line,
-                    },
-                    Curve {
-                        label: "upper 95 % bound",
-                        omega: w,
-                        values: up,
-                        style: Style::Dashed,
-                    },
-                    Curve {
-                        label: "lower 95 % bound (absent: not significant)",
-                        omega: w,
-                        values: low,
-                        style: Style::Dashed,
-                    },
-                ],
+                vec![Curve {
+                    label: "estimate (Siddiqi)",
+                    omega: w,
+                    values: g,
+                    style: Style::Line,
+                    stderr: Some(se),
+                }],
             )
         })
         .collect();

@@ -492,7 +492,17 @@ pub fn run_model(
     })?;
     if !no_plots {
         stages.run("plots", || {
-            run_plots(&mut outdir, settings, &channels[0], &estimates[0])
+            let unit = crate::plots::htf_unit(
+                model.outputs().first().and_then(|o| o.unit.as_deref()),
+                model.input_unit(),
+            );
+            run_plots(
+                &mut outdir,
+                settings,
+                &channels[0],
+                &estimates[0],
+                unit.as_deref(),
+            )
         })?;
     }
     let mut summary = json!({

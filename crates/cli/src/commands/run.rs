@@ -139,7 +139,13 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     })?;
     if !no_plots {
         stages.run("plots", || {
-            run_plots(&mut outdir, &settings, &theory.exact, &estimates)
+            run_plots(
+                &mut outdir,
+                &settings,
+                &theory.exact,
+                &estimates,
+                Some("m/N"),
+            )
         })?;
     }
 
@@ -585,6 +591,7 @@ pub(crate) fn run_plots(
     settings: &Settings,
     theory: &dyn HarmonicTransferFunction,
     estimates: &[(Estimator, HtfEstimate)],
+    unit: Option<&str>,
 ) -> Result<()> {
     let (lo, hi) = settings.estimation.band;
     let omegas = crate::settings::log_grid(lo, hi, 600);
@@ -593,7 +600,7 @@ pub(crate) fn run_plots(
         .iter()
         .map(|&n| (n, omegas.iter().map(|&w| theory.g(n, w)).collect()))
         .collect();
-    type Series = (String, Vec<f64>, Vec<Complex64>);
+    type Series = (String, Vec<f64>, Vec<Complex64>, Vec<f64>);
     let est_vals: Vec<(i32, Vec<Series>)> = harmonics
         .iter()
         .map(|&n| {
@@ -611,6 +618,7 @@ pub(crate) fn run_plots(
                         format!("estimate ({})", est.name()),
                         rows.iter().map(|r| r.omega).collect(),
                         rows.iter().map(|r| r.value).collect(),
+                        rows.iter().map(|r| r.stderr).collect(),
                     )
                 })
                 .collect();
@@ -623,7 +631,7 @@ pub(crate) fn run_plots(
         let mut c = Vec::new();
         for (m, per) in &est_vals {
             if *m == n {
-                for (label, w, v) in per {
+                for (label, w, v, se) in per {
                     let style = if w.len() > 3 * MAX_MARKERS {
                         Style::Line
                     } else {
@@ -634,6 +642,7 @@ pub(crate) fn run_plots(
                         omega: w,
                         values: v,
                         style,
+                        stderr: Some(se),
                     });
                 }
             }
@@ -645,22 +654,29 @@ pub(crate) fn run_plots(
                     omega: &omegas,
                     values: v,
                     style: Style::Line,
+                    stderr: None,
                 });
             }
         }
         c
     };
     if harmonics.contains(&0) {
-        let fig = plots::bode(
-            &format!("{}: G_0, estimate against theory", settings.name),
-            &curves_for(0),
+        let fig = plots::with_htf_unit(
+            plots::bode(
+                &format!("{}: G_0, estimate against theory", settings.name),
+                &curves_for(0),
+            ),
+            unit,
         );
         plots::write(out, "htf_g0", &fig)?;
     }
     let per: Vec<(i32, Vec<Curve<'_>>)> = harmonics.iter().map(|&n| (n, curves_for(n))).collect();
-    let fig = plots::harmonics(
-        &format!("{}: |G_n|, estimates against theory", settings.name),
-        &per,
+    let fig = plots::with_htf_unit(
+        plots::harmonics(
+            &format!("{}: |G_n|, estimates against theory", settings.name),
+            &per,
+        ),
+        unit,
     );
     plots::write(out, "htf_harmonics", &fig)?;
     Ok(())

@@ -258,6 +258,7 @@ pub fn theory_plots(
                 omega: &grid.omegas,
                 values: g0,
                 style: Style::Line,
+                stderr: None,
             }],
         );
         plots::write(out, "theory_g0", &fig)?;
@@ -272,6 +273,7 @@ pub fn theory_plots(
                     omega: &grid.omegas,
                     values: v,
                     style: Style::Line,
+                    stderr: None,
                 }],
             )
         })
