@@ -185,6 +185,32 @@ pub struct Design {
     owner: HashMap<u64, (usize, Branch)>,
 }
 
+/// The period, band and spacing of `spec`, checked (with the harmonic count): the
+/// part of the spec that both the design and its size estimate need.
+fn checked_band(spec: &DesignSpec) -> Result<(f64, f64, f64, f64), ExciteError> {
+    let t = positive("period", spec.period)?;
+    let lo = non_negative("omega_lo", spec.omega_lo)?;
+    let hi = positive("omega_hi", spec.omega_hi)?;
+    if hi <= lo {
+        return Err(ExciteError::InvalidParameter {
+            name: "omega_hi",
+            requirement: "> omega_lo",
+            value: hi,
+        });
+    }
+    let spacing = positive("spacing", spec.spacing)?;
+    // The search visits every harmonic for every line; beyond a few hundred
+    // harmonics an HTF model is meaningless anyway.
+    if spec.max_harmonic > MAX_HARMONIC {
+        return Err(ExciteError::InvalidParameter {
+            name: "max_harmonic",
+            requirement: "<= 1000",
+            value: f64::from(spec.max_harmonic),
+        });
+    }
+    Ok((t, lo, hi, spacing))
+}
+
 /// Designs a multisine experiment that observes every harmonic transfer
 /// function `G_n`, `|n| <= H`, over `[omega_lo, omega_hi]` at spacing
 /// `<= spacing`, without any aliasing between harmonics.
@@ -268,26 +294,7 @@ pub struct Design {
 /// [`ExciteError::RecordTooLong`] when the smallest admissible P does not fit
 /// `max_record`.
 pub fn design_htf_multisine(spec: DesignSpec) -> Result<Design, ExciteError> {
-    let t = positive("period", spec.period)?;
-    let lo = non_negative("omega_lo", spec.omega_lo)?;
-    let hi = positive("omega_hi", spec.omega_hi)?;
-    if hi <= lo {
-        return Err(ExciteError::InvalidParameter {
-            name: "omega_hi",
-            requirement: "> omega_lo",
-            value: hi,
-        });
-    }
-    let spacing = positive("spacing", spec.spacing)?;
-    // The search visits every harmonic for every line; beyond a few hundred
-    // harmonics an HTF model is meaningless anyway.
-    if spec.max_harmonic > MAX_HARMONIC {
-        return Err(ExciteError::InvalidParameter {
-            name: "max_harmonic",
-            requirement: "<= 1000",
-            value: f64::from(spec.max_harmonic),
-        });
-    }
+    let (t, lo, hi, spacing) = checked_band(&spec)?;
     let settle_req = non_negative("settle", spec.settle)?;
     let max_record = positive("max_record", spec.max_record)?;
     let start = finite("start", spec.start)?;
@@ -539,24 +546,7 @@ pub struct DesignSize {
 /// The invalid parameters that [`design_htf_multisine`] rejects in period,
 /// band, spacing, harmonic count and settling.
 pub fn design_size(spec: &DesignSpec) -> Result<DesignSize, ExciteError> {
-    let t = positive("period", spec.period)?;
-    let lo = non_negative("omega_lo", spec.omega_lo)?;
-    let hi = positive("omega_hi", spec.omega_hi)?;
-    if hi <= lo {
-        return Err(ExciteError::InvalidParameter {
-            name: "omega_hi",
-            requirement: "> omega_lo",
-            value: hi,
-        });
-    }
-    let spacing = positive("spacing", spec.spacing)?;
-    if spec.max_harmonic > MAX_HARMONIC {
-        return Err(ExciteError::InvalidParameter {
-            name: "max_harmonic",
-            requirement: "<= 1000",
-            value: f64::from(spec.max_harmonic),
-        });
-    }
+    let (t, lo, hi, spacing) = checked_band(spec)?;
     let settle = (non_negative("settle", spec.settle)? / t - 1e-9)
         .ceil()
         .max(0.0)
