@@ -383,17 +383,42 @@ pub fn check_experiment(settings: &Settings, stage: Stage) -> Result<()> {
     Ok(())
 }
 
+/// What a failed simulation was run for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Simulated {
+    /// The unexcited orbit.
+    Orbit,
+    /// The experiment, with the configured input.
+    Experiment,
+}
+
+impl std::fmt::Display for Simulated {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Simulated::Orbit => "the unexcited orbit",
+            Simulated::Experiment => "the experiment",
+        })
+    }
+}
+
 /// A failed integration located in the config: its file, what was simulated, and the key to
 /// raise when the step cap stopped it.
 pub fn integration_failed(
     settings: &Settings,
-    what: &str,
+    what: Simulated,
     e: htfid_hybrid::HybridError,
 ) -> anyhow::Error {
     let hint = if matches!(e, htfid_hybrid::HybridError::MaxStepsExceeded { .. }) {
         format!(
             " (simulation.max_steps = {}; raise it)",
             settings.integrator.max_steps
+        )
+    } else if let (Simulated::Experiment, Some(amplitude)) = (what, settings.excitation.amplitude())
+    {
+        // The unexcited orbit simulated, so the input is the first suspect.
+        format!(
+            " (excitation.amplitude = {amplitude:e}; the orbit without input simulates, so \
+             the input may drive the system out of the behaviour the model describes)"
         )
     } else {
         String::new()

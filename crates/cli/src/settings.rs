@@ -323,6 +323,17 @@ pub enum Excitation {
     },
 }
 
+impl Excitation {
+    /// The input's amplitude, if there is an input.
+    pub fn amplitude(&self) -> Option<f64> {
+        match self {
+            Excitation::None => None,
+            Excitation::MultisineDesign { amplitude, .. }
+            | Excitation::ChirpTrain { amplitude, .. } => Some(*amplitude),
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct TheorySettings {
     pub harmonics: Vec<i32>,

@@ -164,7 +164,9 @@ fn simulate_record(
                 &settings.integrator,
             )
         })
-        .map_err(|e| crate::limits::integration_failed(settings, "the experiment", e))?;
+        .map_err(|e| {
+            crate::limits::integration_failed(settings, crate::limits::Simulated::Experiment, e)
+        })?;
     let u: Vec<f64> = match &excitation.signal {
         Some(s) => s.sample(&grid),
         None => vec![0.0; n],
@@ -579,7 +581,7 @@ fn orbit_deviation(
         grid,
         &settings.integrator,
     )
-    .map_err(|e| crate::limits::integration_failed(settings, "the unexcited orbit", e))?;
+    .map_err(|e| crate::limits::integration_failed(settings, crate::limits::Simulated::Orbit, e))?;
     let one = outputs_along(model, &free, &vec![0.0; grid.len()]);
     Ok(rec
         .outputs

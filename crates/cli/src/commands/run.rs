@@ -193,7 +193,9 @@ fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
                 &phase_grid,
                 &settings.integrator,
             )
-            .map_err(|e| crate::limits::integration_failed(settings, "the unexcited orbit", e))?;
+            .map_err(|e| {
+                crate::limits::integration_failed(settings, crate::limits::Simulated::Orbit, e)
+            })?;
             return Ok(sim
                 .x
                 .iter()
@@ -212,7 +214,7 @@ fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
         &sim.t,
         &settings.integrator,
     )
-    .map_err(|e| crate::limits::integration_failed(settings, "the unexcited orbit", e))?;
+    .map_err(|e| crate::limits::integration_failed(settings, crate::limits::Simulated::Orbit, e))?;
     Ok(sim
         .x
         .iter()

@@ -101,7 +101,9 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
                 &settings.integrator,
             )
         })
-        .map_err(|e| crate::limits::integration_failed(settings, "the experiment", e))?;
+        .map_err(|e| {
+            crate::limits::integration_failed(settings, crate::limits::Simulated::Experiment, e)
+        })?;
     let u: Vec<f64> = match &excitation.signal {
         Some(s) => s.sample(&grid),
         None => vec![0.0; n],
