@@ -70,19 +70,6 @@ pub enum HybridError {
         /// Transitions within the step.
         events: usize,
     },
-    /// The fixed-step method reached a switching surface where the motion slides (the field
-    /// on the far side points back into it); it does not implement sliding, and crossing would
-    /// chatter or leave the state in the wrong chart.
-    #[error(
-        "the motion slides along guard {guard} at t = {time} s (the field on its far side \
-         points back into it); the fixed-step method does not slide, use the adaptive one"
-    )]
-    SlidingUnsupported {
-        /// Time of the crossing (s).
-        time: f64,
-        /// Guard index in the chart before it.
-        guard: usize,
-    },
     /// A state vector does not have the system's dimension.
     #[error("state has dimension {found}, the system has dimension {expected}")]
     DimensionMismatch {

@@ -1,6 +1,7 @@
 //! Fixed-step integration with located events: RK4 on a uniform sample grid, for fits whose
 //! cost must be a smooth function of the parameters.
 
+use crate::sliding::{self, Filippov};
 use crate::{HybridError, HybridSystem};
 
 /// Largest state dimension of [`simulate_fixed_step`] (its buffers live on the stack).
@@ -17,7 +18,11 @@ const MAX_EVENTS_PER_STEP: usize = 8;
 /// A guard crossing in its direction within a step is located (Illinois false position to
 /// `1e-14` of the step) on the cubic Hermite interpolant of the step; the step is then redone
 /// up to the crossing, the reset applied, and the rest of the step taken in the new chart. The
-/// guard that just fired is not watched again within the same step. The output is therefore a
+/// guard that just fired is not watched again within the same step. At a declared switching
+/// surface ([`HybridSystem::sliding_chart`]) whose far side's field points back into it, the
+/// state is projected onto the surface and slides on it with Filippov's field, as in
+/// [`simulate`](crate::simulate) (crate docs, "Sliding"); the exit conditions are located like
+/// any crossing, to the same `1e-14` of the step. The output is therefore a
 /// smooth function of the system's parameters between switches, which makes this method suited
 /// to fits; its error is that of RK4 with step `dt / substeps` (no error control: choose
 /// `substeps` from the system's fastest rate). [`simulate`](crate::simulate) is the adaptive,
@@ -53,6 +58,7 @@ pub fn simulate_fixed_step<S: HybridSystem + ?Sized>(
         mode: mode0,
         x: [0.0; MAX_DIM],
         f: [0.0; MAX_DIM],
+        slide: None,
     };
     st.x[..n].copy_from_slice(x0);
     sys.vector_field(mode0, t0, &st.x[..n], &mut st.f[..n]);
@@ -81,93 +87,173 @@ struct Stepper<'a, S: HybridSystem + ?Sized> {
     n: usize,
     mode: S::Mode,
     x: [f64; MAX_DIM],
-    /// Vector field at `x` in `mode`.
+    /// Vector field at `x` in `mode` (the sliding field while sliding).
     f: [f64; MAX_DIM],
+    /// The sliding motion, while the state slides along a switching surface.
+    slide: Option<Filippov<'a, S>>,
 }
 
-impl<S: HybridSystem + ?Sized> Stepper<'_, S> {
+/// The outcome of one trial step.
+enum Trial {
+    /// The step reached its end without a crossing: the state and field there.
+    Reached([f64; MAX_DIM], [f64; MAX_DIM]),
+    /// Guard `guard` (of the chart stepped in) fired at `te`, with the state `xe` there.
+    Event {
+        te: f64,
+        guard: usize,
+        xe: [f64; MAX_DIM],
+    },
+}
+
+impl<'a, S: HybridSystem + ?Sized> Stepper<'a, S> {
     fn advance(&mut self, ta: f64, tb: f64) -> Result<(), HybridError> {
-        let n = self.n;
         let mut t = ta;
         // The guard that just fired sits at zero at the restart; it is not watched again within
         // the same sub-step (a guard with either crossing direction would otherwise fire again
         // at once).
         let mut fired: Option<usize> = None;
         for _ in 0..=MAX_EVENTS_PER_STEP {
-            let h = tb - t;
-            let mut xb = [0.0; MAX_DIM];
-            rk4_step(self.sys, self.mode, t, &self.x, &self.f, h, n, &mut xb);
-            if !xb[..n].iter().all(|v| v.is_finite()) {
-                return Err(HybridError::NonFiniteState { time: tb });
-            }
-            let mut fb = [0.0; MAX_DIM];
-            self.sys.vector_field(self.mode, tb, &xb[..n], &mut fb[..n]);
-            let mut first: Option<(f64, usize)> = None;
-            for g in 0..self.sys.num_guards(self.mode) {
-                if fired == Some(g) {
-                    continue;
+            let trial = match &self.slide {
+                None => trial(self.sys, self.mode, t, tb, &self.x, &self.f, self.n, fired),
+                Some(fl) => trial(fl, self.mode, t, tb, &self.x, &self.f, self.n, fired),
+            }?;
+            match trial {
+                Trial::Reached(xb, fb) => {
+                    self.x = xb;
+                    self.f = fb;
+                    return Ok(());
                 }
-                let ga = self.sys.guard(self.mode, g, t, &self.x[..n]);
-                let gb = self.sys.guard(self.mode, g, tb, &xb[..n]);
-                if !self.sys.guard_direction(self.mode, g).accepts(ga, gb) {
-                    continue;
-                }
-                let (xa, fa) = (&self.x, &self.f);
-                let mut buf = [0.0; MAX_DIM];
-                let theta = locate(
-                    |th| {
-                        hermite(xa, fa, &xb, &fb, h, th, n, &mut buf);
-                        self.sys.guard(self.mode, g, t + th * h, &buf[..n])
-                    },
-                    ga,
-                    gb,
-                );
-                if first.map_or(true, |(th0, _)| theta < th0) {
-                    first = Some((theta, g));
+                Trial::Event { te, guard, xe } => {
+                    fired = self.event(te, guard, xe);
+                    t = te;
                 }
             }
-            let Some((theta, guard)) = first else {
-                self.x = xb;
-                self.f = fb;
-                return Ok(());
-            };
-            let te = t + theta * h;
-            let mut xe = [0.0; MAX_DIM];
-            rk4_step(self.sys, self.mode, t, &self.x, &self.f, te - t, n, &mut xe);
-            if let Some(to) = self.sys.sliding_chart(self.mode, guard) {
-                // This method does not slide: where the far side's field points back into the
-                // surface, stepping on would chatter or pass through it in the wrong chart.
-                let (mut fa, mut fb) = ([0.0; MAX_DIM], [0.0; MAX_DIM]);
-                let (mut grad, mut xs) = ([0.0; MAX_DIM], [0.0; MAX_DIM]);
-                self.sys.vector_field(self.mode, te, &xe[..n], &mut fa[..n]);
-                self.sys.vector_field(to, te, &xe[..n], &mut fb[..n]);
-                let (a, b, _) = crate::sliding::normal_speeds(
-                    self.sys,
-                    self.mode,
-                    guard,
-                    te,
-                    &xe[..n],
-                    &fa[..n],
-                    Some(&fb[..n]),
-                    &mut grad[..n],
-                    &mut xs[..n],
-                );
-                if a * b < 0.0 {
-                    return Err(HybridError::SlidingUnsupported { time: te, guard });
-                }
-            }
-            self.mode = self.sys.transition(self.mode, guard, te, &mut xe[..n]);
-            fired = Some(guard);
-            self.x = xe;
-            self.sys
-                .vector_field(self.mode, te, &self.x[..n], &mut self.f[..n]);
-            t = te;
         }
         Err(HybridError::Chattering {
             time: t,
             events: MAX_EVENTS_PER_STEP + 1,
         })
     }
+
+    /// Applies the event of guard `guard` at `(te, xe)`: a transition, the start of sliding
+    /// along a switching surface whose far side's field points back into it, or, while
+    /// sliding, its end. Returns the guard of the new chart that sits at zero.
+    fn event(&mut self, te: f64, guard: usize, mut xe: [f64; MAX_DIM]) -> Option<usize> {
+        let n = self.n;
+        if let Some(fl) = self.slide.take() {
+            // Wrapper guard 0 leaves into the arrival chart, 1 into the far side's, `k >= 2`
+            // is another guard of the arrival chart, whose transition follows at once.
+            let (from, to, surface) = (fl.from, fl.to, fl.guard);
+            let next = match guard {
+                0 => {
+                    self.mode = from;
+                    Some(surface)
+                }
+                1 => {
+                    self.mode = to;
+                    // The same surface seen from the far side.
+                    (0..self.sys.num_guards(to))
+                        .find(|&j| self.sys.sliding_chart(to, j) == Some(from))
+                }
+                k => {
+                    let inner = fl.inner_guard(k);
+                    self.mode = self.sys.transition(from, inner, te, &mut xe[..n]);
+                    Some(inner)
+                }
+            };
+            self.restart(te, xe);
+            return next;
+        }
+        if let Some(to) = self.sys.sliding_chart(self.mode, guard) {
+            let (mut grad, mut xs) = ([0.0; MAX_DIM], [0.0; MAX_DIM]);
+            let mut on = xe;
+            sliding::project(
+                self.sys,
+                self.mode,
+                guard,
+                te,
+                &mut on[..n],
+                &mut grad[..n],
+                &mut xs[..n],
+            );
+            let fl = Filippov::new(self.sys, self.mode, to, guard, 1.0);
+            let (a, b) = fl.speeds(te, &on[..n]);
+            if a * b < 0.0 {
+                // Both fields push into the surface: the state slides on it.
+                self.slide = Some(Filippov::new(self.sys, self.mode, to, guard, a.signum()));
+                self.restart(te, on);
+                return None;
+            }
+        }
+        self.mode = self.sys.transition(self.mode, guard, te, &mut xe[..n]);
+        self.restart(te, xe);
+        Some(guard)
+    }
+
+    /// Restarts at `(t, x)` in the current chart (or sliding motion).
+    fn restart(&mut self, t: f64, x: [f64; MAX_DIM]) {
+        let n = self.n;
+        self.x = x;
+        match &self.slide {
+            None => self
+                .sys
+                .vector_field(self.mode, t, &self.x[..n], &mut self.f[..n]),
+            Some(fl) => fl.vector_field(self.mode, t, &self.x[..n], &mut self.f[..n]),
+        }
+    }
+}
+
+/// One RK4 step of `sys` in chart `mode` from `(t, x)` to `tb`, with the first crossing of a
+/// guard (other than `skip`) located on the step's cubic Hermite interpolant.
+#[allow(clippy::too_many_arguments)] // reason: the stepper's state, passed without copies
+fn trial<H: HybridSystem + ?Sized>(
+    sys: &H,
+    mode: H::Mode,
+    t: f64,
+    tb: f64,
+    x: &[f64; MAX_DIM],
+    f: &[f64; MAX_DIM],
+    n: usize,
+    skip: Option<usize>,
+) -> Result<Trial, HybridError> {
+    let h = tb - t;
+    let mut xb = [0.0; MAX_DIM];
+    rk4_step(sys, mode, t, x, f, h, n, &mut xb);
+    if !xb[..n].iter().all(|v| v.is_finite()) {
+        return Err(HybridError::NonFiniteState { time: tb });
+    }
+    let mut fb = [0.0; MAX_DIM];
+    sys.vector_field(mode, tb, &xb[..n], &mut fb[..n]);
+    let mut first: Option<(f64, usize)> = None;
+    for g in 0..sys.num_guards(mode) {
+        if skip == Some(g) {
+            continue;
+        }
+        let ga = sys.guard(mode, g, t, &x[..n]);
+        let gb = sys.guard(mode, g, tb, &xb[..n]);
+        if !sys.guard_direction(mode, g).accepts(ga, gb) {
+            continue;
+        }
+        let mut buf = [0.0; MAX_DIM];
+        let theta = locate(
+            |th| {
+                hermite(x, f, &xb, &fb, h, th, n, &mut buf);
+                sys.guard(mode, g, t + th * h, &buf[..n])
+            },
+            ga,
+            gb,
+        );
+        if first.map_or(true, |(th0, _)| theta < th0) {
+            first = Some((theta, g));
+        }
+    }
+    let Some((theta, guard)) = first else {
+        return Ok(Trial::Reached(xb, fb));
+    };
+    let te = t + theta * h;
+    let mut xe = [0.0; MAX_DIM];
+    rk4_step(sys, mode, t, x, f, te - t, n, &mut xe);
+    Ok(Trial::Event { te, guard, xe })
 }
 
 #[inline]

@@ -200,8 +200,9 @@
 //! - Invariant: outside the sliding intervals, every guard of the chart at a grid time lies on
 //!   its pre-crossing side (within the event tolerance); [`Trajectory::check_charts`] checks
 //!   it, and the test suites run it on their simulations.
-//! - [`simulate_fixed_step`] does not slide: at a declared surface where the motion would
-//!   slide it stops with [`HybridError::SlidingUnsupported`] (time and guard).
+//! - [`simulate_fixed_step`] slides the same way, with RK4 on the Filippov field and the exit
+//!   conditions located on the step's Hermite interpolant; on the belt, RK4 with
+//!   `h = 2.5 ms` stays within `1e-9` of the closed form through a stick.
 //! - Failures never panic: step-size underflow ([`HybridError::StepSizeTooSmall`], naming the
 //!   time), non-finite states or guards, the step cap and Zeno behaviour are errors.
 //! - Cost is known up front: [`trajectory_bytes`] is the memory of a sampled trajectory and
