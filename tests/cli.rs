@@ -1480,6 +1480,35 @@ fn meaningless_values_are_refused() {
         "{}",
         stderr(&o)
     );
+    // An estimation band whose harmonics reach past Nyquist is refused before simulating,
+    // at its line: 300 rad/s + 3 * 2 pi rad/s = 318.8 rad/s > pi * 100 Hz = 314.2 rad/s.
+    let edited = paper.replacen("omega_max = 40.0", "omega_max = 300.0", 1);
+    let line = edited
+        .lines()
+        .position(|l| l.starts_with("omega_max = 300.0"))
+        .unwrap()
+        + 1;
+    fs::write(&path, edited).unwrap();
+    let out = tmp.path().join("nyquist");
+    let o = htfid(&[
+        "run",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(
+        err.contains(&format!("p.toml:{line}:"))
+            && err.contains("estimation.omega_max")
+            && err.contains("Nyquist frequency 314.2 rad/s"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("[htfid] simulate"),
+        "refused before simulating: {err}"
+    );
+    assert!(!out.exists());
     let diag = fs::read_to_string(root().join("configs/diagnose-hopper.toml"))
         .unwrap()
         .replace(

@@ -505,7 +505,13 @@ impl Settings {
                 },
             }),
         };
-        let estimation = resolve_estimation(src, raw.estimation.as_ref(), &excitation, &system)?;
+        let estimation = resolve_estimation(
+            src,
+            raw.estimation.as_ref(),
+            &excitation,
+            &system,
+            (period, sample_rate),
+        )?;
         Ok(Settings {
             name,
             path: src.path.clone(),
@@ -1207,11 +1213,22 @@ fn default_fit(system: &System) -> Vec<String> {
     }
 }
 
+/// A number for a message: one decimal, or three significant digits in scientific notation
+/// beyond a million.
+fn short(v: f64) -> String {
+    if v.abs() < 1e6 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
 fn resolve_estimation(
     src: &Source,
     e: Option<&RawEstimation>,
     excitation: &Excitation,
     system: &System,
+    (period, sample_rate): (f64, f64),
 ) -> Result<EstimationSettings, ConfigError> {
     let default_estimators = match excitation {
         Excitation::MultisineDesign { .. } => vec![Estimator::Lines],
@@ -1246,6 +1263,29 @@ fn resolve_estimation(
         &format!("> omega_min ({lo})"),
         |v| v > lo,
     )?;
+    // Every output bin the estimators read, `omega + n omega_T`, must lie below Nyquist.
+    let h_max = harmonics
+        .iter()
+        .map(|h| h.unsigned_abs())
+        .max()
+        .unwrap_or(0);
+    let top = hi + f64::from(h_max) * std::f64::consts::TAU / period;
+    let nyquist = std::f64::consts::PI * sample_rate;
+    if !matches!(excitation, Excitation::None) && top >= nyquist {
+        return Err(src.error(
+            e.omega_max.as_ref().map(|v| v.span()).as_ref(),
+            "estimation.omega_max",
+            format!(
+                "= {} rad/s with harmonics up to {h_max} reads outputs up to {} rad/s, at or \
+                 beyond the Nyquist frequency {} rad/s of simulation.sample_rate = {} Hz; lower \
+                 estimation.omega_max or raise simulation.sample_rate",
+                short(hi),
+                short(top),
+                short(nyquist),
+                short(sample_rate)
+            ),
+        ));
+    }
     let estimators = match &e.estimators {
         None => default_estimators,
         Some(list) => {
