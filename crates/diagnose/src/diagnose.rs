@@ -228,6 +228,13 @@ pub struct Candidate {
     pub significant: bool,
     /// Why it is (not) significant, or why it was skipped.
     pub note: String,
+    /// How many starting points were fitted (a threshold's two signs, contact positions, lags
+    /// across decades; 0 when skipped).
+    #[serde(default)]
+    pub starts: usize,
+    /// The effect's parameters at the start whose fit won (empty when skipped).
+    #[serde(default)]
+    pub best_start: BTreeMap<String, f64>,
 }
 
 /// The answer: the named cause, the extended model's parameters and the measured gain.
@@ -978,6 +985,10 @@ pub(crate) struct Outcome {
     pub val_rmse: f64,
     pub val_nrmse: f64,
     pub note: String,
+    /// Starting points fitted.
+    pub starts: usize,
+    /// The effect's parameters at the winning start.
+    pub best_start: BTreeMap<String, f64>,
 }
 
 /// Fits `effect` together with the parameters `slots` of the model `base` (all jointly), from
@@ -995,6 +1006,8 @@ pub(crate) fn run_candidate(
         val_rmse: f64::NAN,
         val_nrmse: f64::NAN,
         note,
+        starts: 0,
+        best_start: BTreeMap::new(),
     };
     if let Some(reason) = effect.skip_reason(ctx.damper, slots) {
         return failed(reason.to_string());
@@ -1016,16 +1029,26 @@ pub(crate) fn run_candidate(
         .map(|start| ctx.fit(start, &all))
         .collect();
     let evaluations: usize = fits.iter().flatten().map(|f| f.evaluations).sum();
-    let mut best: Option<FitResult> = None;
+    let mut best: Option<(FitResult, usize)> = None;
     let mut error = None;
-    for f in fits {
+    for (i, f) in fits.into_iter().enumerate() {
         match f {
-            Ok(f) if best.as_ref().map_or(true, |b| f.rss < b.rss) => best = Some(f),
+            Ok(f) if best.as_ref().map_or(true, |b| f.rss < b.0.rss) => best = Some((f, i)),
             Ok(_) => {}
             Err(e) => error = Some(e),
         }
     }
-    let best = best.map(|b| FitResult { evaluations, ..b });
+    let best_start: BTreeMap<String, f64> = best
+        .as_ref()
+        .map(|(_, i)| {
+            effect
+                .slots(slots)
+                .into_iter()
+                .map(|s| (s.name().to_string(), starts[*i].get(s)))
+                .collect()
+        })
+        .unwrap_or_default();
+    let best = best.map(|(b, _)| FitResult { evaluations, ..b });
     let Some(fit) = best else {
         return failed(format!(
             "fit failed: {}",
@@ -1039,6 +1062,8 @@ pub(crate) fn run_candidate(
             val_nrmse: ev.score.nrmse,
             fit: Some(fit),
             note: String::new(),
+            starts: starts.len(),
+            best_start,
         },
         Err((t, e)) => failed(format!(
             "the fitted model cannot be simulated on the held-out data (t = {t} s: {e})"
@@ -1257,6 +1282,8 @@ fn conclude(
                     bic: j.outcome.fit.as_ref().map_or(f64::NAN, |f| f.bic),
                     significant: j.passes,
                     note: j.note.clone(),
+                    starts: j.outcome.starts,
+                    best_start: j.outcome.best_start.clone(),
                 }
             })
             .collect();

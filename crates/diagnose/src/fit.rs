@@ -277,7 +277,15 @@ impl Context<'_> {
             start = result.point;
             stepping = needed;
         }
-        Err("the fitted model kept needing a finer integration step".to_string())
+        Err(format!(
+            "the fitted model kept needing a finer integration step (a stiffening contact or a \
+             vanishing lag among {}); bound the parameter or start it nearer the data",
+            slots
+                .iter()
+                .map(|s| s.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))
     }
 
     fn fit_once(
@@ -326,7 +334,8 @@ impl Context<'_> {
         let n = self.n_fit();
         if n <= np {
             return Err(format!(
-                "{n} fitted samples cannot determine {np} parameters"
+                "{n} fitted samples cannot determine {np} parameters; fit a longer range or free \
+                 fewer parameters"
             ));
         }
         let residual_fn = |u: &[f64], r: &mut [f64]| -> Result<(), String> {
@@ -347,7 +356,10 @@ impl Context<'_> {
             bounds: Some(bounds.clone()),
             lambda0: 1e-3,
         };
-        let lm = levenberg_marquardt(residual_fn, &u0, n, &opts).map_err(|e| e.to_string())?;
+        let lm = levenberg_marquardt(residual_fn, &u0, n, &opts).map_err(|e| {
+            let names: Vec<&str> = slots.iter().map(|s| s.name()).collect();
+            format!("{e}; {}", fit_advice(&e, &names))
+        })?;
         let u = lm.params;
         let jac = self.jacobian(
             &layout,
@@ -546,8 +558,64 @@ pub(crate) fn hac(jac: &DMatrix<f64>, r: &[f64], seg_lens: &[usize]) -> (Vec<f64
     (out, inflation)
 }
 
+/// What to try when the output-error fit of the parameters `names` fails with `e`.
+fn fit_advice(e: &htfid_estimate::Error, names: &[&str]) -> String {
+    use htfid_estimate::Error;
+    let list = names.join(", ");
+    match e {
+        Error::ResidualFailed { .. } | Error::NonFiniteResidual { .. } => format!(
+            "the model cannot be simulated from the starting values of {list}: check the \
+             configured parameters and their units, or start them nearer the data"
+        ),
+        Error::JacobianFailed { .. } => format!(
+            "a parameter of {list} sits where a small change stops the simulation: bound it \
+             away from there or start it elsewhere"
+        ),
+        Error::InvalidStart { .. } | Error::InvalidBounds { .. } => format!(
+            "a starting value of {list} lies outside its physical range: check the configured \
+             value and its sign"
+        ),
+        _ => format!(
+            "check the scaling of {list} (values many decades apart) and their starting values"
+        ),
+    }
+}
+
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_failed_fit_says_what_to_try_for_each_kind_of_failure() {
+        use htfid_estimate::Error;
+        let cases = [
+            (
+                Error::ResidualFailed {
+                    message: "t = 3 s: non-finite state".into(),
+                },
+                "cannot be simulated from the starting values of k3, tau",
+            ),
+            (
+                Error::JacobianFailed {
+                    index: 1,
+                    value: 0.0,
+                },
+                "bound it",
+            ),
+            (
+                Error::InvalidStart {
+                    index: 0,
+                    value: -1.0,
+                    lower: 0.0,
+                    upper: 1.0,
+                },
+                "its sign",
+            ),
+        ];
+        for (e, want) in cases {
+            let advice = fit_advice(&e, &["k3", "tau"]);
+            assert!(advice.contains(want), "{e}: {advice}");
+        }
+    }
     use super::*;
     use approx::assert_relative_eq;
     use rand::SeedableRng;

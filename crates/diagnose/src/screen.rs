@@ -144,6 +144,9 @@ impl<'c, 'a> Screening<'c, 'a> {
     /// - A contact position: for each of a grid of low quantiles of the position, the contact
     ///   stiffness comes from the regression; the two grid points of lowest output-error cost
     ///   start fits.
+    /// - A lag or delay: beside the regression's first-order estimate, a grid across decades
+    ///   (0.3 to 1000 sample intervals, up to a tenth of the record) is scored by output error;
+    ///   the best start fits, and so does the best one at least a factor 3 away from it.
     pub(crate) fn starts(
         &self,
         base: &ModelPoint,
@@ -194,6 +197,27 @@ impl<'c, 'a> Screening<'c, 'a> {
                     }
                 }
             }
+            Effect::ActuatorLag | Effect::InputDelay | Effect::SensorLag => {
+                let slot = lag_slot(effect);
+                let first = self.start(base, free, effect);
+                if let Some(c) = self.ctx.fit_cost(&first) {
+                    scored.push((c, first, 0));
+                }
+                // Lags and delays across decades, up to a tenth of the record.
+                let dt = self.ctx.record.dt();
+                let longest = 0.1 * dt * self.ctx.record.len() as f64;
+                for steps in [0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0] {
+                    let v = steps * dt;
+                    if v > longest {
+                        break;
+                    }
+                    let mut p = *base;
+                    p.set(slot, v);
+                    if let Some(c) = self.ctx.fit_cost(&p) {
+                        scored.push((c, p, 0));
+                    }
+                }
+            }
             _ => return vec![self.start(base, free, effect)],
         }
         scored.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -203,6 +227,21 @@ impl<'c, 'a> Screening<'c, 'a> {
                 for side in [-1i8, 1] {
                     if let Some((_, p, _)) = scored.iter().find(|s| s.2 == side) {
                         starts.push(*p);
+                    }
+                }
+            }
+            Effect::ActuatorLag | Effect::InputDelay | Effect::SensorLag => {
+                // The best start, and the best one at least a factor 3 away from it (another
+                // basin), if any.
+                let slot = lag_slot(effect);
+                if let Some(&(_, best, _)) = scored.first() {
+                    starts.push(best);
+                    let b = best.get(slot);
+                    if let Some(&(_, other, _)) = scored.iter().find(|s| {
+                        let v = s.1.get(slot);
+                        v > 3.0 * b || 3.0 * v < b
+                    }) {
+                        starts.push(other);
                     }
                 }
             }
@@ -265,6 +304,15 @@ impl<'c, 'a> Screening<'c, 'a> {
             }
         }
         p
+    }
+}
+
+/// The parameter of a lag or delay effect.
+fn lag_slot(effect: Effect) -> Slot {
+    match effect {
+        Effect::ActuatorLag => Slot::Tau,
+        Effect::SensorLag => Slot::TauS,
+        _ => Slot::Delay,
     }
 }
 

@@ -206,7 +206,9 @@ fn report_carries_the_json_contract_and_consistent_outputs() {
             "rmse_validation",
             "bic",
             "significant",
-            "note"
+            "note",
+            "starts",
+            "best_start"
         ])
     );
     assert_eq!(json["candidates"][0]["effect"], "cubic_stiffness");
