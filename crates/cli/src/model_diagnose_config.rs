@@ -50,6 +50,11 @@ struct RawOptions {
     burn_in: Option<Spanned<f64>>,
     significance_sigma: Option<Spanned<f64>>,
     min_gain: Option<Spanned<f64>>,
+    effects: Option<Spanned<Vec<String>>>,
+    alpha: Option<Spanned<f64>>,
+    rival_margin: Option<Spanned<f64>>,
+    unexplained_ratio: Option<Spanned<f64>>,
+    min_explained: Option<Spanned<f64>>,
 }
 
 /// Resolved settings of a model-file diagnosis.
@@ -193,6 +198,47 @@ impl ModelDiagnoseSettings {
             options.min_gain = src.number(v, "diagnose.min_gain", "in [0, 1)", |x| {
                 (0.0..1.0).contains(&x)
             })?;
+        }
+        if let Some(v) = o.and_then(|o| o.alpha.as_ref()) {
+            options.alpha =
+                src.number(v, "diagnose.alpha", "in (0, 0.5]", |x| x > 0.0 && x <= 0.5)?;
+        }
+        if let Some(v) = o.and_then(|o| o.rival_margin.as_ref()) {
+            options.rival_margin = src.number(v, "diagnose.rival_margin", "in [0, 1]", |x| {
+                (0.0..=1.0).contains(&x)
+            })?;
+        }
+        if let Some(v) = o.and_then(|o| o.unexplained_ratio.as_ref()) {
+            options.unexplained_ratio =
+                src.number(v, "diagnose.unexplained_ratio", ">= 1", |x| x >= 1.0)?;
+        }
+        if let Some(v) = o.and_then(|o| o.min_explained.as_ref()) {
+            options.min_explained = src.number(v, "diagnose.min_explained", "in [0, 1]", |x| {
+                (0.0..=1.0).contains(&x)
+            })?;
+        }
+        if let Some(list) = o.and_then(|o| o.effects.as_ref()) {
+            let mut effects = Vec::new();
+            for name in list.get_ref() {
+                let Some(e) = htfid_diagnose::BoundaryEffect::from_name(name) else {
+                    let known: Vec<&str> = htfid_diagnose::BoundaryEffect::ALL
+                        .iter()
+                        .map(|e| e.name())
+                        .collect();
+                    return Err(src.error(
+                        Some(&list.span()),
+                        "diagnose.effects",
+                        format!(
+                            "unknown effect \"{name}\" for a model file; expected some of {}",
+                            known.join(", ")
+                        ),
+                    ));
+                };
+                if !effects.contains(&e) {
+                    effects.push(e);
+                }
+            }
+            options.effects = effects;
         }
         Ok(ModelDiagnoseSettings {
             name,

@@ -181,6 +181,7 @@
 //! # Ok::<(), htfid_diagnose::DiagnoseError>(())
 //! ```
 
+mod boundary;
 mod deriv;
 mod diagnose;
 mod discover;
@@ -197,6 +198,7 @@ mod select;
 mod sensor;
 mod sim;
 
+pub use boundary::BoundaryEffect;
 pub use diagnose::{
     diagnose, diagnose_with_progress, simulate_record, Candidate, Cause, DiagnoseOptions,
     Diagnosis, DiagnosisReport, FittedModel, Score,
@@ -206,8 +208,8 @@ pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use interp::Interpolation;
 pub use model_fit::{
-    diagnose_model, ModelCause, ModelDiagnosis, ModelFitOptions, ModelRecord, ModelScore,
-    ParameterChange,
+    diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelFitOptions, ModelRecord,
+    ModelScore, ParameterChange,
 };
 pub use nominal::NominalModel;
 pub use record::Record;

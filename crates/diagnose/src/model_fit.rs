@@ -10,6 +10,7 @@ use htfid_lang::{InputFn, Model};
 use htfid_orbit::ShootingOptions;
 use serde::Serialize;
 
+use crate::boundary::{Boundary, BoundaryEffect};
 use crate::interp::{Interpolation, SampledSignal};
 use crate::DiagnoseError;
 
@@ -41,6 +42,22 @@ pub struct ModelFitOptions {
     pub min_gain: f64,
     /// Integrator tolerance of every simulation.
     pub rtol: f64,
+    /// Boundary effects tried after the refit (all by default).
+    pub effects: Vec<BoundaryEffect>,
+    /// Significance level of the likelihood-ratio test of an effect.
+    pub alpha: f64,
+    /// Two significant effects whose held-out NRMSEs differ by less than this fraction of the
+    /// better one explain the data equally well: the answer is `ambiguous`.
+    pub rival_margin: f64,
+    /// The answer is `unexplained` when the best model's held-out residual stays above this
+    /// many times the noise floor while its effect removes less than `min_explained` of the
+    /// refit's error above the floor.
+    pub unexplained_ratio: f64,
+    /// See `unexplained_ratio`.
+    pub min_explained: f64,
+    /// Held-out NRMSE below which a model explains the data (the simulation's own accuracy
+    /// on noise-free records): no effect is claimed and nothing is unexplained below it.
+    pub resolution: f64,
 }
 
 impl Default for ModelFitOptions {
@@ -52,6 +69,12 @@ impl Default for ModelFitOptions {
             significance_sigma: 5.0,
             min_gain: 0.05,
             rtol: 1e-8,
+            effects: BoundaryEffect::ALL.to_vec(),
+            alpha: 1e-4,
+            rival_margin: 0.01,
+            unexplained_ratio: 5.0,
+            min_explained: 0.999,
+            resolution: 1e-3,
         }
     }
 }
@@ -89,10 +112,16 @@ pub struct ParameterChange {
     pub z: f64,
 }
 
-/// What a model-file diagnosis names.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+/// What a model-file diagnosis names (in JSON, its [`ModelCause::name`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ModelCause {
+    /// A boundary effect passes the likelihood-ratio test and improves the held-out error
+    /// over the refit by at least `min_gain`, and no other explains the data as well.
+    Effect(BoundaryEffect),
+    /// Two or more boundary effects pass and fit equally well (`alternatives`).
+    Ambiguous,
+    /// Clear structure remains that neither the refit nor a boundary effect explains.
+    Unexplained,
     /// Some parameter moved significantly and the refit improves the held-out error by at
     /// least `min_gain`.
     ParameterError,
@@ -104,8 +133,56 @@ impl ModelCause {
     /// The name used in `diagnosis.json`.
     pub fn name(self) -> &'static str {
         match self {
+            ModelCause::Effect(e) => e.name(),
+            ModelCause::Ambiguous => "ambiguous",
+            ModelCause::Unexplained => "unexplained",
             ModelCause::ParameterError => "parameter_error",
             ModelCause::None => "none",
+        }
+    }
+}
+
+impl Serialize for ModelCause {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+/// One boundary effect fitted jointly with the free parameters.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelCandidate {
+    /// The effect's name ([`BoundaryEffect::name`]).
+    pub effect: String,
+    /// The fitted free parameters and the effect's parameters, by name.
+    pub parameters: std::collections::BTreeMap<String, f64>,
+    /// Their standard errors, inflated for correlated residuals.
+    pub stderr: std::collections::BTreeMap<String, f64>,
+    /// Mean held-out NRMSE over the outputs (NaN, `null` in JSON, when the fit failed).
+    pub nrmse_validation: f64,
+    /// Held-out improvement over the refit without the effect.
+    pub gain: f64,
+    /// Likelihood ratio against the refit, corrected for the residuals' correlation.
+    pub likelihood_ratio: f64,
+    /// The ratio it must reach (chi-square quantile at `alpha`, one degree per parameter).
+    pub critical: f64,
+    /// Whether both tests pass.
+    pub significant: bool,
+    /// Why, in words; or why the fit failed.
+    pub note: String,
+}
+
+impl ModelCandidate {
+    fn failed(effect: BoundaryEffect, note: String) -> Self {
+        ModelCandidate {
+            effect: effect.name().to_string(),
+            parameters: Default::default(),
+            stderr: Default::default(),
+            nrmse_validation: f64::NAN,
+            gain: f64::NAN,
+            likelihood_ratio: f64::NAN,
+            critical: f64::NAN,
+            significant: false,
+            note,
         }
     }
 }
@@ -130,12 +207,27 @@ pub struct ModelDiagnosis {
     pub iterations: usize,
     /// Why it stopped.
     pub stop: String,
+    /// Every boundary effect tried, best held-out score first.
+    pub candidates: Vec<ModelCandidate>,
+    /// The chosen effect's fit, when the cause is an effect.
+    pub extended: Option<ModelCandidate>,
+    /// With `ambiguous`: the effects that fit equally well, the best first.
+    pub alternatives: Vec<String>,
+    /// Noise floor of the best model's residual on the fit data, in NRMSE units (the white
+    /// noise level of its spectrum between 60 % and 95 % of the Nyquist frequency).
+    pub noise_floor: f64,
+    /// Share of the refit's held-out error above the noise floor that the chosen effect
+    /// removes (0 without one).
+    pub explained: f64,
     /// The refitted model's simulated outputs at every sample.
     #[serde(skip)]
     pub simulated: Vec<Vec<f64>>,
     /// The configured model's simulated outputs at every sample.
     #[serde(skip)]
     pub simulated_configured: Vec<Vec<f64>>,
+    /// The extended model's simulated outputs (with the chosen effect), when there is one.
+    #[serde(skip)]
+    pub simulated_extended: Option<Vec<Vec<f64>>>,
 }
 
 fn sim_failure(reason: impl ToString) -> DiagnoseError {
@@ -199,7 +291,9 @@ fn simulate_outputs(
     let mut out = vec![vec![0.0; rec.t.len()]; p];
     let mut y = vec![0.0; p];
     for i in 0..rec.t.len() {
-        driven.eval_outputs(traj.modes[i], rec.t[i], traj.state(i), rec.u[i], &mut y);
+        // Outputs that read the input see the applied one.
+        let u = input(rec.t[i]);
+        driven.eval_outputs(traj.modes[i], rec.t[i], traj.state(i), u, &mut y);
         for (column, v) in out.iter_mut().zip(&y) {
             column[i] = *v;
         }
@@ -235,7 +329,8 @@ fn correlation_inflation(r: &[f64]) -> f64 {
 /// scored, the output scales, and the model's starting point.
 struct Prepared<'a> {
     rec: &'a ModelRecord,
-    input: InputFn,
+    signal: Arc<SampledSignal>,
+    dt: f64,
     rows: std::ops::Range<usize>,
     scale: Vec<f64>,
     mode0: htfid_lang::Mode,
@@ -280,7 +375,6 @@ impl<'a> Prepared<'a> {
             &rec.u,
             Interpolation::CubicSpline,
         ));
-        let input: InputFn = Arc::new(move |t| signal.eval(t));
         let sim_opts = Options {
             rtol: opts.rtol,
             atol: opts.rtol * 1e-2,
@@ -289,7 +383,8 @@ impl<'a> Prepared<'a> {
         let (mode0, guess) = start_state(model, rec.t[0], &sim_opts)?;
         Ok(Prepared {
             rec,
-            input,
+            signal,
+            dt,
             rows,
             scale,
             mode0,
@@ -302,14 +397,17 @@ impl<'a> Prepared<'a> {
         self.rec.y.len() * self.rows.len()
     }
 
-    fn simulate(&self, model: &Model, x0: &[f64]) -> Result<Vec<Vec<f64>>, DiagnoseError> {
-        simulate_outputs(
-            model,
-            self.rec,
-            &self.input,
-            (self.mode0, x0),
-            &self.sim_opts,
-        )
+    /// The recorded outputs `model` gives from `x0` with the boundary `b`.
+    fn simulate(
+        &self,
+        model: &Model,
+        x0: &[f64],
+        b: &Boundary,
+    ) -> Result<Vec<Vec<f64>>, DiagnoseError> {
+        let input = b.input(&self.signal);
+        let mut y = simulate_outputs(model, self.rec, &input, (self.mode0, x0), &self.sim_opts)?;
+        b.outputs(self.dt, &mut y);
+        Ok(y)
     }
 
     fn fill(&self, sim: &[Vec<f64>], r: &mut [f64]) {
@@ -324,9 +422,14 @@ impl<'a> Prepared<'a> {
     /// The initial state that best fits the scored samples with `model`'s parameters fixed:
     /// the record starts wherever the measured system was, so neither the configured nor the
     /// refitted model is charged with a start nobody specified.
-    fn fit_state(&self, model: &Model, x0: &[f64]) -> Result<Vec<f64>, DiagnoseError> {
+    fn fit_state(
+        &self,
+        model: &Model,
+        x0: &[f64],
+        b: &Boundary,
+    ) -> Result<Vec<f64>, DiagnoseError> {
         let residuals = |z: &[f64], r: &mut [f64]| -> Result<(), String> {
-            let sim = self.simulate(model, z).map_err(|e| e.to_string())?;
+            let sim = self.simulate(model, z, b).map_err(|e| e.to_string())?;
             self.fill(&sim, r);
             Ok(())
         };
@@ -392,34 +495,37 @@ pub fn diagnose_model(
         None => None,
     };
     // Score of a model with fitted state `x_est` on the estimation record.
-    let score_of =
-        |m: &Model, x_est: &[f64]| -> Result<(ModelScore, Vec<Vec<f64>>), DiagnoseError> {
-            let sim = est.simulate(m, x_est)?;
-            let (_, nrmse_fit) = est.errors(&sim, est.rows.clone());
-            let (rmse_validation, nrmse_validation, shown) = match &val {
-                None => {
-                    let (r, q) = est.errors(&sim, cut..n);
-                    (r, q, sim)
-                }
-                Some(v) => {
-                    let x = v.fit_state(m, &v.guess)?;
-                    let vsim = v.simulate(m, &x)?;
-                    let (r, q) = v.errors(&vsim, v.rows.clone());
-                    (r, q, vsim)
-                }
-            };
-            Ok((
-                ModelScore {
-                    nrmse_fit,
-                    nrmse_validation,
-                    rmse_validation,
-                },
-                shown,
-            ))
+    let score_of = |m: &Model,
+                    x_est: &[f64],
+                    b: &Boundary|
+     -> Result<(ModelScore, Vec<Vec<f64>>), DiagnoseError> {
+        let sim = est.simulate(m, x_est, b)?;
+        let (_, nrmse_fit) = est.errors(&sim, est.rows.clone());
+        let (rmse_validation, nrmse_validation, shown) = match &val {
+            None => {
+                let (r, q) = est.errors(&sim, cut..n);
+                (r, q, sim)
+            }
+            Some(v) => {
+                let x = v.fit_state(m, &v.guess, b)?;
+                let vsim = v.simulate(m, &x, b)?;
+                let (r, q) = v.errors(&vsim, v.rows.clone());
+                (r, q, vsim)
+            }
         };
+        Ok((
+            ModelScore {
+                nrmse_fit,
+                nrmse_validation,
+                rmse_validation,
+            },
+            shown,
+        ))
+    };
     // A configured model off by orders of magnitude is refused before the fits, which would
     // spend hundreds of simulations on it.
-    let first = est.simulate(model, &est.guess)?;
+    let ideal = Boundary::default();
+    let first = est.simulate(model, &est.guess, &ideal)?;
     let (_, nrmse) = est.errors(&first, est.rows.clone());
     if let Some((o, &q)) = nrmse
         .iter()
@@ -432,8 +538,8 @@ pub fn diagnose_model(
             limit: MAX_CONFIGURED_NRMSE,
         });
     }
-    let x_configured = est.fit_state(model, &est.guess)?;
-    let (configured, configured_sim) = score_of(model, &x_configured)?;
+    let x_configured = est.fit_state(model, &est.guess, &ideal)?;
+    let (configured, configured_sim) = score_of(model, &x_configured, &ideal)?;
 
     let index: Vec<usize> = opts
         .free
@@ -448,85 +554,170 @@ pub fn diagnose_model(
                 })
         })
         .collect::<Result<_, _>>()?;
-    if index.is_empty() {
-        return Ok(ModelDiagnosis {
-            cause: ModelCause::None,
-            refitted: configured.clone(),
-            configured,
-            parameters: Vec::new(),
-            gain: 0.0,
-            stderr_inflation: 1.0,
-            iterations: 0,
-            stop: "nothing to fit".into(),
-            simulated: configured_sim.clone(),
-            simulated_configured: configured_sim,
-        });
-    }
-    let k = index.len();
-    let dim = est.guess.len();
-    // Parameters first, then the initial state.
-    let mut p0: Vec<f64> = index.iter().map(|&i| model.values()[i]).collect();
-    p0.extend_from_slice(&x_configured);
     let names: Vec<&str> = opts.free.iter().map(String::as_str).collect();
-    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
-        let changes: Vec<(&str, f64)> = names.iter().copied().zip(p.iter().copied()).collect();
-        let trial = model.with_parameters(&changes).map_err(|e| e.to_string())?;
-        let sim = est.simulate(&trial, &p[k..]).map_err(|e| e.to_string())?;
-        est.fill(&sim, r);
-        Ok(())
+    let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
+    let joint = Joint {
+        est: &est,
+        model,
+        names: &names,
+        index: &index,
     };
-    let params = model.parameters();
-    let mut bounds: Vec<(f64, f64)> = index
-        .iter()
-        .map(|&i| (params[i].min, params[i].max))
-        .collect();
-    bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(dim));
-    let lm = LmOptions {
-        scales: Some(p0.iter().map(|v| v.abs().max(1e-3)).collect()),
-        bounds: Some(bounds),
-        ..LmOptions::default()
-    };
-    let fit = levenberg_marquardt(residuals, &p0, est.residual_len(), &lm).map_err(|e| {
-        DiagnoseError::NominalFit {
-            reason: e.to_string(),
-        }
-    })?;
-    let changes: Vec<(&str, f64)> = names
-        .iter()
-        .copied()
-        .zip(fit.params[..k].iter().copied())
-        .collect();
-    let refitted_model =
-        model
-            .with_parameters(&changes)
-            .map_err(|e| DiagnoseError::NominalFit {
-                reason: e.to_string(),
-            })?;
-    let (refitted, refitted_sim) = score_of(&refitted_model, &fit.params[k..])?;
-    let inflation = correlation_inflation(&fit.residuals);
+    // The refit of the free parameters (and the initial state) alone.
+    let base = joint.fit(None, &[], &x_configured)?;
+    let k = index.len();
+    let refitted_model = joint.model_at(&base.params[..k])?;
+    let (refitted, refitted_sim) = score_of(&refitted_model, &base.state, &ideal)?;
+    let inflation = correlation_inflation(&base.residuals);
+    let p0: Vec<f64> = index.iter().map(|&i| model.values()[i]).collect();
     let parameters: Vec<ParameterChange> = names
         .iter()
         .enumerate()
         .map(|(j, name)| {
-            let stderr = fit.stderr.as_ref().map_or(f64::NAN, |s| s[j]) * inflation;
+            let stderr = base.stderr[j] * inflation;
             ParameterChange {
                 name: (*name).to_string(),
                 configured: p0[j],
-                fitted: fit.params[j],
+                fitted: base.params[j],
                 stderr,
-                z: (fit.params[j] - p0[j]) / stderr,
+                z: (base.params[j] - p0[j]) / stderr,
             }
         })
         .collect();
-    let gain = 1.0 - refitted.validation() / configured.validation();
+    let gain = if k == 0 {
+        0.0
+    } else {
+        1.0 - refitted.validation() / configured.validation()
+    };
     let moved = parameters
         .iter()
         .any(|p| p.z.abs() >= opts.significance_sigma);
-    let cause = if moved && gain >= opts.min_gain {
-        ModelCause::ParameterError
-    } else {
-        ModelCause::None
+
+    // Boundary effects, each fitted jointly with the free parameters and tested against the
+    // refit: a likelihood ratio corrected for the residuals' correlation, and a held-out gain.
+    let n = est.residual_len();
+    let mut candidates: Vec<(ModelCandidate, Option<Vec<Vec<f64>>>, Vec<f64>)> = Vec::new();
+    for &effect in &opts.effects {
+        let start = joint.effect_start(effect, &base, &outputs);
+        let names_e = effect.parameter_names(&outputs);
+        let fitted = joint.fit(Some(effect), &start, &base.state).and_then(|f| {
+            let m = joint.model_at(&f.params[..k])?;
+            let b = Boundary::with(effect, &f.params[k..], outputs.len());
+            let (score, sim) = score_of(&m, &f.state, &b)?;
+            Ok((f, score, sim))
+        });
+        let (f, score, sim) = match fitted {
+            Ok(v) => v,
+            Err(e) => {
+                candidates.push((
+                    ModelCandidate::failed(effect, format!("fit failed: {e}")),
+                    None,
+                    Vec::new(),
+                ));
+                continue;
+            }
+        };
+        let kappa = correlation_inflation(&f.residuals).powi(2);
+        let ratio = base.rss / f.rss.max(f64::MIN_POSITIVE);
+        let lr = if ratio.is_finite() && ratio > 0.0 {
+            n as f64 * ratio.ln() / kappa
+        } else {
+            0.0
+        };
+        let critical = crate::select::chi2_quantile(names_e.len(), opts.alpha);
+        let gain_e = 1.0 - score.validation() / refitted.validation();
+        // Nothing is left to explain once the refit is within the resolution.
+        let significant =
+            lr >= critical && gain_e >= opts.min_gain && refitted.validation() > opts.resolution;
+        let infl = kappa.sqrt();
+        let mut parameters = std::collections::BTreeMap::new();
+        let mut stderr = std::collections::BTreeMap::new();
+        for (j, name) in names.iter().enumerate() {
+            parameters.insert((*name).to_string(), f.params[j]);
+            stderr.insert((*name).to_string(), f.stderr[j] * infl);
+        }
+        for (j, name) in names_e.iter().enumerate() {
+            parameters.insert(name.clone(), f.params[k + j]);
+            stderr.insert(name.clone(), f.stderr[k + j] * infl);
+        }
+        let note = format!(
+            "likelihood ratio {lr:.1} (critical {critical:.1}), held-out gain {:.1} % over the \
+             refit (at least {:.1} %)",
+            100.0 * gain_e,
+            100.0 * opts.min_gain
+        );
+        candidates.push((
+            ModelCandidate {
+                effect: effect.name().to_string(),
+                parameters,
+                stderr,
+                nrmse_validation: score.validation(),
+                gain: gain_e,
+                likelihood_ratio: lr,
+                critical,
+                significant,
+                note,
+            },
+            Some(sim),
+            f.residuals,
+        ));
+    }
+    candidates.sort_by(|a, b| a.0.nrmse_validation.total_cmp(&b.0.nrmse_validation));
+    let best = candidates.iter().position(|c| c.0.significant);
+    // A significant rival within `rival_margin` of the best held-out score explains the data
+    // as well: the data cannot tell them apart.
+    let alternatives: Vec<String> = match best {
+        Some(b) => {
+            let best_score = candidates[b].0.nrmse_validation;
+            candidates
+                .iter()
+                .enumerate()
+                .filter(|(i, c)| {
+                    *i != b
+                        && c.0.significant
+                        && c.0.nrmse_validation <= best_score * (1.0 + opts.rival_margin)
+                })
+                .map(|(_, c)| c.0.effect.clone())
+                .collect()
+        }
+        None => Vec::new(),
     };
+    // The noise floor of the best model's residual (scaled by each output's spread, so in
+    // NRMSE units), from the band 60-95 % of the Nyquist frequency.
+    let best_residuals = match best {
+        Some(b) => candidates[b].2.clone(),
+        None => base.residuals.clone(),
+    };
+    let rows = est.rows.len().max(1);
+    let per_output: Vec<&[f64]> = best_residuals.chunks(rows).collect();
+    let noise_floor = crate::noise::noise_floor(&per_output, (0.6, 0.95)).unwrap_or(f64::NAN);
+    let best_score = best.map_or(refitted.validation(), |b| candidates[b].0.nrmse_validation);
+    let floor2 = noise_floor * noise_floor;
+    let explained = if best.is_some() {
+        1.0 - (best_score.powi(2) - floor2).max(0.0)
+            / (refitted.validation().powi(2) - floor2).max(f64::MIN_POSITIVE)
+    } else {
+        0.0
+    };
+    let structure_left = noise_floor.is_finite()
+        && best_score > opts.unexplained_ratio * noise_floor
+        && best_score > opts.resolution;
+    let cause = match best {
+        _ if structure_left && explained < opts.min_explained => ModelCause::Unexplained,
+        Some(_) if !alternatives.is_empty() => ModelCause::Ambiguous,
+        Some(b) => ModelCause::Effect(
+            BoundaryEffect::from_name(&candidates[b].0.effect).unwrap_or(BoundaryEffect::ALL[0]),
+        ),
+        None if moved && gain >= opts.min_gain => ModelCause::ParameterError,
+        None => ModelCause::None,
+    };
+    let (extended, simulated_extended) = match best {
+        Some(b) => (Some(candidates[b].0.clone()), candidates[b].1.clone()),
+        None => (None, None),
+    };
+    let mut alternatives = alternatives;
+    if let (ModelCause::Ambiguous, Some(b)) = (cause, best) {
+        alternatives.insert(0, candidates[b].0.effect.clone());
+    }
     Ok(ModelDiagnosis {
         cause,
         configured,
@@ -534,9 +725,186 @@ pub fn diagnose_model(
         parameters,
         gain,
         stderr_inflation: inflation,
-        iterations: fit.iterations,
-        stop: format!("{:?}", fit.stop),
+        iterations: base.iterations,
+        stop: base.stop,
+        candidates: candidates.into_iter().map(|c| c.0).collect(),
+        extended,
+        alternatives,
+        noise_floor,
+        explained,
         simulated: refitted_sim,
         simulated_configured: configured_sim,
+        simulated_extended,
     })
+}
+
+/// One joint output-error fit: free parameters, effect parameters and the initial state.
+struct JointFit {
+    /// Free parameters, then the effect's.
+    params: Vec<f64>,
+    stderr: Vec<f64>,
+    state: Vec<f64>,
+    residuals: Vec<f64>,
+    rss: f64,
+    iterations: usize,
+    stop: String,
+}
+
+/// Joint fits of a model's free parameters with a boundary effect on one record.
+struct Joint<'a, 'r> {
+    est: &'a Prepared<'r>,
+    model: &'a Model,
+    names: &'a [&'a str],
+    index: &'a [usize],
+}
+
+impl Joint<'_, '_> {
+    /// The longest lag or delay tried: a tenth of the record and, for a forced model, half its
+    /// period (a delay of a whole period reproduces a periodic response).
+    fn longest_lag(&self) -> f64 {
+        let record = 0.1 * self.est.dt * self.est.rec.t.len() as f64;
+        self.model
+            .period()
+            .map_or(record, |period| record.min(0.5 * period))
+    }
+
+    fn model_at(&self, values: &[f64]) -> Result<Model, DiagnoseError> {
+        let changes: Vec<(&str, f64)> = self
+            .names
+            .iter()
+            .copied()
+            .zip(values.iter().copied())
+            .collect();
+        self.model
+            .with_parameters(&changes)
+            .map_err(|e| DiagnoseError::NominalFit {
+                reason: e.to_string(),
+            })
+    }
+
+    /// A start for `effect`'s parameters: the neutral values for an offset and a gain; for a
+    /// lag or delay, the best of a grid across decades (1 to 300 sample intervals, up to a
+    /// tenth of the record) by the output error with the refit's parameters and state.
+    fn effect_start(
+        &self,
+        effect: BoundaryEffect,
+        base: &JointFit,
+        outputs: &[String],
+    ) -> Vec<f64> {
+        if !effect.is_lag() {
+            return effect.neutral(outputs.len());
+        }
+        let est = self.est;
+        let longest = 0.1 * est.dt * est.rec.t.len() as f64;
+        let Ok(m) = self.model_at(&base.params[..self.index.len()]) else {
+            return vec![est.dt];
+        };
+        let mut r = vec![0.0; est.residual_len()];
+        let mut best = (f64::INFINITY, 0.0);
+        // Zero (the refit itself) competes, so the start is never worse than the refit.
+        for steps in [0.0, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0] {
+            let v = steps * est.dt;
+            if v > longest.min(self.longest_lag()) {
+                break;
+            }
+            let b = Boundary::with(effect, &[v], outputs.len());
+            if let Ok(sim) = est.simulate(&m, &base.state, &b) {
+                est.fill(&sim, &mut r);
+                let cost: f64 = r.iter().map(|v| v * v).sum();
+                if cost < best.0 {
+                    best = (cost, v);
+                }
+            }
+        }
+        vec![best.1]
+    }
+
+    /// Fits the free parameters, `effect`'s parameters (from `effect_start`) and the initial
+    /// state (from `x0`) together.
+    fn fit(
+        &self,
+        effect: Option<BoundaryEffect>,
+        effect_start: &[f64],
+        x0: &[f64],
+    ) -> Result<JointFit, DiagnoseError> {
+        let (est, model) = (self.est, self.model);
+        let k = self.index.len();
+        let e = effect_start.len();
+        let outputs = model.outputs().len();
+        let mut p0: Vec<f64> = self.index.iter().map(|&i| model.values()[i]).collect();
+        p0.extend_from_slice(effect_start);
+        p0.extend_from_slice(x0);
+        let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+            let trial = self.model_at(&p[..k]).map_err(|e| e.to_string())?;
+            let b = match effect {
+                Some(effect) => Boundary::with(effect, &p[k..k + e], outputs),
+                None => Boundary::default(),
+            };
+            let sim = est
+                .simulate(&trial, &p[k + e..], &b)
+                .map_err(|e| e.to_string())?;
+            est.fill(&sim, r);
+            Ok(())
+        };
+        let params = model.parameters();
+        let mut bounds: Vec<(f64, f64)> = self
+            .index
+            .iter()
+            .map(|&i| (params[i].min, params[i].max))
+            .collect();
+        let lag = effect.is_some_and(BoundaryEffect::is_lag);
+        bounds.extend(
+            std::iter::repeat(if lag {
+                (0.0, self.longest_lag())
+            } else {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            })
+            .take(e),
+        );
+        bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(x0.len()));
+        let mut scales: Vec<f64> = p0[..k].iter().map(|v| v.abs().max(1e-3)).collect();
+        scales.extend(effect_start.iter().enumerate().map(|(j, v)| {
+            if lag {
+                v.abs().max(est.dt)
+            } else if effect == Some(BoundaryEffect::InputOffset) {
+                input_scale(est.rec)
+            } else if j % 2 == 0 {
+                est.scale[j / 2]
+            } else {
+                0.1
+            }
+        }));
+        scales.extend(x0.iter().map(|v| v.abs().max(1e-3)));
+        let lm = LmOptions {
+            scales: Some(scales),
+            bounds: Some(bounds),
+            ..LmOptions::default()
+        };
+        let fit = levenberg_marquardt(residuals, &p0, est.residual_len(), &lm).map_err(|e| {
+            DiagnoseError::NominalFit {
+                reason: e.to_string(),
+            }
+        })?;
+        let np = k + e;
+        Ok(JointFit {
+            params: fit.params[..np].to_vec(),
+            stderr: match &fit.stderr {
+                Some(s) => s[..np].to_vec(),
+                None => vec![f64::NAN; np],
+            },
+            state: fit.params[np..].to_vec(),
+            rss: fit.residuals.iter().map(|v| v * v).sum(),
+            residuals: fit.residuals,
+            iterations: fit.iterations,
+            stop: format!("{:?}", fit.stop),
+        })
+    }
+}
+
+/// The input's standard deviation (at least 1e-3), the scale of an input offset.
+fn input_scale(rec: &ModelRecord) -> f64 {
+    let n = rec.u.len().max(1) as f64;
+    let mean = rec.u.iter().sum::<f64>() / n;
+    let var = rec.u.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    var.sqrt().max(1e-3)
 }

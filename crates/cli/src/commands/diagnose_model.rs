@@ -123,6 +123,11 @@ pub fn run(
         "stderr_inflation": d.stderr_inflation,
         "iterations": d.iterations,
         "stop": d.stop,
+        "candidates": d.candidates,
+        "extended": d.extended,
+        "alternatives": d.alternatives,
+        "noise_floor": d.noise_floor,
+        "explained": d.explained,
         "validation": validation_json,
         "options": {
             "free": s.options.free,
@@ -130,6 +135,11 @@ pub fn run(
             "burn_in": s.options.burn_in,
             "significance_sigma": s.options.significance_sigma,
             "min_gain": s.options.min_gain,
+            "alpha": s.options.alpha,
+            "rival_margin": s.options.rival_margin,
+            "unexplained_ratio": s.options.unexplained_ratio,
+            "min_explained": s.options.min_explained,
+            "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
         },
     });
     outdir.write_text("diagnosis.json", &json_text(&json))?;
@@ -298,6 +308,61 @@ fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
                 .join(", "),
             100.0 * d.gain
         ),
+        ModelCause::Effect(e) => {
+            let c = d.extended.as_ref();
+            format!(
+                "The configured model `{}` misses an effect on its boundary: `{}` ({}) lowers the \
+                 held-out error by {:.1} % beyond the refit of the free parameters (likelihood \
+                 ratio {:.1}, at least {:.1} needed).",
+                s.model.name(),
+                e.name(),
+                c.map(|c| {
+                    c.parameters
+                        .iter()
+                        .filter(|(k, _)| !s.options.free.contains(k))
+                        .map(|(k, v)| format!("{k} = {v:.4} ± {:.2}", c.stderr[k]))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                })
+                .unwrap_or_default(),
+                100.0 * c.map_or(f64::NAN, |c| c.gain),
+                c.map_or(f64::NAN, |c| c.likelihood_ratio),
+                c.map_or(f64::NAN, |c| c.critical)
+            )
+        }
+        ModelCause::Ambiguous => format!(
+            "Several effects on the boundary of `{}` explain the data equally well: {}. An \
+             experiment that separates the input side from the output side (a measured actuator \
+             output, or a second sensor) would tell them apart.",
+            s.model.name(),
+            d.alternatives
+                .iter()
+                .map(|a| format!("`{a}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        ModelCause::Unexplained => format!(
+            "Clear structure remains in the residual of `{}` that neither the refit nor an \
+             effect on its boundary explains: the best model's held-out NRMSE {:.3} % stays \
+             above {} times the noise floor {:.3} %{}. The cause is likely inside the model's \
+             equations (friction, an extra damping, a stiffness law): extend the model with a \
+             candidate term and diagnose again.",
+            s.model.name(),
+            100.0
+                * d.extended
+                    .as_ref()
+                    .map_or(d.refitted.validation(), |c| c.nrmse_validation),
+            s.options.unexplained_ratio,
+            100.0 * d.noise_floor,
+            match &d.extended {
+                Some(c) => format!(
+                    ", and the best effect, `{}`, removes only {:.1} % of the error above it",
+                    c.effect,
+                    100.0 * d.explained
+                ),
+                None => String::new(),
+            }
+        ),
         ModelCause::None => format!(
             "No parameter of `{}` moved by {} standard errors with a held-out gain of {:.0} %: \
              the configured model describes the data as well as a refit does.",
@@ -309,10 +374,36 @@ fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
     let _ = writeln!(r, "{verdict}\n");
     let _ = writeln!(
         r,
-        "Only the model's own parameters are refitted here: an effect the model lacks (friction, \
-         an extra damping, a sensor lag) shows as shifted parameters and a residual with \
-         structure. Extend the model with a candidate term and diagnose again to measure its gain.\n"
+        "Beside the model's own parameters, effects on its boundary are tried, each fitted \
+         jointly with the free parameters: an input offset, delay or lag, and a sensor offset \
+         and gain or lag. An effect inside the model's equations (friction, an extra damping) \
+         shows as shifted parameters and a residual with structure: extend the model with a \
+         candidate term and diagnose again to measure its gain.\n"
     );
+    if !d.candidates.is_empty() {
+        let _ = writeln!(
+            r,
+            "| effect | held-out NRMSE | gain over the refit | likelihood ratio (critical) | \
+             significant |\n|---|---|---|---|---|"
+        );
+        for c in &d.candidates {
+            if c.nrmse_validation.is_finite() {
+                let _ = writeln!(
+                    r,
+                    "| `{}` | {:.3} % | {:.1} % | {:.1} ({:.1}) | {} |",
+                    c.effect,
+                    100.0 * c.nrmse_validation,
+                    100.0 * c.gain,
+                    c.likelihood_ratio,
+                    c.critical,
+                    if c.significant { "yes" } else { "no" }
+                );
+            } else {
+                let _ = writeln!(r, "| `{}` | — | — | — | no: {} |", c.effect, c.note);
+            }
+        }
+        let _ = writeln!(r);
+    }
     let _ = writeln!(
         r,
         "NRMSE is the RMS error over the standard deviation of the measured output, in %; the \
