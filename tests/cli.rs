@@ -1988,7 +1988,14 @@ fn run_prints_its_results_and_quiet_silences_progress() {
         let rest = line.split(&format!("{name} = ")).nth(1).unwrap();
         let mut parts = rest.split(" ± ");
         let value = parts.next().unwrap().parse().unwrap();
-        let stderr = parts.next().unwrap().split(' ').next().unwrap().parse().unwrap();
+        let stderr = parts
+            .next()
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
         (value, stderr)
     };
     for name in ["k", "c"] {
@@ -1999,8 +2006,14 @@ fn run_prints_its_results_and_quiet_silences_progress() {
             fit[format!("{name}_stderr")].as_f64().unwrap(),
         );
         // The standard error to one or two digits, the value to the same place.
-        assert!((stderr - se).abs() <= 0.5 * se, "{name}: {se} shown as {stderr}");
-        assert!((value - v).abs() <= 0.5 * stderr, "{name}: {v} shown as {value}");
+        assert!(
+            (stderr - se).abs() <= 0.5 * se,
+            "{name}: {se} shown as {stderr}"
+        );
+        assert!(
+            (value - v).abs() <= 0.5 * stderr,
+            "{name}: {v} shown as {value}"
+        );
     }
     let k_shown = text
         .lines()
@@ -2014,6 +2027,21 @@ fn run_prints_its_results_and_quiet_silences_progress() {
         .any(|l| l.contains("c = ") && l.ends_with(" N s/m")));
     assert!(text.contains("HTF error"), "{text}");
     assert!(text.contains(&format!("{out_s}/ (7 files)")), "{text}");
+    // report.md: the decision first (the paper's G_+-2 failure and why), the config by a
+    // clean path, the fit with its unit; no NaN and no e-notation anywhere.
+    let report = fs::read_to_string(out.join("report.md")).unwrap();
+    let decision = report.split("\n\n").nth(1).unwrap();
+    assert!(
+        decision.contains("G_-2 and G_2 are not resolved") && decision.contains("G_7"),
+        "{report}"
+    );
+    assert!(decision.contains(&format!("`k` = {k_shown}")), "{report}");
+    assert!(report.contains("Config: `configs/paper.toml`"), "{report}");
+    let e_notation = report
+        .as_bytes()
+        .windows(3)
+        .any(|w| w[0].is_ascii_digit() && w[1] == b'e' && (w[2] == b'-' || w[2].is_ascii_digit()));
+    assert!(!report.contains("NaN") && !e_notation, "{report}");
 
     // --quiet anywhere on the line: the same results, nothing on stderr.
     let o = htfid(&[

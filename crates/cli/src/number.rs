@@ -65,7 +65,7 @@ impl fmt::Display for Quantity<'_> {
         let unit = self.unit.map_or(String::new(), |u| format!(" {u}"));
         match self.stderr {
             Some(s) if s.is_finite() && s > 0.0 => write!(f, "{}{unit}", with_error(self.value, s)),
-            Some(s) if s == 0.0 => write!(f, "{} ± 0{unit}", sig(self.value, self.digits)),
+            Some(0.0) => write!(f, "{} ± 0{unit}", sig(self.value, self.digits)),
             Some(_) => write!(
                 f,
                 "{}{unit} (no standard error)",
@@ -236,10 +236,10 @@ mod tests {
         assert_eq!(q(1.0, f64::NAN, "kg"), "1.000 kg (no standard error)");
         assert_eq!(q(1.0, 0.0, "kg"), "1.000 ± 0 kg");
         assert_eq!(q(f64::NAN, 0.1, "kg"), "—");
-        assert_eq!(Quantity::new(3.14159).to_string(), "3.142");
+        assert_eq!(Quantity::new(1.23456).to_string(), "1.235");
         assert_eq!(
-            Quantity::new(3.14159).digits(3).unit(Some("s")).to_string(),
-            "3.14 s"
+            Quantity::new(1.23456).digits(3).unit(Some("s")).to_string(),
+            "1.23 s"
         );
         assert_eq!(Quantity::new(2.0).unit(Some("")).to_string(), "2.000");
         assert_eq!(Quantity::new(0.8).unit(Some("1")).to_string(), "0.8000");

@@ -56,7 +56,11 @@ impl Report {
         let _ = writeln!(
             self.text,
             "| {} |",
-            header.iter().map(|h| cell(h)).collect::<Vec<_>>().join(" | ")
+            header
+                .iter()
+                .map(|h| cell(h))
+                .collect::<Vec<_>>()
+                .join(" | ")
         );
         let _ = writeln!(self.text, "|{}", "---|".repeat(header.len()));
         for row in rows {
@@ -172,7 +176,9 @@ pub fn run(
     plots: bool,
 ) -> String {
     let name = summary["name"].as_str().unwrap_or("");
-    let mut r = Report::new(&format!("{name}: HTFs and parameters identified from a simulated experiment"));
+    let mut r = Report::new(&format!(
+        "{name}: HTFs and parameters identified from a simulated experiment"
+    ));
     let estimators = strings(&summary["estimation"]["estimators"]);
     let outputs = strings(&summary["htf"]["outputs"]);
     // Error keys: `<estimator>` for the first output, `<estimator>_<output>` for the others.
@@ -222,7 +228,12 @@ pub fn run(
             "{} {} only roughly (median error {}). ",
             g_list(&rough),
             if rough.len() == 1 { "agrees" } else { "agree" },
-            join_and(&rough.iter().map(|&n| percent(median(n), 2)).collect::<Vec<_>>())
+            join_and(
+                &rough
+                    .iter()
+                    .map(|&n| percent(median(n), 2))
+                    .collect::<Vec<_>>()
+            )
         );
     }
     if !fail.is_empty() {
@@ -231,8 +242,18 @@ pub fn run(
             "{} {} not resolved by this experiment (median error {}, worst {}){}. ",
             g_list(&fail),
             if fail.len() == 1 { "is" } else { "are" },
-            join_and(&fail.iter().map(|&n| percent(median(n), 2)).collect::<Vec<_>>()),
-            join_and(&fail.iter().map(|&n| percent(worst(n), 2)).collect::<Vec<_>>()),
+            join_and(
+                &fail
+                    .iter()
+                    .map(|&n| percent(median(n), 2))
+                    .collect::<Vec<_>>()
+            ),
+            join_and(
+                &fail
+                    .iter()
+                    .map(|&n| percent(worst(n), 2))
+                    .collect::<Vec<_>>()
+            ),
             aliasing_cause(summary, &fail)
         );
     }
@@ -348,8 +369,10 @@ pub fn run(
                 format!("`{p}`"),
                 format!("`{e}`"),
                 Quantity::new(value).stderr(stderr).unit(unit).to_string(),
-                info.configured
-                    .map_or_else(|| MISSING.to_string(), |c| Quantity::new(c).unit(unit).to_string()),
+                info.configured.map_or_else(
+                    || MISSING.to_string(),
+                    |c| Quantity::new(c).unit(unit).to_string(),
+                ),
                 distance,
             ]);
         }
@@ -413,7 +436,11 @@ pub fn run(
             row.push(if h.is_null() {
                 r.missing("this harmonic was not estimated for this output")
             } else {
-                format!("{} / {}", percent(f(&h["median"]), 2), percent(f(&h["max"]), 2))
+                format!(
+                    "{} / {}",
+                    percent(f(&h["median"]), 2),
+                    percent(f(&h["max"]), 2)
+                )
             });
         }
         rows.push(row);
@@ -421,8 +448,14 @@ pub fn run(
     let header: Vec<&str> = header.iter().map(String::as_str).collect();
     r.table(&header, &rows);
     if plots {
-        r.figure("htf_g0.png", "G_0: estimates against the exact theory, 95 % confidence regions shaded");
-        r.figure("htf_harmonics.png", "|G_n| per harmonic: estimates against the exact theory");
+        r.figure(
+            "htf_g0.png",
+            "G_0: estimates against the exact theory, 95 % confidence regions shaded",
+        );
+        r.figure(
+            "htf_harmonics.png",
+            "|G_n| per harmonic: estimates against the exact theory",
+        );
     }
     r.finish()
 }
@@ -507,9 +540,8 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
             .copied()
             .filter(|&n| share(n) < CHANCE || share(n).is_nan())
             .collect();
-        let shares = |ns: &[i64]| {
-            join_and(&ns.iter().map(|&n| percent(share(n), 2)).collect::<Vec<_>>())
-        };
+        let shares =
+            |ns: &[i64]| join_and(&ns.iter().map(|&n| percent(share(n), 2)).collect::<Vec<_>>());
         let mut parts = Vec::new();
         if !resolved.is_empty() {
             parts.push(format!(
@@ -539,7 +571,10 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
             join_and(&parts)
         );
     }
-    if summary["estimates"].as_array().is_some_and(|e| !e.is_empty()) {
+    if summary["estimates"]
+        .as_array()
+        .is_some_and(|e| !e.is_empty())
+    {
         decision.push_str(
             "An estimate is significant at a frequency where its magnitude exceeds twice its \
              standard error; noise alone does so at about 2 % of the frequencies. ",
@@ -702,7 +737,10 @@ mod tests {
         let b = r.missing("no standard error: too few degrees of freedom");
         let c = r.note("another");
         r.table(&["x", "y|z"], &[vec![a.clone(), c.clone()]]);
-        assert_eq!((a.as_str(), b.as_str(), c.as_str()), ("—[^1]", "—[^1]", "[^2]"));
+        assert_eq!(
+            (a.as_str(), b.as_str(), c.as_str()),
+            ("—[^1]", "—[^1]", "[^2]")
+        );
         assert_eq!(
             r.finish(),
             "# T\n\n| x | y\\|z |\n|---|---|\n| —[^1] | [^2] |\n\n\

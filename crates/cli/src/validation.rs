@@ -246,7 +246,9 @@ pub fn report(heading: &str, vs: &[&OutputValidation], residual_of: &str, input:
             .iter()
             .map(|(l, f)| match f {
                 Some(f) => format!("{l} {}", crate::number::sig(*f, 3)) + " %",
-                None => format!("{l} — (not defined: a constant measured output or too few finite samples)"),
+                None => format!(
+                    "{l} — (not defined: a constant measured output or too few finite samples)"
+                ),
             })
             .collect::<Vec<_>>()
             .join(", ");

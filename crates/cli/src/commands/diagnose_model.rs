@@ -365,7 +365,11 @@ fn report(
         ),
     };
     r.list(&[
-        format!("Config: `{}`; data: `{}`.", shown_path(&s.path), shown_path(&s.file)),
+        format!(
+            "Config: `{}`; data: `{}`.",
+            shown_path(&s.path),
+            shown_path(&s.file)
+        ),
         format!(
             "Refitted: {} (the model's own parameters only).",
             s.options
@@ -396,10 +400,7 @@ fn report(
             ]
         })
         .collect();
-    r.table(
-        &["output", "configured model", "refitted model"],
-        &rows,
-    );
+    r.table(&["output", "configured model", "refitted model"], &rows);
 
     r.section("Parameters");
     let mut rows = Vec::new();
