@@ -18,17 +18,18 @@ clippy:
 doc:
     RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 
+# The release profile, as the README's commands: the tests reuse the build of `htfid run`.
 tests:
-    cargo test --workspace --locked
+    cargo test --release --workspace --locked
 
 # The diagnosis's wide sweep: 200 records of the independent truth generator (htfid-truth):
 # single and compound effects, sensor-side effects, effects outside the library, clean data.
 sweep:
-    cargo test --locked -p htfid-diagnose --test independent -- --ignored --nocapture
+    cargo test --release --locked -p htfid-diagnose --test independent -- --ignored --nocapture
 
 # The fuzz and fault suite over more seeds than `cargo test` runs (880 cases, about 2 minutes).
 fuzz:
-    cargo test --locked -p htfid --test fuzz -- --ignored
+    cargo test --release --locked -p htfid --test fuzz -- --ignored
 
 # The main job: the paper's experiment end to end.
 run config="configs/paper.toml":

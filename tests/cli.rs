@@ -1135,7 +1135,7 @@ fn estimate_from_data_alone_matches_the_theory() {
     assert!(
         text.lines().any(|l| l.trim_start().starts_with("period")
             && l.trim_end()
-                .ends_with("1.000 s (estimated), periodic share of the output 100.0 %")),
+                .ends_with("1.000 s (estimated), periodic share of the output 100 %")),
         "{text}"
     );
     assert!(
@@ -1195,7 +1195,15 @@ fn diagnose_hopper_model_config_runs() {
         out.to_str().unwrap(),
     ]);
     let report = fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(report.contains("held-out NRMSE"), "{report}");
+    assert!(
+        report.contains("## Error on held-out data") && report.contains("NRMSE"),
+        "{report}"
+    );
+    // Paths relative to the working directory, without detours through configs/...
+    assert!(
+        report.contains("data: `data/hopper-protocol.csv`"),
+        "{report}"
+    );
     assert!(out.join("compare.png").exists());
     assert!(out.join("resid.png").exists());
     // The hopper file lacks the record's flight damping: the refitted model's residual keeps
@@ -2000,11 +2008,46 @@ fn run_prints_its_results_and_quiet_silences_progress() {
     for estimator in ["siddiqi", "multi"] {
         assert!(text.contains(&format!("fit ({estimator})")), "{text}");
     }
-    // k and c as in summary.json, 4 significant digits, with their units.
-    let k = s["fit"]["siddiqi"]["k"].as_f64().unwrap();
-    let c = s["fit"]["siddiqi"]["c"].as_f64().unwrap();
-    assert!(text.contains(&format!("k = {k:.1} ± ")), "{k}: {text}");
-    assert!(text.contains(&format!("c = {c:.3} ± ")), "{c}: {text}");
+    // k and c as in summary.json, to the precision of their standard errors, with their units.
+    let shown = |name: &str| -> (f64, f64) {
+        let line = text
+            .lines()
+            .find(|l| l.contains(&format!("{name} = ")))
+            .unwrap_or_else(|| panic!("no {name}: {text}"));
+        let rest = line.split(&format!("{name} = ")).nth(1).unwrap();
+        let mut parts = rest.split(" ± ");
+        let value = parts.next().unwrap().parse().unwrap();
+        let stderr = parts
+            .next()
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        (value, stderr)
+    };
+    for name in ["k", "c"] {
+        let fit = &s["fit"]["siddiqi"];
+        let (value, stderr) = shown(name);
+        let (v, se) = (
+            fit[name].as_f64().unwrap(),
+            fit[format!("{name}_stderr")].as_f64().unwrap(),
+        );
+        // The standard error to one or two digits, the value to the same place.
+        assert!(
+            (stderr - se).abs() <= 0.5 * se,
+            "{name}: {se} shown as {stderr}"
+        );
+        assert!(
+            (value - v).abs() <= 0.5 * stderr,
+            "{name}: {v} shown as {value}"
+        );
+    }
+    let k_shown = text
+        .lines()
+        .find_map(|l| l.split_once("k = ").map(|(_, rest)| rest.to_string()))
+        .unwrap();
     assert!(text
         .lines()
         .any(|l| l.contains("k = ") && l.ends_with(" N/m")));
@@ -2012,7 +2055,22 @@ fn run_prints_its_results_and_quiet_silences_progress() {
         .lines()
         .any(|l| l.contains("c = ") && l.ends_with(" N s/m")));
     assert!(text.contains("HTF error"), "{text}");
-    assert!(text.contains(&format!("{out_s}/ (6 files)")), "{text}");
+    assert!(text.contains(&format!("{out_s}/ (7 files)")), "{text}");
+    // report.md: the decision first (the paper's G_+-2 failure and why), the config by a
+    // clean path, the fit with its unit; no NaN and no e-notation anywhere.
+    let report = fs::read_to_string(out.join("report.md")).unwrap();
+    let decision = report.split("\n\n").nth(1).unwrap();
+    assert!(
+        decision.contains("G_-2 and G_2 are not resolved") && decision.contains("G_7"),
+        "{report}"
+    );
+    assert!(decision.contains(&format!("`k` = {k_shown}")), "{report}");
+    assert!(report.contains("Config: `configs/paper.toml`"), "{report}");
+    let e_notation = report
+        .as_bytes()
+        .windows(3)
+        .any(|w| w[0].is_ascii_digit() && w[1] == b'e' && (w[2] == b'-' || w[2].is_ascii_digit()));
+    assert!(!report.contains("NaN") && !e_notation, "{report}");
 
     // --quiet anywhere on the line: the same results, nothing on stderr.
     let o = htfid(&[
@@ -2027,8 +2085,8 @@ fn run_prints_its_results_and_quiet_silences_progress() {
     assert_eq!(stderr(&o), "");
     let quiet_text = stdout(&o);
     assert!(
-        quiet_text.contains(&format!("k = {k:.1} ± ")),
-        "{quiet_text}"
+        quiet_text.contains(&format!("k = {k_shown}")),
+        "{k_shown}: {quiet_text}"
     );
     let o = htfid(&["simulate", "configs/paper.toml", "--out", out_s, "--quiet"]);
     assert!(o.status.success());

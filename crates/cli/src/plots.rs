@@ -92,7 +92,13 @@ fn confidence(panel: &mut htfid_plot::Panel, curves: &[Curve<'_>], phase: bool) 
 
 /// The HTF unit `output unit / input unit` when both are known.
 pub fn htf_unit(output: Option<&str>, input: Option<&str>) -> Option<String> {
-    Some(format!("{}/{}", output?, input?))
+    let input = input?;
+    // `m/(m/s^2)`, not `m/m/s^2`.
+    if input.contains(['/', ' ', '*']) {
+        Some(format!("{}/({input})", output?))
+    } else {
+        Some(format!("{}/{input}", output?))
+    }
 }
 
 /// Magnitude axes labelled `|G| (dB re 1 <unit>)` when the unit is known.

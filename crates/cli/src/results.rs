@@ -2,11 +2,14 @@
 //!
 //! Everything shown is read from the JSON the command writes (`summary.json`,
 //! `diagnosis.json`), so the terminal and the files never disagree and no science is redone
-//! here. Numbers carry 4 significant digits (standard errors 3).
+//! here. Numbers are formatted by `crate::number`: 4 significant digits, a value with a
+//! standard error to the precision the error allows.
 
 use std::path::{Path, PathBuf};
 
 use serde_json::Value;
+
+use crate::number::{percent, sig, Quantity};
 
 /// Label column, then values; a value may span several lines.
 #[derive(Debug)]
@@ -51,39 +54,17 @@ impl Table {
     }
 }
 
-/// `x` with `sig` significant digits: plain notation between 1e-3 and 1e5, else scientific.
-pub fn num(x: f64, sig: usize) -> String {
-    if !x.is_finite() {
-        return format!("{x}");
-    }
-    if x == 0.0 {
-        return "0".into();
-    }
-    let mag = x.abs().log10().floor() as i32;
-    if (-3..5).contains(&mag) {
-        let decimals = (sig as i32 - 1 - mag).max(0) as usize;
-        format!("{x:.decimals$}")
-    } else {
-        format!("{:.*e}", sig - 1, x)
-    }
-}
-
-fn pct(x: f64) -> String {
-    format!("{} %", num(100.0 * x, 3))
-}
-
 fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or(f64::NAN)
 }
 
-/// `value ± stderr unit`.
+/// `value ± stderr unit`, to the precision the standard error allows.
 fn pm(value: f64, stderr: f64, unit: Option<&str>) -> String {
-    let unit = unit.map_or(String::new(), |u| format!(" {u}"));
-    if stderr.is_finite() {
-        format!("{} ± {}{unit}", num(value, 4), num(stderr, 3))
-    } else {
-        format!("{}{unit} (no standard error)", num(value, 4))
-    }
+    Quantity::new(value).stderr(stderr).unit(unit).to_string()
+}
+
+fn pct(x: f64) -> String {
+    percent(x, 3)
 }
 
 /// Where the results are: the directory as given (relative to the working directory when it is
@@ -106,7 +87,7 @@ fn title(command: &str, summary: &Value) -> String {
     let name = summary["name"].as_str().unwrap_or("");
     let ms = f(&summary["timings_ms"]["total"]);
     if ms.is_finite() {
-        format!("htfid {command} {name}: done in {} s", num(ms / 1e3, 3))
+        format!("htfid {command} {name}: done in {} s", sig(ms / 1e3, 3))
     } else {
         format!("htfid {command} {name}: done")
     }
@@ -115,7 +96,7 @@ fn title(command: &str, summary: &Value) -> String {
 /// Period, and the largest Floquet multiplier's modulus (stability of the orbit).
 fn limit_cycle(t: &mut Table, summary: &Value) {
     let lc = &summary["limit_cycle"];
-    let mut text = format!("period {} s", num(f(&lc["period"]), 4));
+    let mut text = format!("period {} s", sig(f(&lc["period"]), 4));
     let largest = lc["floquet_multipliers"]
         .as_array()
         .into_iter()
@@ -125,7 +106,7 @@ fn limit_cycle(t: &mut Table, summary: &Value) {
     if largest.is_finite() {
         text.push_str(&format!(
             ", largest Floquet multiplier |μ| {}",
-            num(largest, 4)
+            sig(largest, 4)
         ));
     }
     t.row("limit cycle", text);
@@ -140,8 +121,8 @@ fn simulation(t: &mut Table, summary: &Value) {
         "simulation",
         format!(
             "{} s at {} Hz: {} samples, {} switches",
-            num(f(&s["t_end"]), 4),
-            num(f(&s["sample_rate"]), 4),
+            sig(f(&s["t_end"]), 4),
+            sig(f(&s["sample_rate"]), 4),
             s["samples"],
             s["switches"]
         ),
@@ -171,12 +152,12 @@ pub fn theory(summary: &Value, dir: &Path, files: &[PathBuf]) {
             .iter()
             .enumerate()
             .map(|(i, v)| match h["outputs"][i].as_str() {
-                Some(output) if per_output.len() > 1 => format!("{} ({output})", num(f(v), 4)),
-                _ => num(f(v), 4),
+                Some(output) if per_output.len() > 1 => format!("{} ({output})", sig(f(v), 4)),
+                _ => sig(f(v), 4),
             })
             .collect::<Vec<_>>()
             .join(", "),
-        v => num(f(v), 4),
+        v => sig(f(v), 4),
     };
     t.row(
         "HTF",
@@ -336,7 +317,7 @@ pub fn estimate(summary: &Value, dir: &Path, files: &[PathBuf]) {
     let p = &summary["period"];
     let mut period = format!(
         "{} s ({})",
-        num(f(&p["value"]), 4),
+        sig(f(&p["value"]), 4),
         p["source"].as_str().unwrap_or("")
     );
     if let Some(share) = p["periodic_share"].as_f64() {
@@ -348,10 +329,10 @@ pub fn estimate(summary: &Value, dir: &Path, files: &[PathBuf]) {
         "record",
         format!(
             "{} s at {} Hz: {} samples, {} periods",
-            num(f(&r["duration"]), 4),
-            num(f(&r["sample_rate"]), 4),
+            sig(f(&r["duration"]), 4),
+            sig(f(&r["sample_rate"]), 4),
             r["samples"],
-            num(f(&r["periods"]), 4)
+            sig(f(&r["periods"]), 4)
         ),
     );
     if let Some([lo, hi]) = summary["checks"]["excited_band"]
@@ -360,7 +341,7 @@ pub fn estimate(summary: &Value, dir: &Path, files: &[PathBuf]) {
     {
         t.row(
             "excited band",
-            format!("{} - {} rad/s", num(f(lo), 4), num(f(hi), 4)),
+            format!("{} - {} rad/s", sig(f(lo), 4), sig(f(hi), 4)),
         );
     }
     for e in summary["estimates"].as_array().into_iter().flatten() {
@@ -380,7 +361,7 @@ pub fn estimate(summary: &Value, dir: &Path, files: &[PathBuf]) {
         for (n, h) in ns {
             lines.push(format!(
                 "{n:>4}  {:>10}  {:>17}",
-                num(f(&h["max_abs_g"]), 4),
+                sig(f(&h["max_abs_g"]), 4),
                 format!("{} of {}", h["significant_points"], h["points"])
             ));
         }
@@ -402,7 +383,7 @@ pub fn diagnose(d: &Value, dir: &Path, files: &[PathBuf]) {
     let mut t = Table::new(format!(
         "htfid diagnose {}: done in {} s",
         d["data"]["file"].as_str().unwrap_or(""),
-        num(f(&d["elapsed_s"]), 3)
+        sig(f(&d["elapsed_s"]), 3)
     ));
     t.row("cause", d["cause"].as_str().unwrap_or("?"));
     t.row(
@@ -431,7 +412,7 @@ pub fn diagnose(d: &Value, dir: &Path, files: &[PathBuf]) {
             format!(
                 "held-out NRMSE {}, RMSE {} m",
                 pct(f(&s["nrmse"])),
-                num(f(&s["rmse"]), 4)
+                sig(f(&s["rmse"]), 4)
             ),
         );
     }
@@ -468,8 +449,8 @@ pub fn diagnose_model(
             format!(
                 "{name} = {} (configured {}, z = {})",
                 pm(f(&p["fitted"]), f(&p["stderr"]), unit(name).as_deref()),
-                num(f(&p["configured"]), 4),
-                num(f(&p["z"]), 3)
+                sig(f(&p["configured"]), 4),
+                sig(f(&p["z"]), 3)
             )
         })
         .collect();
@@ -503,24 +484,4 @@ pub fn hopper_unit(name: &str) -> Option<&'static str> {
         "v_th" => "m/s",
         _ => return None,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn numbers_keep_four_significant_digits() {
-        assert_eq!(num(10002.4, 4), "10002");
-        assert_eq!(num(10.0123, 4), "10.01");
-        assert_eq!(num(0.0521234, 3), "0.0521");
-        assert_eq!(num(-1.5e-6, 4), "-1.500e-6");
-        assert_eq!(num(2.5e7, 3), "2.50e7");
-        assert_eq!(num(0.0, 4), "0");
-        assert_eq!(
-            pm(1.0, f64::NAN, Some("kg")),
-            "1.000 kg (no standard error)"
-        );
-        assert_eq!(pm(10.0123, 0.05214, Some("N s/m")), "10.01 ± 0.0521 N s/m");
-    }
 }

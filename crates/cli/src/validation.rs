@@ -216,9 +216,9 @@ fn bounds_and_stems(x: &[f64], r: &[f64], bound: f64) -> Vec<Series> {
 /// A p-value for people: below 1e-10 it only says so.
 fn p_text(p: f64) -> String {
     if p < 1e-10 {
-        "< 1e-10".into()
+        "< 10⁻¹⁰".into()
     } else {
-        format!("{p:.2e}")
+        crate::number::sig(p, 2)
     }
 }
 
@@ -245,8 +245,10 @@ pub fn report(heading: &str, vs: &[&OutputValidation], residual_of: &str, input:
             .fits
             .iter()
             .map(|(l, f)| match f {
-                Some(f) => format!("{l} {f:.1} %"),
-                None => format!("{l} n/a"),
+                Some(f) => format!("{l} {}", crate::number::sig(*f, 3)) + " %",
+                None => format!(
+                    "{l} — (not defined: a constant measured output or too few finite samples)"
+                ),
             })
             .collect::<Vec<_>>()
             .join(", ");

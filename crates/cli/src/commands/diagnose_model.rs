@@ -1,7 +1,6 @@
 //! `htfid diagnose` for a config whose `[model]` names a model file: read the record, call
 //! `htfid_diagnose::diagnose_model`, write the findings. The science is in `htfid-diagnose`.
 
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::Result;
@@ -12,6 +11,7 @@ use serde_json::json;
 use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::output::{json_text, open, resolve_dir};
 use crate::records::{read_record, Columns};
+use crate::report::{shown_path, Report};
 
 pub fn run(
     config: &std::path::Path,
@@ -143,14 +143,7 @@ pub fn run(
         },
     });
     outdir.write_text("diagnosis.json", &json_text(&json))?;
-    let mut text = report(&s, &d);
-    text.push_str(&crate::validation::report(
-        "## Validation",
-        &checks.iter().collect::<Vec<_>>(),
-        "refitted model",
-        &format!("input `{}`", s.input),
-    ));
-    outdir.write_text("report.md", &text)?;
+    outdir.write_text("report.md", &report(&s, &d, &checks))?;
     // A few forcing periods at the end of the held-out part: measured, configured, refitted.
     let win = crate::validation::window(held_out.clone(), dt, s.model.period());
     let mut panels: Vec<Panel> = Vec::new();
@@ -292,21 +285,51 @@ fn check_time_scale(s: &ModelDiagnoseSettings, series: &htfid_data::TimeSeries) 
     Ok(())
 }
 
-fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
-    let mut r = String::new();
-    let _ = writeln!(r, "# Diagnosis: {}\n", s.name);
-    let verdict = match d.cause {
+/// `report.md`: the decision in one paragraph, then the errors, the parameters, the
+/// validation (`checks`, one per output).
+fn report(
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    checks: &[crate::validation::OutputValidation],
+) -> String {
+    use crate::number::{percent, sig, Quantity};
+    let mut r = Report::new(&format!("Diagnosis: {}", s.name));
+    let model = s.model.name();
+    let unit = |name: &str| {
+        s.model
+            .parameters()
+            .iter()
+            .find(|p| p.name == name)
+            .and_then(|p| p.unit.clone())
+    };
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let (before, after) = (
+        mean(&d.configured.nrmse_validation),
+        mean(&d.refitted.nrmse_validation),
+    );
+    let moved: Vec<String> = d
+        .parameters
+        .iter()
+        .filter(|p| p.z.abs() >= s.options.significance_sigma)
+        .map(|p| {
+            let u = unit(&p.name);
+            format!(
+                "`{}` from {} to {} ({} standard errors)",
+                p.name,
+                Quantity::new(p.configured).unit(u.as_deref()),
+                Quantity::new(p.fitted).stderr(p.stderr).unit(u.as_deref()),
+                sig(p.z.abs(), 2)
+            )
+        })
+        .collect();
+    let mut decision = match d.cause {
         ModelCause::ParameterError => format!(
-            "The configured model `{}` misdescribes the data through its parameters: refitting {} \
-             lowers the held-out error by {:.1} %.",
-            s.model.name(),
-            d.parameters
-                .iter()
-                .filter(|p| p.z.abs() >= s.options.significance_sigma)
-                .map(|p| format!("`{}` ({:.4} -> {:.4})", p.name, p.configured, p.fitted))
-                .collect::<Vec<_>>()
-                .join(", "),
-            100.0 * d.gain
+            "**The configured parameters of model `{model}` are off.** Refitting them moves {}, \
+             and lowers the error on held-out data from {} to {} NRMSE, {} less.",
+            moved.join(", "),
+            percent(before, 3),
+            percent(after, 3),
+            percent(d.gain, 3)
         ),
         ModelCause::Effect(e) => {
             let c = d.extended.as_ref();
@@ -364,88 +387,183 @@ fn report(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> String {
             }
         ),
         ModelCause::None => format!(
-            "No parameter of `{}` moved by {} standard errors with a held-out gain of {:.0} %: \
-             the configured model describes the data as well as a refit does.",
-            s.model.name(),
-            s.options.significance_sigma,
-            100.0 * s.options.min_gain
+            "**The configured model `{model}` describes the data.** A refit moves no parameter \
+             by {} standard errors or more while lowering the held-out error by at least {}: \
+             the held-out NRMSE is {} as configured and {} refitted.",
+            sig(s.options.significance_sigma, 2),
+            percent(s.options.min_gain, 2),
+            percent(before, 3),
+            percent(after, 3)
         ),
     };
-    let _ = writeln!(r, "{verdict}\n");
-    let _ = writeln!(
-        r,
-        "Beside the model's own parameters, effects on its boundary are tried, each fitted \
-         jointly with the free parameters: an input offset, delay or lag, and a sensor offset \
-         and gain or lag. An effect inside the model's equations (friction, an extra damping) \
-         shows as shifted parameters and a residual with structure: extend the model with a \
-         candidate term and diagnose again to measure its gain.\n"
-    );
-    if !d.candidates.is_empty() {
-        let _ = writeln!(
-            r,
-            "| effect | held-out NRMSE | gain over the refit | likelihood ratio (critical) | \
-             significant |\n|---|---|---|---|---|"
+    let structured: Vec<&str> = checks
+        .iter()
+        .filter(|c| c.resid.as_ref().is_ok_and(|r| !r.whiteness.passed))
+        .map(|c| c.output.as_str())
+        .collect();
+    if structured.is_empty() {
+        decision.push_str(
+            " The refitted model's residual is white: no structure is left for an effect the \
+             model lacks.",
         );
+    } else {
+        decision.push_str(&format!(
+            " The refitted model's residual in {} is not white: structure remains that the \
+             model's own parameters cannot explain, a sign of an effect the model lacks \
+             (friction, an extra damping, a sensor lag). Extend the model with a candidate \
+             term and diagnose again to measure its gain.",
+            structured
+                .iter()
+                .map(|o| format!("`{o}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    r.para(&decision);
+
+    r.section("Data");
+    let held_out = match &s.validation {
+        Some(p) => format!("the separate record `{}`", shown_path(p)),
+        None => format!(
+            "the last {} of the record",
+            percent(1.0 - s.options.fit_fraction, 2)
+        ),
+    };
+    r.list(&[
+        format!(
+            "Config: `{}`; data: `{}`.",
+            shown_path(&s.path),
+            shown_path(&s.file)
+        ),
+        format!(
+            "Refitted: {} (the model's own parameters only).",
+            s.options
+                .free
+                .iter()
+                .map(|p| format!("`{p}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        format!("Held out from the fit and used to judge it: {held_out}."),
+    ]);
+
+    if !d.candidates.is_empty() {
+        r.section("Effects on the model's boundary");
+        r.para(
+            "Beside the model's own parameters, effects on its boundary are tried, each fitted \
+             jointly with the free parameters and the initial state: an input offset, delay or \
+             lag, and a sensor offset and gain or lag. An effect is significant when its \
+             likelihood ratio against the refit (corrected for the residuals' correlation) \
+             passes the chi-square critical value and it lowers the held-out NRMSE by at least \
+             the minimum gain. An effect inside the model's equations (friction, an extra \
+             damping) is not among them: it shows as shifted parameters and structure left in \
+             the residual.",
+        );
+        let mut rows = Vec::new();
         for c in &d.candidates {
             if c.nrmse_validation.is_finite() {
-                let _ = writeln!(
-                    r,
-                    "| `{}` | {:.3} % | {:.1} % | {:.1} ({:.1}) | {} |",
-                    c.effect,
-                    100.0 * c.nrmse_validation,
-                    100.0 * c.gain,
-                    c.likelihood_ratio,
-                    c.critical,
-                    if c.significant { "yes" } else { "no" }
-                );
+                let own: Vec<String> = c
+                    .parameters
+                    .iter()
+                    .filter(|(k, _)| !s.options.free.contains(*k))
+                    .map(|(k, v)| {
+                        format!(
+                            "{k} = {}",
+                            Quantity::new(*v).stderr(c.stderr.get(k).copied().unwrap_or(f64::NAN))
+                        )
+                    })
+                    .collect();
+                rows.push(vec![
+                    format!("`{}`", c.effect),
+                    own.join(", "),
+                    percent(c.nrmse_validation, 3),
+                    percent(c.gain, 3),
+                    format!("{} ({})", sig(c.likelihood_ratio, 3), sig(c.critical, 3)),
+                    if c.significant { "yes" } else { "no" }.to_string(),
+                ]);
             } else {
-                let _ = writeln!(r, "| `{}` | — | — | — | no: {} |", c.effect, c.note);
+                let why = r.missing(&c.note);
+                rows.push(vec![
+                    format!("`{}`", c.effect),
+                    why.clone(),
+                    why.clone(),
+                    why.clone(),
+                    why,
+                    "no".to_string(),
+                ]);
             }
         }
-        let _ = writeln!(r);
-    }
-    let _ = writeln!(
-        r,
-        "NRMSE is the RMS error over the standard deviation of the measured output, in %; the \
-         held-out data are {}.\n",
-        match &s.validation {
-            Some(p) => format!("the separate record `{}`", p.display()),
-            None => format!(
-                "the last {:.0} % of the record",
-                100.0 * (1.0 - s.options.fit_fraction)
-            ),
-        }
-    );
-    let _ = writeln!(
-        r,
-        "| output | configured, held-out NRMSE | refitted, held-out NRMSE |"
-    );
-    let _ = writeln!(r, "|---|---|---|");
-    for (o, name) in s.outputs.iter().enumerate() {
-        let _ = writeln!(
-            r,
-            "| {name} | {:.3} % | {:.3} % |",
-            100.0 * d.configured.nrmse_validation[o],
-            100.0 * d.refitted.nrmse_validation[o]
+        r.table(
+            &[
+                "effect",
+                "its parameters",
+                "held-out NRMSE",
+                "gain over the refit",
+                "likelihood ratio (critical)",
+                "significant",
+            ],
+            &rows,
         );
     }
-    let _ = writeln!(
-        r,
-        "\n| parameter | configured | refitted | standard error | shift in standard errors |"
+
+    r.section("Error on held-out data");
+    r.para(
+        "NRMSE (normalised root-mean-square error): the RMS of measured minus simulated output \
+         over the standard deviation of the measured output, in %. 0 % is a perfect \
+         simulation; 100 % is no better than the measured mean.",
     );
-    let _ = writeln!(r, "|---|---|---|---|---|");
+    let rows: Vec<Vec<String>> = s
+        .outputs
+        .iter()
+        .enumerate()
+        .map(|(o, name)| {
+            vec![
+                format!("`{name}`"),
+                percent(d.configured.nrmse_validation[o], 3),
+                percent(d.refitted.nrmse_validation[o], 3),
+            ]
+        })
+        .collect();
+    r.table(&["output", "configured model", "refitted model"], &rows);
+
+    r.section("Parameters");
+    let mut rows = Vec::new();
     for p in &d.parameters {
-        let _ = writeln!(
-            r,
-            "| {} | {:.5} | {:.5} | {:.2e} | {:.1} |",
-            p.name, p.configured, p.fitted, p.stderr, p.z
-        );
+        let u = unit(&p.name);
+        let z = if p.z.is_finite() {
+            sig(p.z, 2)
+        } else {
+            r.missing("no standard error: the fit's covariance is singular for this parameter")
+        };
+        rows.push(vec![
+            format!("`{}`", p.name),
+            Quantity::new(p.configured).unit(u.as_deref()).to_string(),
+            Quantity::new(p.fitted)
+                .stderr(p.stderr)
+                .unit(u.as_deref())
+                .to_string(),
+            z,
+        ]);
     }
-    let _ = writeln!(
-        r,
-        "\nStandard errors are inflated by {:.2} for the residuals' correlation in time. \
-         Figures: `compare.png` (a few periods at the end of the held-out data), `resid.png`.",
-        d.stderr_inflation
+    r.table(
+        &[
+            "parameter",
+            "configured",
+            "refitted ± standard error",
+            "(refitted − configured) / standard error",
+        ],
+        &rows,
     );
-    r
+    r.para(&format!(
+        "The standard errors are widened by a factor {} because the residuals are correlated \
+         in time.",
+        sig(d.stderr_inflation, 3)
+    ));
+    r.push(&crate::validation::report(
+        "## Validation",
+        &checks.iter().collect::<Vec<_>>(),
+        "refitted model",
+        &format!("input `{}`", s.input),
+    ));
+    r.finish()
 }

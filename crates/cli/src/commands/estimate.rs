@@ -46,7 +46,11 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
             format!("_{}", outputs[o])
         }
     };
-    let mut names: Vec<String> = vec!["summary.json".into(), "orbit.csv".into()];
+    let mut names: Vec<String> = vec![
+        "summary.json".into(),
+        "orbit.csv".into(),
+        "report.md".into(),
+    ];
     for o in 0..outputs.len() {
         names.push(format!("estimate_siddiqi{}.csv", suffix(o)));
         names.push(format!("estimate_harmonics{}.svg", suffix(o)));
@@ -288,6 +292,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         },
         "estimation": {
             "estimator": "siddiqi",
+            "input": settings.input,
             "harmonics": settings.harmonics,
             "band": [lo, hi],
         },
@@ -295,6 +300,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "timings_ms": stages.to_json(),
     });
     outdir.write_text("summary.json", &json_text(&summary))?;
+    let plots: Vec<String> = (0..outputs.len())
+        .map(|o| format!("estimate_harmonics{}.png", suffix(o)))
+        .collect();
+    outdir.write_text(
+        "report.md",
+        &crate::report::estimate(&summary, &settings.path, &settings.file, &plots),
+    )?;
     // The notes are part of the results: printed with them on stdout.
     let written = outdir.commit()?;
     crate::results::estimate(&summary, &dir, &written);

@@ -411,6 +411,7 @@ pub fn run_model(
         "limit_cycle.csv",
         "theory.csv",
         "summary.json",
+        "report.md",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -535,6 +536,28 @@ pub fn run_model(
     }
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
+    let info = |name: &str| {
+        let p = model.parameters().iter().find(|p| p.name == name);
+        crate::report::ParamInfo {
+            configured: p.map(|p| p.value),
+            unit: p.and_then(|p| p.unit.clone()),
+        }
+    };
+    let g_unit = crate::plots::htf_unit(
+        model.outputs().first().and_then(|o| o.unit.as_deref()),
+        model.input_unit(),
+    );
+    outdir.write_text(
+        "report.md",
+        &crate::report::run(
+            &summary,
+            &settings.path,
+            &settings.estimation.fit,
+            &info,
+            g_unit.as_deref(),
+            !no_plots,
+        ),
+    )?;
     let written = outdir.commit()?;
     let unit = |name: &str| {
         model

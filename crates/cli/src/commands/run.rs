@@ -51,6 +51,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         "limit_cycle.csv",
         "theory.csv",
         "summary.json",
+        "report.md",
     ];
     names.extend(est_names.iter().map(String::as_str));
     let plot_names = ["htf_g0", "htf_harmonics"];
@@ -168,6 +169,28 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     }
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
+    let configured = settings.hopper("run").ok().map(|(p, _, _)| p);
+    let info = |name: &str| crate::report::ParamInfo {
+        // The fit frees only k and c (settings check `estimation.fit`).
+        configured: configured.and_then(|p| match name {
+            "k" => Some(p.k),
+            "c" => Some(p.c),
+            "m" => Some(p.m),
+            _ => None,
+        }),
+        unit: crate::results::hopper_unit(name).map(str::to_string),
+    };
+    outdir.write_text(
+        "report.md",
+        &crate::report::run(
+            &summary,
+            &settings.path,
+            &settings.estimation.fit,
+            &info,
+            Some("m/N"),
+            !no_plots,
+        ),
+    )?;
     let written = outdir.commit()?;
     let unit = |name: &str| crate::results::hopper_unit(name).map(str::to_string);
     crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
