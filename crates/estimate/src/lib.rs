@@ -20,8 +20,8 @@
 //! # Bias
 //!
 //! Standard errors cover noise only. Where an estimator has a known systematic error it says so
-//! ([`HtfEstimate::bias`], [`BiasSource`]): the regularised estimators attach a first-order
-//! estimate of their smoothing bias. The odd-order distortion that a `+u` / `-u` pairing leaves
+//! ([`HtfEstimate::bias`], [`BiasSource`]): the regularised estimators attach an estimate of
+//! their smoothing bias. The odd-order distortion that a `+u` / `-u` pairing leaves
 //! cannot be seen in one pair of records (it does not change sign with the input); the `htfid`
 //! binary estimates it by re-running the experiment, without noise, on the fitted model.
 //!

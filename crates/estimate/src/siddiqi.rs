@@ -23,12 +23,14 @@ const MIN_BINS: usize = 3;
 /// Standard errors are `sqrt(sigma^2 [N^{-1}]_ii)` with `sigma^2 = RSS / (M - tr S)` and `S` the
 /// influence matrix: the posterior spread of a Gaussian smoothness prior. They ignore the bias
 /// that the penalty introduces where `G_n` curves, and they bound the frequentist spread
-/// `sigma^2 [N^{-1} A^H A N^{-1}]_ii` from above. The bias itself is estimated to first order and
-/// attached ([`HtfEstimate::bias`], [`BiasSource::Smoothing`]): the penalised solution has mean
-/// `G - N^{-1} R G` (`N` the normal matrix, `R` the penalty), so `-N^{-1} R G_hat`, the
-/// estimate's curvature weighed by the smoother's kernel, is the bias with the estimate in place
-/// of the truth. It underestimates where the penalty flattens much of the curvature (the
-/// estimate's own curvature is shrunk by the same factor).
+/// `sigma^2 [N^{-1} A^H A N^{-1}]_ii` from above. The bias itself is estimated and attached
+/// ([`HtfEstimate::bias`], [`BiasSource::Smoothing`]): the penalised solution has mean
+/// `G - N^{-1} R G` (`N` the normal matrix, `R` the penalty), so the bias is `-N^{-1} R G`, the
+/// curvature of `G` weighed by the smoother's kernel. With `G = G_hat - bias` it is a fixed
+/// point; two terms of its series are used, starting from `-N^{-1} R G_hat` (more would undo
+/// the regularisation and bring back the noise it suppresses). On noise-free data where
+/// smoothing dominates it accounts for 77 to 85 % of the error (`tests/siddiqi.rs`): it falls
+/// short where the penalty flattens much of the curvature.
 pub fn siddiqi(
     record: &Record,
     period: f64,

@@ -7,7 +7,10 @@
 //! constant within each mode, the periodic response otherwise). Residuals are the complex
 //! differences weighted by the estimates' standard errors. [`HtfFitSpec`] says which
 //! parameters, harmonics, band and how many points per harmonic; [`HtfFit`] holds the values,
-//! their standard errors and the optimiser's account.
+//! their standard errors, the optimiser's account and the error budget
+//! ([`HtfFit::uncertainty`]): the noise-only standard error beside the estimates' known bias
+//! (the regularised estimators' smoothing bias) and model-structure error, which dominates,
+//! and an interval at 95 %.
 //!
 //! ```
 //! use htfid_hybrid::Options;
@@ -41,4 +44,4 @@
 
 mod htf_fit;
 
-pub use htf_fit::{fit_to_htf, HtfFit, HtfFitSpec, IdentifyError};
+pub use htf_fit::{fit_to_htf, HtfFit, HtfFitSpec, IdentifyError, CLUSTER_POINTS};
