@@ -39,6 +39,10 @@
 //! let spec = HtfFitSpec::new(vec!["k".into()], vec![0], (0.1, 4.0));
 //! let fit = fit_to_htf(&model, &cycle, &[(0, &estimate)], &spec, &Options::default())?;
 //! assert!((fit.values[0] - 5.0).abs() < 1e-6);
+//! // Exact estimates: no residual, so only the stated noise (1e-3 per estimate) is left.
+//! let k = &fit.uncertainty.as_ref().unwrap().parameters[0];
+//! assert_eq!(k.dominant, htfid_estimate::ErrorSource::Noise);
+//! assert!(k.structure < 1e-12 && k.half_width > 0.0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 

@@ -112,13 +112,16 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 .with_context(|| {
                     format!("parametric fit to the \"{}\" estimates failed", est.name())
                 })?;
-            let budget = stages
-                .run(&format!("uncertainty ({})", est.name()), || {
-                    fit_uncertainty(&settings, *est, e, &outcome)
-                })
-                .with_context(|| format!("uncertainty of the \"{}\" fit failed", est.name()))?;
+            let budget = stages.run(&format!("uncertainty ({})", est.name()), || {
+                fit_uncertainty(&settings, *est, e, &outcome)
+            });
             let mut fit = outcome.json;
-            fit["uncertainty"] = uncertainty_json(&settings.estimation.fit, &budget.0, budget.1);
+            // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run):
+            // the reason is recorded instead.
+            fit["uncertainty"] = match budget {
+                Ok((b, method)) => uncertainty_json(&settings.estimation.fit, &b, method),
+                Err(err) => json!({ "error": format!("{err:#}") }),
+            };
             fits.insert(est.name().into(), fit);
             if let Some(a) = e.alpha() {
                 alpha.insert(
@@ -451,8 +454,8 @@ const COVERAGE_LEVEL: f64 = 0.95;
 /// bias, structure. The line estimators' distortion (what a `+u` / `-u` pairing leaves, or all
 /// of the nonlinear response without pairing) is the error the estimator makes on the same
 /// experiment simulated without noise on the fitted model (a parametric bootstrap); the
-/// regularised estimators carry their own first-order smoothing bias. Returns the budget and how
-/// the bias was found.
+/// regularised estimators carry their own estimate of their smoothing bias. Returns the budget
+/// and how the bias was found.
 fn fit_uncertainty(
     settings: &Settings,
     est: Estimator,
