@@ -395,6 +395,131 @@ fn run_paper_improved_meets_its_targets() {
     );
 }
 
+/// The configured truth of `configs/paper-improved.toml` (`[model] k`, `c`), which the fit
+/// does not see.
+const IMPROVED_TRUTH: [(&str, f64); 2] = [("k", 200.0), ("c", 2.0)];
+
+/// `htfid run configs/paper-improved.toml` with white output noise of `std` m and `seed`,
+/// into `dir/<seed>`: the fit and its uncertainty.
+fn improved_with_noise(dir: &Path, std: f64, seed: u64) -> serde_json::Value {
+    let text = fs::read_to_string(root().join("configs/paper-improved.toml")).unwrap();
+    let cfg = dir.join(format!("noise-{seed}.toml"));
+    fs::write(
+        &cfg,
+        format!("{text}\n[noise]\noutput_std = {std:e}\nseed = {seed}\n"),
+    )
+    .unwrap();
+    let out = dir.join(seed.to_string());
+    htfid_ok(&[
+        "run",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--no-plots",
+        "-q",
+    ]);
+    summary(&out)["fit"]["lines"].clone()
+}
+
+/// Misses of the stated total interval and of the noise-only interval (same level), summed
+/// over k and c and the given seeds.
+fn improved_coverage(std: f64, seeds: std::ops::Range<u64>) -> (usize, usize, usize) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (mut total, mut noise_only, mut checks) = (0, 0, 0);
+    for seed in seeds {
+        let fit = improved_with_noise(tmp.path(), std, seed);
+        for (name, truth) in IMPROVED_TRUTH {
+            let p = &fit["uncertainty"]["parameters"][name];
+            let error = (fit[name].as_f64().unwrap() - truth).abs();
+            let k = p["coverage_factor"].as_f64().unwrap();
+            total += usize::from(error > p["half_width"].as_f64().unwrap());
+            noise_only += usize::from(error > k * p["noise"].as_f64().unwrap());
+            checks += 1;
+        }
+    }
+    (total, noise_only, checks)
+}
+
+#[test]
+fn paper_improved_states_why_c_is_off_and_covers_it() {
+    // Noise free, the fitted c is off by the odd-order distortion that the sign reversal
+    // leaves (it scales with the square of the amplitude: -4.6e-6, -2.5e-5, -9.8e-5, -3.4e-4
+    // at amplitudes 0.001, 0.002, 0.004, 0.008), about 100 times the noise-only standard
+    // error. The summary must name it as dominant, estimate it (the estimate comes from a
+    // re-run on the fitted model, the truth is the config's c; they agreed to 0.05 %, bound
+    // 5 %: the re-run is at parameters 5e-5 off the truth) and state an interval holding the
+    // truth, which the noise-only one does not.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("improved");
+    let o = htfid(&[
+        "run",
+        "configs/paper-improved.toml",
+        "--out",
+        out.to_str().unwrap(),
+        "--no-plots",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fit = &summary(&out)["fit"]["lines"];
+    let u = &fit["uncertainty"];
+    assert_eq!(u["htf_bias_source"], "pairing_distortion");
+    assert_eq!(u["htf_bias_method"], "bootstrap");
+    for (name, truth) in IMPROVED_TRUTH {
+        let p = &u["parameters"][name];
+        let error = fit[name].as_f64().unwrap() - truth;
+        let get = |k: &str| p[k].as_f64().unwrap();
+        assert_eq!(p["dominant"], "pairing_distortion", "{name}: {p}");
+        assert!(error.abs() <= get("half_width"), "{name}: {error:e} {p}");
+        assert!(error.abs() > 1.96 * get("noise"), "{name}: {error:e} {p}");
+        let estimate = get("htf_bias_estimate");
+        assert!(
+            (estimate - error).abs() <= 0.05 * error.abs(),
+            "{name}: bias estimate {estimate:e}, error {error:e}"
+        );
+        for key in ["htf_bias", "structure", "total", "coverage_factor"] {
+            assert!(get(key).is_finite(), "{name}.{key}");
+        }
+    }
+    let text = stdout(&o);
+    assert!(
+        text.contains("uncertainty (lines)") && text.contains("pairing distortion dominates"),
+        "{text}"
+    );
+}
+
+#[test]
+fn paper_improved_uncertainty_covers_the_truth_quick() {
+    // Output noise of 1e-7 m makes noise and pairing distortion comparable for c (noise-only
+    // standard error 4.2e-5 against a distortion of 9.8e-5), so an interval that ignored the
+    // distortion would miss often: the noise-only intervals must miss at least 4 of the 16
+    // checks (k and c over 8 seeds; measured 5), or this test could not fail. The stated
+    // intervals claim 95 %: with 16 checks, 3 or more misses has probability 4 % if the claim
+    // holds (measured 1 miss); at most 2 are allowed. The long version is
+    // `paper_improved_uncertainty_covers_the_truth_long`.
+    let (total, noise_only, checks) = improved_coverage(1e-7, 1..9);
+    assert_eq!(checks, 16);
+    assert!(total <= 2, "{total} of {checks} missed");
+    assert!(
+        noise_only >= 4,
+        "noise-only intervals missed only {noise_only}"
+    );
+}
+
+#[test]
+#[ignore = "Monte Carlo over 200 seeds, 4 to 10 minutes"]
+fn paper_improved_uncertainty_covers_the_truth_long() {
+    // As the quick version over 200 seeds (400 checks): at a true 95 % the misses are
+    // binomial, mean 20, sd 4.4; at most 20 + 3 sd = 33 are allowed. Measured (2026-11-24):
+    // 11 misses, 163 by the noise-only intervals; 582 s on 2 cores shared with a build.
+    let (total, noise_only, checks) = improved_coverage(1e-7, 1..201);
+    println!("{total} of {checks} missed ({noise_only} by noise-only intervals)");
+    assert!(total <= 33, "{total} of {checks} missed");
+    assert!(
+        noise_only >= 100,
+        "noise-only intervals missed only {noise_only}"
+    );
+}
+
 #[test]
 fn too_few_phase_shifts_for_the_harmonics_is_explained() {
     let tmp = tempfile::tempdir().unwrap();

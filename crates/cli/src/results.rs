@@ -219,6 +219,10 @@ pub fn run(
             })
             .collect();
         t.rows(&format!("fit ({estimator})"), lines);
+        t.rows(
+            &format!("uncertainty ({estimator})"),
+            uncertainty_lines(&fit["uncertainty"], fitted, unit),
+        );
     }
     // Error keys: `<estimator>` for the first output, `<estimator>_<output>` for the others.
     let outputs: Vec<&str> = summary["htf"]["outputs"]
@@ -245,6 +249,39 @@ pub fn run(
     t.rows("HTF error", error_table(&columns));
     t.row("results", location(dir, files));
     t.print();
+}
+
+/// One line per parameter of `fit.<estimator>.uncertainty`: the interval's half width at its
+/// level, the components, and which dominates (`docs/outputs.md`).
+fn uncertainty_lines(
+    u: &Value,
+    fitted: &[String],
+    unit: &dyn Fn(&str) -> Option<String>,
+) -> Vec<String> {
+    let Some(params) = u["parameters"].as_object() else {
+        return Vec::new();
+    };
+    let source = u["htf_bias_source"].as_str().map(|s| s.replace('_', " "));
+    let level = f(&u["level"]);
+    fitted
+        .iter()
+        .filter_map(|name| {
+            let p = params.get(name)?;
+            let unit = unit(name).map_or(String::new(), |u| format!(" {u}"));
+            let mut parts = vec![format!("noise {}", num(f(&p["noise"]), 3))];
+            if let Some(source) = &source {
+                parts.push(format!("{source} {}", num(f(&p["htf_bias"]), 3)));
+            }
+            parts.push(format!("structure {}", num(f(&p["structure"]), 3)));
+            Some(format!(
+                "{name} ± {}{unit} at {} ({}): {} dominates",
+                num(f(&p["half_width"]), 3),
+                pct(level),
+                parts.join(", "),
+                p["dominant"].as_str().unwrap_or("?").replace('_', " ")
+            ))
+        })
+        .collect()
 }
 
 /// Per harmonic (rows) and estimate (columns): median and max over the band of

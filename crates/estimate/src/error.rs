@@ -392,6 +392,15 @@ pub enum Error {
         /// Parameter value at which the difference was attempted.
         value: f64,
     },
+    /// The Jacobian of a fit is rank deficient: its parameters are not identified, so no
+    /// covariance (and no uncertainty budget) exists.
+    #[error(
+        "the fit's Jacobian is rank deficient ({parameters} parameters): no covariance exists"
+    )]
+    SingularCovariance {
+        /// Parameters fitted.
+        parameters: usize,
+    },
 }
 
 /// Shorthand for results of this crate.

@@ -49,6 +49,33 @@ impl fmt::Display for Method {
     }
 }
 
+/// Where a systematic error (bias) of an HTF estimate comes from, when it has a known source
+/// that can be estimated ([`HtfEstimate::bias`]); written to files in snake case.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum BiasSource {
+    /// The odd-order (third and higher) nonlinear response that a `+u` / `-u` pairing cannot
+    /// cancel ([`periodic_lines_paired`](crate::periodic_lines_paired)).
+    PairingDistortion,
+    /// The nonlinear response of an unpaired estimate (even and odd orders).
+    NonlinearDistortion,
+    /// The smoothing bias of a regularised estimator: the penalty flattens the curvature of
+    /// `G_n` ([`siddiqi`](crate::siddiqi), the regularised multi-experiment estimators).
+    Smoothing,
+}
+
+impl BiasSource {
+    /// Snake-case name, as written to files.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::PairingDistortion => "pairing_distortion",
+            Self::NonlinearDistortion => "nonlinear_distortion",
+            Self::Smoothing => "smoothing",
+        }
+    }
+}
+
 /// Estimated harmonic transfer functions `G_n(j omega)` at output frequencies `omega`.
 ///
 /// For each harmonic `harmonics[i]` there are parallel arrays of output frequencies (rad/s,
@@ -67,6 +94,7 @@ pub struct HtfEstimate {
     alpha: Option<f64>,
     alpha_effective: Option<f64>,
     dof: Option<f64>,
+    bias: Option<(BiasSource, Vec<Vec<Complex64>>)>,
     method: Method,
 }
 
@@ -142,6 +170,7 @@ impl HtfEstimate {
             alpha: None,
             alpha_effective: None,
             dof: None,
+            bias: None,
             method,
         })
     }
@@ -174,6 +203,47 @@ impl HtfEstimate {
     pub fn with_dof(mut self, dof: f64) -> Self {
         self.dof = Some(dof);
         self
+    }
+
+    /// Attaches an estimate of the systematic error `E[G_hat] - G` at every value (aligned with
+    /// the values of every harmonic) and its source.
+    pub fn with_bias(mut self, source: BiasSource, bias: Vec<Vec<Complex64>>) -> Result<Self> {
+        if bias.len() != self.harmonics.len() {
+            return Err(Error::InconsistentEstimate {
+                what: "bias",
+                found: bias.len(),
+                expected: self.harmonics.len(),
+            });
+        }
+        for (b, om) in bias.iter().zip(&self.omegas) {
+            if b.len() != om.len() {
+                return Err(Error::InconsistentEstimate {
+                    what: "bias",
+                    found: b.len(),
+                    expected: om.len(),
+                });
+            }
+        }
+        self.bias = Some((source, bias));
+        Ok(self)
+    }
+
+    /// The estimated systematic error `E[G_hat] - G` per harmonic (aligned with the values) and
+    /// its source, when the estimator knows one ([`BiasSource`]). The standard errors do not
+    /// include it.
+    pub fn bias(&self) -> Option<(BiasSource, &[Vec<Complex64>])> {
+        self.bias.as_ref().map(|(s, b)| (*s, b.as_slice()))
+    }
+
+    /// The estimated bias at `omega` of harmonic `n` (the value estimated nearest to `omega`,
+    /// within `1e-9` relative), when there is one.
+    pub fn bias_at(&self, n: i32, omega: f64) -> Option<Complex64> {
+        let (_, bias) = self.bias.as_ref()?;
+        let i = self.harmonics.iter().position(|&m| m == n)?;
+        let j = self.omegas[i]
+            .iter()
+            .position(|&w| (w - omega).abs() <= 1e-9 * omega.abs().max(1.0))?;
+        Some(bias[i][j])
     }
 
     /// Harmonic indices, in the order given to the estimator.

@@ -14,6 +14,16 @@
 //!   multisine, averaged over periods, optionally from a `+u` / `-u` pair.
 //! - [`levenberg_marquardt`]: nonlinear least squares with a finite-difference Jacobian, returning
 //!   the covariance and why it stopped ([`LmStop`]).
+//! - [`uncertainty_budget`]: the error of fitted parameters split into noise, the known bias of
+//!   the estimates and model-structure error ([`UncertaintyBudget`]).
+//!
+//! # Bias
+//!
+//! Standard errors cover noise only. Where an estimator has a known systematic error it says so
+//! ([`HtfEstimate::bias`], [`BiasSource`]): the regularised estimators attach an estimate of
+//! their smoothing bias. The odd-order distortion that a `+u` / `-u` pairing leaves
+//! cannot be seen in one pair of records (it does not change sign with the input); the `htfid`
+//! binary estimates it by re-running the experiment, without noise, on the fitted model.
 //!
 //! All estimators return an [`HtfEstimate`]; [`HtfEstimate::rows`] yields
 //! `(omega, n, G, stderr)` rows.
@@ -92,9 +102,10 @@ mod siddiqi;
 mod size;
 mod smallls;
 mod smooth;
+mod uncertainty;
 
 pub use error::{Error, Result};
-pub use estimate::{HarmonicSeries, HtfEstimate, HtfRow, Method};
+pub use estimate::{BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
 pub use lm::{levenberg_marquardt, FdScheme, LmFit, LmOptions, LmStop};
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
@@ -103,3 +114,7 @@ pub use record::{dft, Record};
 pub use siddiqi::siddiqi;
 pub use size::estimator_bytes;
 pub use smooth::Alpha;
+pub use uncertainty::{
+    contiguous_clusters, uncertainty_budget, ErrorSource, FitBias, FitBudgetInput, ParameterBudget,
+    UncertaintyBudget,
+};

@@ -91,6 +91,8 @@ pub struct LmFit {
     pub cost: f64,
     /// Residuals at `params`.
     pub residuals: Vec<f64>,
+    /// The finite-difference Jacobian `dr_i / dp_j` at `params`, row by row (`m` rows of `p`).
+    pub jacobian: Vec<Vec<f64>>,
     /// Jacobians formed.
     pub iterations: usize,
     /// Calls of the residual function.
@@ -319,6 +321,9 @@ where
         covariance,
         cost,
         residuals: r,
+        jacobian: (0..m)
+            .map(|i| (0..np).map(|j| jac[(i, j)]).collect())
+            .collect(),
         iterations,
         evaluations: prob.evaluations,
         stop,

@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 use num_complex::Complex64;
 
 use crate::error::{Error, Result};
-use crate::estimate::{HtfEstimate, Method};
+use crate::estimate::{BiasSource, HtfEstimate, Method};
 use crate::record::{Prepared, Record};
 use crate::smallls::SmallLs;
 use crate::smooth::{self, Alpha, BinSystem};
@@ -179,6 +179,7 @@ fn regularised(
         res.values,
         res.stderr,
     )?
+    .with_bias(BiasSource::Smoothing, res.bias)?
     .with_cond(bin_conditions(prep, options.rcond))?
     .with_alpha(weight, weight_effective)
     .with_dof(res.dof))

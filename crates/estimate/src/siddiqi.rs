@@ -1,7 +1,7 @@
 //! Siddiqi's single-record estimator: least squares with a curvature penalty across bins.
 
 use crate::error::Result;
-use crate::estimate::{HtfEstimate, Method};
+use crate::estimate::{BiasSource, HtfEstimate, Method};
 use crate::record::{Prepared, Record};
 use crate::smooth::{self, Alpha, BinSystem};
 
@@ -23,7 +23,14 @@ const MIN_BINS: usize = 3;
 /// Standard errors are `sqrt(sigma^2 [N^{-1}]_ii)` with `sigma^2 = RSS / (M - tr S)` and `S` the
 /// influence matrix: the posterior spread of a Gaussian smoothness prior. They ignore the bias
 /// that the penalty introduces where `G_n` curves, and they bound the frequentist spread
-/// `sigma^2 [N^{-1} A^H A N^{-1}]_ii` from above.
+/// `sigma^2 [N^{-1} A^H A N^{-1}]_ii` from above. The bias itself is estimated and attached
+/// ([`HtfEstimate::bias`], [`BiasSource::Smoothing`]): the penalised solution has mean
+/// `G - N^{-1} R G` (`N` the normal matrix, `R` the penalty), so the bias is `-N^{-1} R G`, the
+/// curvature of `G` weighed by the smoother's kernel. With `G = G_hat - bias` it is a fixed
+/// point; two terms of its series are used, starting from `-N^{-1} R G_hat` (more would undo
+/// the regularisation and bring back the noise it suppresses). On noise-free data where
+/// smoothing dominates it accounts for 77 to 85 % of the error (`tests/siddiqi.rs`): it falls
+/// short where the penalty flattens much of the curvature.
 pub fn siddiqi(
     record: &Record,
     period: f64,
@@ -49,6 +56,7 @@ pub fn siddiqi(
         res.values,
         res.stderr,
     )?
+    .with_bias(BiasSource::Smoothing, res.bias)?
     .with_alpha(res.alpha, res.alpha_effective)
     .with_dof(res.dof))
 }

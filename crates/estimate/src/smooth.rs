@@ -28,6 +28,10 @@ pub enum Alpha {
     Gcv,
 }
 
+/// Terms of the series for the smoothing bias (see `fit`): two recover 77 to 85 % of the
+/// noise-free error of a rational HTF at alpha 10 to 1000 (`tests/siddiqi.rs`), one 60 to 70 %.
+const BIAS_TERMS: usize = 2;
+
 /// Grid of `log10(alpha)` searched by GCV.
 const GCV_LOG_LO: f64 = -8.0;
 const GCV_LOG_HI: f64 = 4.0;
@@ -103,6 +107,10 @@ pub(crate) struct SmoothFit {
     pub trace: f64,
     /// Diagonal of the inverse normal matrix (empty unless asked for).
     pub zdiag: Vec<f64>,
+    /// Estimate of the regularisation bias, `-N^{-1} R (x - bias)` with
+    /// `R = alpha D2^T D2 (x) I + ridge I`, to BIAS_TERMS terms (empty unless `zdiag` was asked
+    /// for).
+    pub bias: Vec<Complex64>,
     /// Effort counters; only the linear-work test reads them.
     #[cfg_attr(not(test), allow(dead_code))]
     pub work: Work,
@@ -171,6 +179,45 @@ pub(crate) fn fit(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> 
     }
     let mut chol = mat.factor()?;
     chol.solve_in_place(&mut x);
+    // The penalised solution has mean `N^{-1} A^H A G = G - N^{-1} R G` (`R` the penalty), so
+    // its bias is `b = -N^{-1} R G`: the curvature of `G` weighed by the smoother's kernel.
+    // With `G = G_hat - b` this is a fixed point, `b = -N^{-1} R (G_hat - b)`; its series,
+    // truncated after BIAS_TERMS terms, starts from the plug-in `-N^{-1} R G_hat` (which
+    // falls short by the curvature the penalty already removed). The full series would be
+    // `G_hat` minus the unregularised solution, the noise the penalty suppresses included.
+    let bias = if want_zdiag {
+        let apply = |g: &[Complex64]| -> Vec<Complex64> {
+            let mut out: Vec<Complex64> = g.iter().map(|v| v * ridge).collect();
+            if smooth {
+                for kb in 0..m {
+                    for hh in 0..h {
+                        let at = |k: usize| g[k * h + hh];
+                        let mut v = at(kb) * pen[0][kb];
+                        for d in 1..=2 {
+                            if kb + d < m {
+                                v += at(kb + d) * pen[d][kb];
+                            }
+                            if kb >= d {
+                                v += at(kb - d) * pen[d][kb - d];
+                            }
+                        }
+                        out[kb * h + hh] += v * alpha;
+                    }
+                }
+            }
+            out
+        };
+        let mut b = vec![Complex64::new(0.0, 0.0); n];
+        for _ in 0..BIAS_TERMS {
+            let g: Vec<Complex64> = x.iter().zip(&b).map(|(x, b)| x - b).collect();
+            let mut rhs = apply(&g);
+            chol.solve_in_place(&mut rhs);
+            b = rhs.iter().map(|v| -v).collect();
+        }
+        b
+    } else {
+        Vec::new()
+    };
     let mut rss = 0.0;
     for kb in 0..m {
         let xk = &x[kb * h..(kb + 1) * h];
@@ -205,6 +252,7 @@ pub(crate) fn fit(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> 
         rss,
         trace,
         zdiag,
+        bias,
         work: chol.work(),
     })
 }
@@ -266,6 +314,8 @@ pub(crate) fn gcv_alpha(sys: &BinSystem, scale: f64, ridge: f64) -> Result<f64> 
 /// Values and standard errors at one weight, as per-harmonic arrays.
 pub(crate) struct SmoothResult {
     pub values: Vec<Vec<Complex64>>,
+    /// Estimated regularisation bias of every value.
+    pub bias: Vec<Vec<Complex64>>,
     pub stderr: Vec<Vec<f64>>,
     pub alpha: f64,
     pub alpha_effective: f64,
@@ -297,6 +347,9 @@ pub(crate) fn estimate(sys: &BinSystem, alpha: Alpha, ridge: f64) -> Result<Smoo
     let values = (0..h)
         .map(|hh| (0..m).map(|kb| f.x[kb * h + hh]).collect())
         .collect();
+    let bias = (0..h)
+        .map(|hh| (0..m).map(|kb| f.bias[kb * h + hh]).collect())
+        .collect();
     let stderr = (0..h)
         .map(|hh| {
             (0..m)
@@ -306,6 +359,7 @@ pub(crate) fn estimate(sys: &BinSystem, alpha: Alpha, ridge: f64) -> Result<Smoo
         .collect();
     Ok(SmoothResult {
         values,
+        bias,
         stderr,
         alpha,
         alpha_effective: alpha_eff,

@@ -1,6 +1,9 @@
 //! Fitting named parameters to HTF estimates through the exact HTF of the model.
 
-use htfid_estimate::{levenberg_marquardt, HtfEstimate, LmOptions};
+use htfid_estimate::{
+    contiguous_clusters, levenberg_marquardt, uncertainty_budget, FitBias, FitBudgetInput,
+    HtfEstimate, LmOptions, UncertaintyBudget,
+};
 use htfid_hybrid::Options;
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{LimitCycle, ShootingOptions};
@@ -78,7 +81,15 @@ pub struct HtfFit {
     pub cost: f64,
     /// Why it stopped.
     pub stop: String,
+    /// The error budget at 95 % ([`htfid_estimate::uncertainty_budget`]): noise, the
+    /// estimates' own known bias ([`HtfEstimate::bias`], the regularised estimators' smoothing
+    /// bias) and model-structure error, from clusters of [`CLUSTER_POINTS`] neighbouring
+    /// frequencies of each output and harmonic; `None` when the Jacobian is rank deficient.
+    pub uncertainty: Option<UncertaintyBudget>,
 }
+
+/// Estimates per cluster of the structure term of [`HtfFit::uncertainty`].
+pub const CLUSTER_POINTS: usize = 10;
 
 /// Fits `spec.parameters` of `model` to `estimates` (`(output index, estimate)` pairs),
 /// starting from the model's current values and its limit cycle `cycle`. Weights are
@@ -175,6 +186,7 @@ pub fn fit_to_htf(
         ..LmOptions::default()
     };
     let fit = levenberg_marquardt(residuals, &p0, 2 * rows.len(), &lm)?;
+    let uncertainty = budget(estimates, &rows, &fit.jacobian, &fit.residuals);
     Ok(HtfFit {
         parameters: spec.parameters.clone(),
         stderr: fit
@@ -186,5 +198,61 @@ pub fn fit_to_htf(
         iterations: fit.iterations,
         cost: fit.cost,
         stop: format!("{:?}", fit.stop),
+        uncertainty,
     })
+}
+
+/// The fit's error budget; the known bias is that of the estimates (all must share one source
+/// for it to be used).
+fn budget(
+    estimates: &[(usize, &HtfEstimate)],
+    rows: &[(usize, i32, f64, Complex64, f64)],
+    jacobian: &[Vec<f64>],
+    residuals: &[f64],
+) -> Option<UncertaintyBudget> {
+    let sources: Vec<_> = estimates
+        .iter()
+        .filter_map(|(_, e)| e.bias().map(|(s, _)| s))
+        .collect();
+    let source = sources
+        .first()
+        .copied()
+        .filter(|s| sources.len() == estimates.len() && sources.iter().all(|t| t == s));
+    let residual_bias: Option<Vec<f64>> = source.map(|_| {
+        rows.iter()
+            .flat_map(|&(o, n, w, _, weight)| {
+                let b = estimates
+                    .iter()
+                    .find(|(out, _)| *out == o)
+                    .and_then(|(_, e)| e.bias_at(n, w))
+                    .unwrap_or_default();
+                [b.re * weight, b.im * weight]
+            })
+            .collect()
+    });
+    let groups: Vec<i64> = rows
+        .iter()
+        .map(|&(o, n, ..)| (o as i64) * 100_000 + i64::from(n))
+        .collect();
+    let clusters: Vec<usize> = contiguous_clusters(&groups, CLUSTER_POINTS)
+        .into_iter()
+        .flat_map(|c| [c, c])
+        .collect();
+    uncertainty_budget(&FitBudgetInput {
+        jacobian,
+        residuals,
+        // Weights are one over the complex standard error; real and imaginary parts each
+        // carry half its variance.
+        noise_variance: 0.5,
+        clusters: &clusters,
+        bias: source
+            .zip(residual_bias.as_deref())
+            .map(|(source, b)| FitBias {
+                source,
+                residual_bias: b,
+                parameter_bias: None,
+            }),
+        level: 0.95,
+    })
+    .ok()
 }

@@ -699,5 +699,12 @@ fn fit_model(
     out.insert("iterations".into(), json!(fit.iterations));
     out.insert("cost".into(), json!(fit.cost));
     out.insert("stop".into(), json!(fit.stop));
+    if let Some(b) = &fit.uncertainty {
+        let method = b.htf_bias_source.map(|_| "curvature");
+        out.insert(
+            "uncertainty".into(),
+            crate::commands::run::uncertainty_json(&fit.parameters, b, method),
+        );
+    }
     Ok(Value::Object(out))
 }

@@ -5,8 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use htfid_estimate::{
-    levenberg_marquardt, multi_experiment, periodic_lines, periodic_lines_paired, siddiqi, Alpha,
-    HtfEstimate, LineSpec, LmOptions, MultiOptions, Record,
+    contiguous_clusters, levenberg_marquardt, multi_experiment, periodic_lines,
+    periodic_lines_paired, siddiqi, uncertainty_budget, Alpha, BiasSource, FitBias, FitBudgetInput,
+    HtfEstimate, LineSpec, LmFit, LmOptions, Method, MultiOptions, Record, UncertaintyBudget,
 };
 use htfid_excite::{alias_map, Polarity};
 use htfid_hybrid::simulate;
@@ -105,13 +106,23 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 est.name().into(),
                 harmonic_errors(&settings, &theory.exact, e),
             );
-            let fit = stages
+            let outcome = stages
                 .run(&format!("fit ({})", est.name()), || {
                     fit_parameters(&settings, &sim, e)
                 })
                 .with_context(|| {
                     format!("parametric fit to the \"{}\" estimates failed", est.name())
                 })?;
+            let budget = stages.run(&format!("uncertainty ({})", est.name()), || {
+                fit_uncertainty(&settings, *est, e, &outcome)
+            });
+            let mut fit = outcome.json;
+            // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run):
+            // the reason is recorded instead.
+            fit["uncertainty"] = match budget {
+                Ok((b, method)) => uncertainty_json(&settings.estimation.fit, &b, method),
+                Err(err) => json!({ "error": format!("{err:#}") }),
+            };
             fits.insert(est.name().into(), fit);
             if let Some(a) = e.alpha() {
                 alpha.insert(
@@ -445,9 +456,170 @@ pub(crate) fn harmonic_errors(
     Value::Object(out)
 }
 
+/// A parametric fit: its JSON, the optimiser's account, and the points and weights it used.
+struct FitOutcome {
+    json: Value,
+    lm: LmFit,
+    /// `(n, omega)` of every point, in residual order (two residuals per point).
+    points: Vec<(i32, f64)>,
+    weights: Vec<f64>,
+}
+
+/// Estimates in a cluster of the structure term: neighbouring frequencies of one harmonic whose
+/// errors may be correlated (a smooth structure error is); 10 gives 8 or 9 clusters per
+/// harmonic of the designed experiment, enough for a variance.
+const CLUSTER_POINTS: usize = 10;
+
+/// Coverage level of the stated intervals.
+const COVERAGE_LEVEL: f64 = 0.95;
+
+/// The fit's error budget (`htfid_estimate::uncertainty_budget`): noise, the estimator's known
+/// bias, structure. The line estimators' distortion (what a `+u` / `-u` pairing leaves, or all
+/// of the nonlinear response without pairing) is the error the estimator makes on the same
+/// experiment simulated without noise on the fitted model (a parametric bootstrap); the
+/// regularised estimators carry their own estimate of their smoothing bias. Returns the budget
+/// and how the bias was found.
+fn fit_uncertainty(
+    settings: &Settings,
+    est: Estimator,
+    e: &HtfEstimate,
+    fit: &FitOutcome,
+) -> Result<(UncertaintyBudget, Option<&'static str>)> {
+    let rows = |d: &[Complex64]| -> Vec<f64> {
+        d.iter()
+            .zip(&fit.weights)
+            .flat_map(|(d, w)| [d.re * w, d.im * w])
+            .collect()
+    };
+    let (bias, method) = match e.method() {
+        Method::PeriodicLinesPaired | Method::PeriodicLines => {
+            let source = if e.method() == Method::PeriodicLinesPaired {
+                BiasSource::PairingDistortion
+            } else {
+                BiasSource::NonlinearDistortion
+            };
+            let (d, p_bias) = distortion_bootstrap(settings, est, fit)?;
+            (Some((source, rows(&d), Some(p_bias))), Some("bootstrap"))
+        }
+        _ => match e.bias() {
+            Some((source, _)) => {
+                let d: Vec<Complex64> = fit
+                    .points
+                    .iter()
+                    .map(|&(n, w)| e.bias_at(n, w).unwrap_or_default())
+                    .collect();
+                (Some((source, rows(&d), None)), Some("curvature"))
+            }
+            None => (None, None),
+        },
+    };
+    let groups: Vec<i64> = fit.points.iter().map(|&(n, _)| i64::from(n)).collect();
+    let clusters: Vec<usize> = contiguous_clusters(&groups, CLUSTER_POINTS)
+        .into_iter()
+        .flat_map(|c| [c, c])
+        .collect();
+    let budget = uncertainty_budget(&FitBudgetInput {
+        jacobian: &fit.lm.jacobian,
+        residuals: &fit.lm.residuals,
+        // Weights are one over the complex standard error; real and imaginary parts each
+        // carry half its variance.
+        noise_variance: 0.5,
+        clusters: &clusters,
+        bias: bias.as_ref().map(|(source, b, p)| FitBias {
+            source: *source,
+            residual_bias: b,
+            parameter_bias: p.as_deref(),
+        }),
+        level: COVERAGE_LEVEL,
+    })?;
+    Ok((budget, method))
+}
+
+/// The error the estimator and fit make without noise on the fitted model: the experiment is
+/// simulated again at the fitted parameters with the noise left out, estimated and fitted the
+/// same way. Returns the HTF error at every fitted point (estimate minus the fitted model's
+/// exact HTF) and the parameter error (refit minus fitted values).
+fn distortion_bootstrap(
+    settings: &Settings,
+    est: Estimator,
+    fit: &FitOutcome,
+) -> Result<(Vec<Complex64>, Vec<f64>)> {
+    let names = &settings.estimation.fit;
+    let mut again = settings.clone();
+    again.noise = None;
+    if let crate::settings::System::Hopper { params, .. } = &mut again.system {
+        for (name, v) in names.iter().zip(&fit.lm.params) {
+            set_param(params, name, *v);
+        }
+    }
+    let mut quiet = Stages::new();
+    let sim = simulate_experiment(&again, &mut quiet)?;
+    let deviation = orbit_deviation(&again, &sim)?;
+    let theory = theory::from_orbit(&again, sim.hopper.clone(), sim.orbit.clone(), &mut quiet)?;
+    let e = estimate(&again, (&sim.t, &sim.u), &sim.excitation, &deviation, est)?;
+    let refit = fit_parameters(&again, &sim, &e)?;
+    let d = fit
+        .points
+        .iter()
+        .map(|&(n, w)| {
+            let h = e
+                .harmonic(n)
+                .context("the bootstrap estimate lacks a harmonic")?;
+            let i = h
+                .omegas
+                .iter()
+                .position(|&o| (o - w).abs() <= 1e-9 * w.abs().max(1.0))
+                .context("the bootstrap estimate lacks a frequency")?;
+            Ok(h.values[i] - theory.exact.g(n, w))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let p_bias = refit
+        .lm
+        .params
+        .iter()
+        .zip(&fit.lm.params)
+        .map(|(a, b)| a - b)
+        .collect();
+    Ok((d, p_bias))
+}
+
+/// `fit.<estimator>.uncertainty` of `summary.json` (docs/outputs.md).
+pub(crate) fn uncertainty_json(
+    names: &[String],
+    b: &UncertaintyBudget,
+    bias_method: Option<&str>,
+) -> Value {
+    let mut parameters = serde_json::Map::new();
+    for (name, p) in names.iter().zip(&b.parameters) {
+        parameters.insert(
+            name.clone(),
+            json!({
+                "noise": p.noise,
+                "htf_bias": p.htf_bias,
+                "htf_bias_estimate": p.htf_bias_estimate,
+                "structure": p.structure,
+                "total": p.total,
+                "effective_dof": if p.effective_dof.is_finite() { json!(p.effective_dof) } else { Value::Null },
+                "coverage_factor": p.coverage_factor,
+                "half_width": p.half_width,
+                "dominant": p.dominant.as_str(),
+            }),
+        );
+    }
+    json!({
+        "level": b.level,
+        "htf_bias_source": b.htf_bias_source.map(|s| s.as_str()),
+        "htf_bias_method": bias_method,
+        "chi2_per_dof": b.chi2_per_dof,
+        "chi2_per_dof_corrected": b.chi2_per_dof_corrected,
+        "clusters": b.clusters,
+        "parameters": parameters,
+    })
+}
+
 /// Levenberg-Marquardt fit of the configured parameters to the estimates, through the exact
 /// HTF of the model's linearisation about its own limit cycle.
-fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Result<Value> {
+fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Result<FitOutcome> {
     let names = &settings.estimation.fit;
     let (lo, hi) = settings.estimation.band;
     let rows: Vec<_> = e
@@ -550,7 +722,12 @@ fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Resu
     out.insert("iterations".into(), json!(fit.iterations));
     out.insert("cost".into(), json!(fit.cost));
     out.insert("stop".into(), json!(format!("{:?}", fit.stop)));
-    Ok(Value::Object(out))
+    Ok(FitOutcome {
+        json: Value::Object(out),
+        points: rows.iter().map(|r| (r.n, r.omega)).collect(),
+        weights,
+        lm: fit,
+    })
 }
 
 /// Markers drawn per harmonic and estimator, at most.
