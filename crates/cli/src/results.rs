@@ -268,14 +268,14 @@ fn uncertainty_lines(
         .filter_map(|name| {
             let p = params.get(name)?;
             let unit = unit(name).map_or(String::new(), |u| format!(" {u}"));
-            let mut parts = vec![format!("noise {}", num(f(&p["noise"]), 3))];
+            let mut parts = vec![format!("noise {}", sig(f(&p["noise"]), 3))];
             if let Some(source) = &source {
-                parts.push(format!("{source} {}", num(f(&p["htf_bias"]), 3)));
+                parts.push(format!("{source} {}", sig(f(&p["htf_bias"]), 3)));
             }
-            parts.push(format!("structure {}", num(f(&p["structure"]), 3)));
+            parts.push(format!("structure {}", sig(f(&p["structure"]), 3)));
             Some(format!(
                 "{name} ± {}{unit} at {} ({}): {} dominates",
-                num(f(&p["half_width"]), 3),
+                sig(f(&p["half_width"]), 3),
                 pct(level),
                 parts.join(", "),
                 p["dominant"].as_str().unwrap_or("?").replace('_', " ")

@@ -595,7 +595,8 @@ pub fn diagnose_model(
     // Boundary effects, each fitted jointly with the free parameters and tested against the
     // refit: a likelihood ratio corrected for the residuals' correlation, and a held-out gain.
     let n = est.residual_len();
-    let mut candidates: Vec<(ModelCandidate, Option<Vec<Vec<f64>>>, Vec<f64>)> = Vec::new();
+    // Each candidate with its simulated outputs (when fitted) and its fit residuals.
+    let mut candidates: Vec<Tried> = Vec::new();
     for &effect in &opts.effects {
         let start = joint.effect_start(effect, &base, &outputs);
         let names_e = effect.parameter_names(&outputs);
@@ -737,6 +738,9 @@ pub fn diagnose_model(
         simulated_extended,
     })
 }
+
+/// A candidate, its simulated outputs (when fitted) and its residuals on the fit data.
+type Tried = (ModelCandidate, Option<Vec<Vec<f64>>>, Vec<f64>);
 
 /// One joint output-error fit: free parameters, effect parameters and the initial state.
 struct JointFit {

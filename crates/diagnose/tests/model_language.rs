@@ -120,11 +120,23 @@ fn effects_on_the_boundary_of_a_model_file_are_named_with_their_parameters() {
             ModelCause::Ambiguous => d.alternatives.iter().any(|a| a == name),
             _ => false,
         };
+        let table: Vec<String> = d
+            .candidates
+            .iter()
+            .map(|c| {
+                format!(
+                    "{} {:.4e} {:?} {}",
+                    c.effect, c.nrmse_validation, c.parameters, c.note
+                )
+            })
+            .collect();
         assert!(
             named,
-            "{name}: cause {} ({:?})",
+            "{name}: cause {} ({:?}); refit {:.4e}\n{}",
             d.cause.name(),
-            d.alternatives
+            d.alternatives,
+            d.refitted.validation(),
+            table.join("\n")
         );
         let c = d
             .candidates
