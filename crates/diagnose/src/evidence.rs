@@ -1,10 +1,9 @@
 //! Evidence a scientist reads: where in the state and in the forcing cycle the model's error
 //! sits, and how the held-out error falls from the configured model to the final one.
 //!
-//! - [`residual_acceleration`]: the measured acceleration (Savitzky-Golay, as the screening
-//!   and the term search compute it) minus the model's acceleration at the smoothed states
-//!   with the measured force, the model side passed through the kernel the derivative filter
-//!   applies to a true acceleration. A force the model lacks, divided by the mass, shows here
+//! - [`residual_acceleration`]: the measured acceleration (five-point differences) minus the
+//!   model's acceleration at the measured states with the measured force, smoothed by the
+//!   kernel the screening's Savitzky-Golay derivative filter applies to a true acceleration. A force the model lacks, divided by the mass, shows here
 //!   as a function of the state: a cubic spring as `-k3 x^3 / m` against position, Coulomb
 //!   friction as a step against velocity.
 //! - [`binned_means`]: the mean of a residual in bins of position, velocity or forcing phase,
@@ -157,9 +156,6 @@ impl Structure {
 /// The residual acceleration of a model at the scored samples of a record.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ResidualSamples {
-    /// The least-squares fit `a + b x + c v` removed from the residual, `[a, b, c]` (see
-    /// [`residual_acceleration`]).
-    pub linear_removed: [f64; 3],
     /// Time of each sample (s).
     pub t: Vec<f64>,
     /// Smoothed position (output units; the sensor's offset and gain undone).
@@ -171,24 +167,25 @@ pub struct ResidualSamples {
 }
 
 /// The residual acceleration of `model` on `record`: at every sample of `ranges` after the
-/// first `skip_s` seconds (and whose smoothing window lies inside the range), the
-/// Savitzky-Golay acceleration of the measured position minus the model's acceleration at the
-/// smoothed position and velocity, driven by the measured force read as the simulation reads it
-/// (`interpolation`). The model's acceleration is passed through the kernel with which the
-/// derivative filter smooths a true acceleration, so the two sides see the same smoothing at
-/// every frequency. The sensor's offset and gain are undone before smoothing; a sensor lag is
-/// not (it shows as a residual). The window is the screening's (pass band about twice the
-/// model's natural frequency).
+/// first `skip_s` seconds (and whose smoothing window lies inside the range), the measured
+/// acceleration minus the model's, smoothed. At each sample the equation error is the
+/// five-point central second difference of the measured position minus the model's
+/// acceleration at the measured position and its five-point central-difference velocity, driven
+/// by the measured force read as the simulation reads it (`interpolation`); it is then smoothed
+/// by the kernel with which the screening's Savitzky-Golay second derivative smooths a true
+/// acceleration (its window: a pass band of about twice the model's natural frequency). Both
+/// sides see one smoothing, so the residual is the missing force over the mass, smoothed, at
+/// every frequency the data hold. The sensor's offset and gain are undone first; a sensor lag is
+/// not (it shows as a residual). The samples are binned by the Savitzky-Golay smoothed
+/// position and velocity.
 ///
-/// The part of the residual linear in position and velocity, and its constant, are removed by
-/// least squares over all samples (the fit is kept in [`ResidualSamples::linear_removed`]), as
-/// the term search keeps them as nuisance columns: a refit of the model's linear parameters
-/// absorbs them, and the smoother's response to a position differs from its response to the
-/// position's second derivative by a term linear in the state that, beside a stiff spring,
-/// outweighs the structure sought (on the Silverbox record, hundreds of V/s^2). What remains
-/// is what no linear refit explains: a cubic spring shows as `-k3 x^3 / m` less its linear
-/// part, friction as a step at zero velocity, a damping missing on one side of zero velocity
-/// as a kink there.
+/// Why not the Savitzky-Golay acceleration against the model at the smoothed states (as the
+/// screening does): the smoother's response to a position differs from its response to the
+/// position's second derivative, and the three-point second difference inside the
+/// Savitzky-Golay filter is `2 %` low at a tenth of the sampling rate; beside a stiff spring
+/// (`k / m` = 1.8e5 s^-2 on the Silverbox record) either error, times the stiffness, leaves a
+/// term linear in position of hundreds of V/s^2, larger than the structure sought. The
+/// five-point differences are `0.3 %` off there.
 pub fn residual_acceleration(
     record: &Record,
     model: &FittedModel,
@@ -213,50 +210,38 @@ pub fn residual_acceleration(
         let start = r.start.min(end);
         // Smoothed within the range alone: the ranges are the data the diagnosis judged.
         let kin = savitzky_golay(&x[start..end], skip, end - start, dt, half, 4);
-        if kin.len() < kernel.len() {
-            continue;
-        }
-        let model_a: Vec<f64> = kin
-            .iter()
-            .map(|&(k, q)| {
-                hopper.vector_field(hopper.mode_of(q.v), t[start + k], &[q.x, q.v], &mut d);
-                d[1]
+        // The equation error at every sample, from five-point central differences of the
+        // measured position (see the docs above), then smoothed by the kernel.
+        let xs = &x[start..end];
+        let n = xs.len();
+        let error: Vec<f64> = (0..n)
+            .map(|k| {
+                if k < 2 || k + 2 >= n {
+                    return f64::NAN;
+                }
+                let v = (8.0 * (xs[k + 1] - xs[k - 1]) - (xs[k + 2] - xs[k - 2])) / (12.0 * dt);
+                let a = (16.0 * (xs[k + 1] + xs[k - 1]) - (xs[k + 2] + xs[k - 2]) - 30.0 * xs[k])
+                    / (12.0 * dt * dt);
+                hopper.vector_field(hopper.mode_of(v), t[start + k], &[xs[k], v], &mut d);
+                a - d[1]
             })
             .collect();
-        for (j, w) in model_a.windows(kernel.len()).enumerate() {
-            let smoothed: f64 = w.iter().zip(&kernel).map(|(a, b)| a * b).sum();
-            let (k, q) = kin[j + half];
+        for &(k, q) in &kin {
+            if k < half + 2 || k + half + 2 >= n {
+                continue;
+            }
+            let smoothed: f64 = kernel
+                .iter()
+                .enumerate()
+                .map(|(i, w)| w * error[k + i - half])
+                .sum();
             out.t.push(t[start + k]);
             out.x.push(q.x);
             out.v.push(q.v);
-            out.residual.push(q.a - smoothed);
+            out.residual.push(smoothed);
         }
     }
-    out.linear_removed = remove_linear(&mut out);
     Ok(out)
-}
-
-/// Subtracts the least-squares fit `a + b x + c v` from the residual; returns `[a, b, c]`
-/// (zeros when the fit is not determined).
-fn remove_linear(s: &mut ResidualSamples) -> [f64; 3] {
-    use nalgebra::{Matrix3, Vector3};
-    let mut ata = Matrix3::<f64>::zeros();
-    let mut aty = Vector3::<f64>::zeros();
-    for ((&x, &v), &r) in s.x.iter().zip(&s.v).zip(&s.residual) {
-        let row = Vector3::new(1.0, x, v);
-        ata += row * row.transpose();
-        aty += row * r;
-    }
-    let Some(beta) = ata.lu().solve(&aty) else {
-        return [0.0; 3];
-    };
-    if !beta.iter().all(|b| b.is_finite()) {
-        return [0.0; 3];
-    }
-    for ((&x, &v), r) in s.x.iter().zip(&s.v).zip(s.residual.iter_mut()) {
-        *r -= beta[0] + beta[1] * x + beta[2] * v;
-    }
-    [beta[0], beta[1], beta[2]]
 }
 
 /// Binned residual acceleration against position, velocity and (with a forcing period) the
@@ -526,45 +511,15 @@ mod tests {
             .map(|b| (k3 * b.centre.powi(3) / m).abs())
             .fold(0.0, f64::max);
         assert!(peak > 0.5, "the cubic force must be visible: {peak}");
-        // The truth less its least-squares part in 1, x, v over the same samples (normal
-        // equations solved here by Cramer's rule, apart from the code under test).
+        // The truth at the same samples, binned the same way (the binning is checked by hand
+        // above).
         let truth: Vec<f64> = samples.x.iter().map(|x| -k3 / m * x.powi(3)).collect();
-        let cols = |j: usize, i: usize| [1.0, samples.x[i], samples.v[i]][j];
-        let n_s = samples.x.len();
-        let mut g = [[0.0f64; 3]; 3];
-        let mut h = [0.0f64; 3];
-        for i in 0..n_s {
-            for a in 0..3 {
-                h[a] += cols(a, i) * truth[i];
-                for b in 0..3 {
-                    g[a][b] += cols(a, i) * cols(b, i);
-                }
-            }
-        }
-        let det = |m: [[f64; 3]; 3]| {
-            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-        };
-        let d0 = det(g);
-        let beta: Vec<f64> = (0..3)
-            .map(|j| {
-                let mut mj = g;
-                for a in 0..3 {
-                    mj[a][j] = h[a];
-                }
-                det(mj) / d0
-            })
-            .collect();
-        let projected: Vec<f64> = (0..n_s)
-            .map(|i| truth[i] - (0..3).map(|j| beta[j] * cols(j, i)).sum::<f64>())
-            .collect();
         let block: Vec<usize> = samples.t.iter().map(|t| t.floor() as usize).collect();
         let (lo, hi) = quantile_range(&samples.x);
-        let expected = binned_means(&samples.x, &projected, &block, STATE_BINS, (lo, hi));
+        let expected = binned_means(&samples.x, &truth, &block, STATE_BINS, (lo, hi));
         assert_eq!(expected.len(), binned.by_position.len());
         for (b, e) in binned.by_position.iter().zip(&expected) {
-            let tolerance = 3.0 * b.stderr.max(0.0) + 0.02 * peak;
+            let tolerance = 3.0 * b.stderr.max(0.0) + 0.01 * peak;
             assert!(
                 (b.mean - e.mean).abs() < tolerance,
                 "bin [{:.4}, {:.4}): mean {:.4}, truth {:.4}, stderr {:.4}",
@@ -575,15 +530,13 @@ mod tests {
                 b.stderr
             );
         }
-        // The linear part removed is that of the truth: most of the cubic's slope.
-        assert!((samples.linear_removed[1] - beta[1]).abs() < 0.05 * beta[1].abs());
         // Velocity bins carry no structure of their own beyond what position lends them: the
         // position bins stand further from zero.
         let (sx, sv) = (
             Structure::of(&binned.by_position),
             Structure::of(&binned.by_velocity),
         );
-        assert!(sx.max_mean - sx.min_mean > 0.2 * peak);
+        assert!(sx.max_mean - sx.min_mean > 1.5 * peak);
         assert!(binned.by_phase.is_empty());
         assert!(sv.bins > 0);
     }

@@ -157,7 +157,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         &settings, &record, &report, &tests, &figures, &ev, &htf_diffs,
     );
     text.push_str(&crate::validation::report(
-        "## 6. Validation",
+        "## 5. Validation",
         &[&check],
         &format!("{} model", ext_label(&report)),
         &format!("input `{}`", settings.data.input),
@@ -960,17 +960,7 @@ fn report_md(
         report.validation_ranges,
         num(report.burn_in_s, 3)
     );
-    let _ = writeln!(m, "## 1. Where the residual sits\n");
-    let _ = writeln!(
-        m,
-        "The residual acceleration (the Savitzky-Golay acceleration of the measured {out} minus the model's acceleration at the smoothed {out} and velocity, driven by the measured {inp}) on the held-out data, averaged in bins of position, velocity{phase}. Each band is ±2 standard errors of the bin mean, with blocks of {block} taken as independent: a mean whose band holds zero is noise. A missing force shows as a function of the state: a cubic spring against position, friction as a step at zero velocity, a damping the model lacks on one side of zero velocity as a change of slope there (the refitted parameters spread part of any missing force over both sides).\n",
-        out = s.data.output,
-        inp = s.data.input,
-        phase = if ev.nominal.by_phase.is_empty() { " (no forcing period is configured, so no phase)" } else { " and the forcing phase" },
-        block = ev.block_words,
-    );
-    let _ = writeln!(m, "![residual acceleration in bins](residual_bins.png)\n");
-    let _ = writeln!(m, "## 2. What the nominal model gets wrong\n");
+    let _ = writeln!(m, "## 1. What the nominal model gets wrong\n");
     let _ = writeln!(
         m,
         "The nominal model ({}) with {} refitted: held-out NRMSE **{}** (RMSE {} {unit}); the noise floor of the residual is {}.\n",
@@ -985,6 +975,15 @@ fn report_md(
             .noise_floor
             .map_or("not estimable (ranges too short)".into(), |v| format!("{} {unit}", num(v, 4)))
     );
+    let _ = writeln!(
+        m,
+        "Where the residual sits: the residual acceleration (the Savitzky-Golay acceleration of the measured {out} minus the model's acceleration at the measured {out} and velocity, driven by the measured {inp}) on the held-out data, averaged in bins of {phase}. Each band is ±2 standard errors of the bin mean, with blocks of {block} taken as independent: a mean whose band holds zero is noise. A missing force shows as a function of the state: a cubic spring against position, friction as a step at zero velocity, a damping the model lacks on one side of zero velocity as a change of slope there (the refitted parameters spread part of any missing force over both sides).\n",
+        out = s.data.output,
+        inp = s.data.input,
+        phase = if ev.nominal.by_phase.is_empty() { "position and velocity (no forcing period is configured, so no phase)" } else { "position, velocity and the forcing phase" },
+        block = ev.block_words,
+    );
+    let _ = writeln!(m, "![residual acceleration in bins](residual_bins.png)\n");
     let _ = writeln!(
         m,
         "The residual in time: its RMS per block over all held-out data, and the first {} of it:\n",
@@ -1025,7 +1024,7 @@ fn report_md(
         }
         None => {}
     }
-    let _ = writeln!(m, "## 3. The evidence\n");
+    let _ = writeln!(m, "## 2. The evidence\n");
     for e in &d.evidence {
         let _ = writeln!(m, "- {e}");
     }
@@ -1055,7 +1054,7 @@ fn report_md(
             c.note.replace('|', "/")
         );
     }
-    let _ = writeln!(m, "\n## 4. The extended model\n");
+    let _ = writeln!(m, "\n## 3. The extended model\n");
     if d.cause == "none" || d.cause == "unexplained" {
         let _ = writeln!(
             m,
@@ -1070,7 +1069,7 @@ fn report_md(
             fmt_params(s, &d.parameters, &d.stderr)
         );
     }
-    let _ = writeln!(m, "## 5. The gain\n");
+    let _ = writeln!(m, "## 4. The gain\n");
     let _ = writeln!(m, "| model | held-out NRMSE | held-out RMSE ({unit}) |");
     let _ = writeln!(m, "|---|---|---|");
     if d.configured.rmse.is_finite() {
