@@ -501,8 +501,14 @@ mod tests {
             effects: nominal.effects,
             sensor: nominal.sensor,
         };
-        let samples =
-            residual_acceleration(&record, &model, &[0..n], 5.0, Interpolation::default()).unwrap();
+        let samples = residual_acceleration(
+            &record,
+            &model,
+            std::slice::from_ref(&(0..n)),
+            5.0,
+            Interpolation::default(),
+        )
+        .unwrap();
         assert!(samples.t.len() > 6000);
         let binned = BinnedResidual::new(&samples, 1.0, None, None, None);
         let peak = binned

@@ -845,11 +845,16 @@ fn draw(
 /// hopper's units only when the record is the hopper's own `x` and `f`.
 fn param_text(s: &DiagnoseSettings, name: &str, v: f64, se: f64) -> String {
     use crate::results::num;
-    let unit = if htf_unit(s).is_some() {
-        crate::results::hopper_unit(name).map_or(String::new(), |u| format!(" {u}"))
-    } else {
-        String::new()
-    };
+    // In a diagnosis `g` is the sensor's gain (gravity is never refitted) and `b` its offset.
+    let unit = match name {
+        _ if htf_unit(s).is_none() => None,
+        "g" => None,
+        "b" => Some("m"),
+        "tau_s" => Some("s"),
+        "input_offset" => Some("N"),
+        _ => crate::results::hopper_unit(name),
+    }
+    .map_or(String::new(), |u| format!(" {u}"));
     if se.is_finite() {
         format!("`{name}` = {} ± {}{unit}", num(v, 4), num(se, 3))
     } else {
@@ -977,7 +982,7 @@ fn report_md(
     );
     let _ = writeln!(
         m,
-        "Where the residual sits: the residual acceleration (the Savitzky-Golay acceleration of the measured {out} minus the model's acceleration at the measured {out} and velocity, driven by the measured {inp}) on the held-out data, averaged in bins of {phase}. Each band is ±2 standard errors of the bin mean, with blocks of {block} taken as independent: a mean whose band holds zero is noise. A missing force shows as a function of the state: a cubic spring against position, friction as a step at zero velocity, a damping the model lacks on one side of zero velocity as a change of slope there (the refitted parameters spread part of any missing force over both sides).\n",
+        "Where the residual sits: the residual acceleration (the acceleration of the measured {out}, from five-point differences, minus the model's acceleration at the measured {out} and velocity driven by the measured {inp}, smoothed as the screening's Savitzky-Golay filter smooths an acceleration) on the held-out data, averaged in bins of {phase}. Each band is ±2 standard errors of the bin mean, with blocks of {block} taken as independent: a mean whose band holds zero is noise. A missing force shows as a function of the state: a cubic spring against position, friction as a step at zero velocity, a damping the model lacks on one side of zero velocity as a change of slope there (the refitted parameters spread part of any missing force over both sides).\n",
         out = s.data.output,
         inp = s.data.input,
         phase = if ev.nominal.by_phase.is_empty() { "position and velocity (no forcing period is configured, so no phase)" } else { "position, velocity and the forcing phase" },

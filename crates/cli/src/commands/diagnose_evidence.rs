@@ -200,6 +200,25 @@ pub fn draw_bins(
             title.to_string()
         };
         let mut p = binned_panel(&title, &x_label, &y_label, &series);
+        if first {
+            // Room above the data for the legend, which would otherwise hide the outer bins.
+            let (lo, hi) = series
+                .iter()
+                .flat_map(|b| {
+                    b.mean.iter().zip(b.stderr).flat_map(|(m, e)| {
+                        let e = if e.is_finite() { 2.0 * e } else { 0.0 };
+                        [m - e, m + e]
+                    })
+                })
+                .filter(|v| v.is_finite())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(v), b.max(v))
+                });
+            if lo < hi {
+                let pad = 0.05 * (hi - lo);
+                p.y_range = Some((lo - pad, hi + 0.55 * (hi - lo)));
+            }
+        }
         if title.contains("phase") {
             if let Some(period) = forcing_period(s) {
                 p.x_range = Some((0.0, period));
@@ -228,10 +247,11 @@ pub fn draw_waterfall(
     let mut bars = Vec::new();
     let mut seen_nominal = false;
     let mut seen_extended = false;
-    for step in &ev.waterfall {
+    for (i, step) in ev.waterfall.iter().enumerate() {
         let (name, from, role) = match step.step.as_str() {
             "configured" => ("configured".to_string(), 0.0, Role::Nominal),
-            "refitted" if step.before == step.after => ("refitted".to_string(), 0.0, Role::Nominal),
+            // Without a configured level the refitted model's level comes first.
+            "refitted" if i == 0 => ("refitted".to_string(), 0.0, Role::Nominal),
             "refitted" => (format!("refit {free}"), step.before, Role::Nominal),
             "final" => ("final model".to_string(), 0.0, Role::Extended),
             effect => (format!("+ {effect}"), step.before, Role::Extended),
