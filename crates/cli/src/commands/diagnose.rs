@@ -715,7 +715,7 @@ fn draw(
     let res = |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.x()[i] - sim[i]).collect() };
     let mut bottom = Panel::new(
         format!(
-            "the first {} of held-out data after the burn-in, measured - simulated",
+            "measured - simulated over the first {} of held-out data after the burn-in",
             evidence::window_words(s)
         ),
         htfid_plot::TIME_LABEL,
@@ -991,7 +991,7 @@ fn report_md(
     let _ = writeln!(m, "![residual acceleration in bins](residual_bins.png)\n");
     let _ = writeln!(
         m,
-        "The residual in time: its RMS per block over all held-out data, and the first {} of it:\n",
+        "The residual in time: its RMS per block over all held-out data, and the residual itself over the first {} after the burn-in:\n",
         evidence::window_words(s)
     );
     let _ = writeln!(m, "![residual in time](residual_time.png)\n");

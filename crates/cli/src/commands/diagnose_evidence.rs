@@ -329,11 +329,8 @@ pub fn time_window(
 /// Words for the window's length.
 pub fn window_words(s: &DiagnoseSettings) -> String {
     match forcing_period(s) {
-        Some(_) => format!("{} forcing periods", WINDOW_PERIODS),
-        None => format!(
-            "{} natural periods of the nominal model",
-            NATURAL_PERIODS_PER_WINDOW
-        ),
+        Some(_) => format!("{WINDOW_PERIODS} forcing periods"),
+        None => format!("{NATURAL_PERIODS_PER_WINDOW} natural periods (of the nominal model)"),
     }
 }
 
@@ -474,7 +471,7 @@ fn strongest(ev: &Evidence, s: &DiagnoseSettings) -> Option<String> {
             _ => Structure::of(&e.by_phase),
         };
         format!(
-            "; the extended model's bin means stay within {} standard errors of zero there",
+            "; the extended model's stand at most {} standard errors from zero there",
             num(st.max_abs_z, 3)
         )
     });
@@ -491,16 +488,28 @@ fn pct(x: f64) -> String {
     format!("{} %", num(100.0 * x, 4))
 }
 
-/// The path as a reader finds it: relative to the working directory when it lies inside it,
-/// with `..` resolved.
+/// The path as a reader finds it: relative to the working directory (with `..` where it lies
+/// outside), or as given when that cannot be worked out.
 pub fn shown_path(p: &Path) -> String {
-    let abs = std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
-    std::env::current_dir()
-        .ok()
-        .and_then(|cwd| abs.strip_prefix(cwd).ok().map(Path::to_path_buf))
-        .unwrap_or(abs)
-        .display()
-        .to_string()
+    use std::path::Component;
+    let (Ok(abs), Ok(cwd)) = (std::fs::canonicalize(p), std::env::current_dir()) else {
+        return p.display().to_string();
+    };
+    let cwd = std::fs::canonicalize(&cwd).unwrap_or(cwd);
+    let a: Vec<Component<'_>> = abs.components().collect();
+    let c: Vec<Component<'_>> = cwd.components().collect();
+    let common = a.iter().zip(&c).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return abs.display().to_string();
+    }
+    let mut rel = std::path::PathBuf::new();
+    for _ in common..c.len() {
+        rel.push("..");
+    }
+    for part in &a[common..] {
+        rel.push(part.as_os_str());
+    }
+    rel.display().to_string()
 }
 
 /// The opening paragraph of `report.md`: the decision in words, with its numbers.
