@@ -618,7 +618,7 @@ pub fn summary(
             })
             .collect();
         p.push_str(&format!(
-            " In the HTFs estimated from the data, the difference from the nominal model's theory exceeds the estimate's noise (2 standard errors) at these shares of the frequency bins: {} (noise alone would give about 2 %; `htf_difference.png`).",
+            " In the HTFs estimated from the data, the difference from the nominal model's theory exceeds the estimate's noise (2 standard errors) at these shares of the frequency bins: {} (for noise alone, about 2 % or fewer; `htf_difference.png`).",
             parts.join(", ")
         ));
     }
