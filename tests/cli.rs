@@ -598,10 +598,43 @@ fn diagnose_hopper_names_the_hidden_flight_damping() {
         "htf_data.png",
         "compare.png",
         "resid.png",
+        "residual_bins.png",
+        "error_waterfall.png",
+        "htf_difference.png",
     ] {
         assert!(out.join(f).exists(), "{f} missing");
         assert!(report.contains(f), "report.md does not show {f}");
     }
+    // The evidence: the refitted nominal model's residual acceleration stands out against
+    // velocity (the missing damping acts on one side of zero velocity), the extended model's
+    // does not; the waterfall runs from the configured model to the final one; the report
+    // opens with the decision in words and has no NaN cells.
+    let bins = &d["residual_bins"];
+    let max_z = |model: &str| {
+        bins[model]["by_velocity"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|b| Some((b["mean"].as_f64()? / b["stderr"].as_f64()?).abs()))
+            .fold(0.0, f64::max)
+    };
+    assert!(max_z("nominal") > 10.0, "{bins}");
+    assert!(max_z("extended") < 6.0, "{bins}");
+    let steps: Vec<&str> = d["error_waterfall"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["step"].as_str().unwrap())
+        .collect();
+    assert_eq!(steps, ["configured", "refitted", "flight_damping", "final"]);
+    assert_eq!(d["htf_difference"].as_array().unwrap().len(), 5);
+    let opening = report.split("\n\n").nth(2).unwrap();
+    assert!(
+        opening.starts_with("On the held-out data of `data/hopper-protocol.csv`"),
+        "{opening}"
+    );
+    assert!(opening.contains("NRMSE is the RMS"), "{opening}");
+    assert!(!report.contains("NaN"), "{report}");
     // Validation as compare/resid give it: the extended model fits better than the nominal,
     // and its residual is white and independent of the force at the 1 % level (the record's
     // noise is white and the extended model holds the true effect), while N, the bounds and

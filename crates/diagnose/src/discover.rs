@@ -332,7 +332,7 @@ fn regression_data(
 /// second difference, and `w` is the double running sum of `c dt^2`. Smoothing the model's
 /// acceleration with `w` makes it comparable with the measured one at every frequency, not only
 /// inside the smoother's pass band.
-fn acceleration_kernel(half: usize, dt: f64) -> Vec<f64> {
+pub(crate) fn acceleration_kernel(half: usize, dt: f64) -> Vec<f64> {
     let len = 2 * half + 1;
     let c: Vec<f64> = (0..len)
         .map(|i| {

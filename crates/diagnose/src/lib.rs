@@ -17,7 +17,10 @@
 //! [`diagnose_with_progress`], [`DiagnosisReport`] with [`Diagnosis`], [`Candidate`], [`Score`]
 //! and the fitted models ([`FittedModel`]) and simulated outputs for plotting;
 //! [`simulate_record`] simulates any fitted model on a record the same way. The library of
-//! effects is [`Effect`]; errors are [`DiagnoseError`].
+//! effects is [`Effect`]; errors are [`DiagnoseError`]. Evidence for a reader: the residual
+//! acceleration of a model ([`residual_acceleration`]) binned against position, velocity and
+//! forcing phase with standard errors ([`binned_means`], [`BinnedResidual`]), and the held-out
+//! error from the configured to the final model ([`error_waterfall`]).
 //!
 //! # Method
 //!
@@ -187,6 +190,7 @@ mod diagnose;
 mod discover;
 mod effect;
 mod error;
+mod evidence;
 mod fit;
 mod interp;
 mod model_fit;
@@ -206,6 +210,10 @@ pub use diagnose::{
 pub use discover::{Discovered, DiscoveredTerm};
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
+pub use evidence::{
+    binned_means, error_waterfall, quantile_range, residual_acceleration, Bin, BinnedResidual,
+    ErrorStep, ResidualSamples, Structure, PHASE_BINS, STATE_BINS,
+};
 pub use interp::Interpolation;
 pub use model_fit::{
     diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelFitOptions, ModelRecord,

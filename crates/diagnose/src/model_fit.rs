@@ -47,7 +47,9 @@ pub struct ModelFitOptions {
     /// Significance level of the likelihood-ratio test of an effect.
     pub alpha: f64,
     /// Two significant effects whose held-out NRMSEs differ by less than this fraction of the
-    /// better one explain the data equally well: the answer is `ambiguous`.
+    /// better one explain the data equally well: the answer is `ambiguous`. The default 0.05
+    /// is a difference of mean squares of about a tenth of the better one's, below what a few
+    /// thousand held-out samples of a residual near the noise floor resolve.
     pub rival_margin: f64,
     /// The answer is `unexplained` when the best model's held-out residual stays above this
     /// many times the noise floor while its effect removes less than `min_explained` of the
@@ -71,7 +73,7 @@ impl Default for ModelFitOptions {
             rtol: 1e-8,
             effects: BoundaryEffect::ALL.to_vec(),
             alpha: 1e-4,
-            rival_margin: 0.01,
+            rival_margin: 0.05,
             unexplained_ratio: 5.0,
             min_explained: 0.999,
             resolution: 1e-3,

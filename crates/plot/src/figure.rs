@@ -148,6 +148,9 @@ pub struct Panel {
     pub x_range: Option<(f64, f64)>,
     /// Vertical range in data units; `None` fits the finite data with a 5 % margin.
     pub y_range: Option<(f64, f64)>,
+    /// Named ticks on the horizontal axis, `(position in data units, label)`: when not empty
+    /// they replace the automatic ticks (categories, such as the steps of a waterfall).
+    pub x_ticks: Vec<(f64, String)>,
 }
 
 impl Panel {

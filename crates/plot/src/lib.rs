@@ -4,7 +4,9 @@
 //! writes `<path>.svg` and `<path>.png`. Conveniences build the project's usual panels:
 //! [`bode_panels`] (magnitude and phase of frequency responses), [`magnitude_panel`] for grids of
 //! harmonics laid out by [`grid_figure`], [`time_panel`] and [`spectrum_panel`] stacked by
-//! [`stacked_figure`].
+//! [`stacked_figure`]; for a diagnosis's evidence, [`binned_panel`] (bin means with bands of
+//! +-2 standard errors) and [`waterfall_panel`] (levels and steps, named under the axis through
+//! [`Panel::x_ticks`]).
 //!
 //! # Conventions
 //! - Frequencies are angular, in rad/s; magnitudes in dB are `20 log10 |G|`; phases are in
@@ -45,6 +47,7 @@
 
 mod convenience;
 mod error;
+mod evidence;
 mod figure;
 mod font;
 mod output;
@@ -58,5 +61,6 @@ pub use convenience::{
     TIME_LABEL, Z_95,
 };
 pub use error::PlotError;
+pub use evidence::{binned_panel, waterfall_panel, BinnedSeries, WaterfallBar, BIN_BAND_STDERRS};
 pub use figure::{Figure, Panel, Role, Scale, Series, Style};
 pub use output::save;

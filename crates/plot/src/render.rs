@@ -99,6 +99,8 @@ pub(crate) struct PlotPanel {
     pub x: AxisRange,
     pub y: AxisRange,
     pub series: Vec<PlotSeries>,
+    /// Named ticks in plot space replacing the automatic ones when not empty.
+    pub x_named: Vec<(f64, String)>,
 }
 
 /// Largest magnitude drawn on a linear axis; beyond it spans and paddings could overflow.
@@ -269,6 +271,12 @@ pub(crate) fn prepare(fig: &Figure, path: &Path) -> Result<Vec<PlotPanel>, PlotE
                 hi: y.1,
             },
             series,
+            x_named: panel
+                .x_ticks
+                .iter()
+                .map(|(v, l)| (to_plot(*v, panel.x_scale), l.clone()))
+                .filter(|(v, _)| v.is_finite())
+                .collect(),
         });
     }
     Ok(out)
@@ -382,7 +390,15 @@ fn draw_panel<DB: DrawingBackend>(
             gap >= 0.5 * (ww[0] + ww[1]) + 18.0 && gap >= 45.0
         })
     };
-    let x_ticks = axis_ticks(&p.x, &fits_x);
+    let x_ticks = if p.x_named.is_empty() {
+        axis_ticks(&p.x, &fits_x)
+    } else {
+        Ticks {
+            major: p.x_named.iter().map(|t| t.0).collect(),
+            labels: p.x_named.iter().map(|t| t.1.clone()).collect(),
+            minor: Vec::new(),
+        }
+    };
 
     let mut chart = ChartBuilder::on(&area)
         .margin_top(top_pad)

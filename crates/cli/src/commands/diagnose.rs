@@ -24,16 +24,19 @@ use num_complex::Complex64;
 use rustfft::FftPlanner;
 use serde_json::{json, Value};
 
+use crate::commands::diagnose_evidence as evidence;
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots;
 use crate::settings::DiagnoseSettings;
 
-const PLOTS: [&str; 5] = [
+const PLOTS: [&str; 7] = [
     "residual_time",
     "residual_spectrum",
     "orbit",
     "compare",
     "resid",
+    "residual_bins",
+    "error_waterfall",
 ];
 
 /// Harmonics of the data-against-theory HTF figure.
@@ -57,7 +60,12 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     names.extend(files.iter().map(String::as_str));
     let periodic = settings.params.forcing_amplitude.abs() > 0.0;
     if periodic {
-        names.extend(["htf_data.svg", "htf_data.png"]);
+        names.extend([
+            "htf_data.svg",
+            "htf_data.png",
+            "htf_difference.svg",
+            "htf_difference.png",
+        ]);
     }
     let mut outdir = open(&dir, force, &names)?;
 
@@ -124,17 +132,30 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     }
     let check = validate(&settings, &record, &report);
     json["validation"] = crate::validation::json(&check, &ext_label(&report));
-    json["elapsed_s"] = json!(started.elapsed().as_secs_f64());
-    outdir.write_text("diagnosis.json", &json_text(&json))?;
+    let ev = evidence::compute(&settings, &record, &report, opts.interpolation)?;
+    let (bins, waterfall) = evidence::json(&ev, &settings);
+    json["residual_bins"] = bins;
+    json["error_waterfall"] = waterfall;
     let mut figures = draw(&mut outdir, &settings, &record, &report)?;
     draw_validation(&mut outdir, &settings, &record, &report, &check)?;
+    evidence::draw_bins(&mut outdir, &settings, &report, &ev)?;
+    evidence::draw_waterfall(&mut outdir, &settings, &report, &ev)?;
+    let mut htf_diffs = Vec::new();
     if periodic {
         figures.htf = match htf_figure(&mut outdir, &settings, &record, &report) {
-            Ok(()) => Some(String::new()),
+            Ok(diffs) => {
+                htf_diffs = diffs;
+                Some(String::new())
+            }
             Err(e) => Some(format!("{e:#}")),
         };
+        json["htf_difference"] = evidence::htf_json(&htf_diffs);
     }
-    let mut text = report_md(&settings, &record, &report, &tests, &figures);
+    json["elapsed_s"] = json!(started.elapsed().as_secs_f64());
+    outdir.write_text("diagnosis.json", &json_text(&json))?;
+    let mut text = report_md(
+        &settings, &record, &report, &tests, &figures, &ev, &htf_diffs,
+    );
     text.push_str(&crate::validation::report(
         "## 5. Validation",
         &[&check],
@@ -491,7 +512,7 @@ fn htf_figure(
     s: &DiagnoseSettings,
     record: &Record,
     report: &DiagnosisReport,
-) -> Result<()> {
+) -> Result<Vec<evidence::HarmonicDifference>> {
     use htfid_estimate::{siddiqi, Alpha, Record as EstRecord};
     use htfid_plot::Style;
     use htfid_theory::HarmonicTransferFunction;
@@ -609,7 +630,28 @@ fn htf_figure(
         ),
         htf_unit(s),
     );
-    plots::write(out, "htf_data", &fig)
+    plots::write(out, "htf_data", &fig)?;
+    // Measured minus each model, at the estimate's own frequencies.
+    let diffs: Vec<evidence::HarmonicDifference> = data
+        .iter()
+        .map(|(n, w, v, se)| evidence::HarmonicDifference {
+            n: *n,
+            omega: w.clone(),
+            stderr: se.clone(),
+            nominal: w
+                .iter()
+                .zip(v)
+                .map(|(&w, g)| g - nominal.g(*n, w))
+                .collect(),
+            extended: w
+                .iter()
+                .zip(v)
+                .map(|(&w, g)| g - extended.g(*n, w))
+                .collect(),
+        })
+        .collect();
+    evidence::draw_htf_difference(out, s, report, &diffs, htf_unit(s))?;
+    Ok(diffs)
 }
 
 fn draw(
@@ -621,16 +663,85 @@ fn draw(
     let (t, r0, r1) = residuals(record, report);
     let cause = report.diagnosis.cause.clone();
     let ext_label = format!("extended ({cause})");
-    // Residuals in time (one point per gap-free piece is fine: ranges are drawn as one series).
-    let panel = time_panel(
-        "held-out residual: measured - simulated",
-        &residual_label(s),
-        &t,
-        [("nominal", r0.clone()), (ext_label.as_str(), r1.clone())],
+    let same = report.extended_model == report.nominal_model;
+    // The whole held-out record as an RMS per block (a full-rate trace is a solid band), then a
+    // window of a few periods that a person can read.
+    let period = if s.params.forcing_amplitude.abs() > 0.0 && s.params.period > 0.0 {
+        s.params.period
+    } else {
+        let p = &report.nominal_model.params;
+        10.0 * 2.0 * std::f64::consts::PI / (p.k / p.m).sqrt()
+    };
+    let rms = |r: &[f64]| -> (Vec<f64>, Vec<f64>) {
+        let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
+            return (Vec::new(), Vec::new());
+        };
+        let nb = (((t1 - t0) / period).ceil() as usize).clamp(1, 5000);
+        let sq: Vec<f64> = r.iter().map(|v| v * v).collect();
+        let block: Vec<usize> = (0..t.len()).collect();
+        let bins = htfid_diagnose::binned_means(&t, &sq, &block, nb, (t0, t0 + nb as f64 * period));
+        bins.iter()
+            .map(|b| (0.5 * (b.lo + b.hi), b.mean.sqrt()))
+            .unzip()
+    };
+    let (tb, q0) = rms(&r0);
+    let (_, q1) = rms(&r1);
+    let block_words = if s.params.forcing_amplitude.abs() > 0.0 {
+        format!("forcing period ({} s)", crate::number::sig(period, 3))
+    } else {
+        format!("{} s (ten natural periods)", crate::number::sig(period, 3))
+    };
+    let mut top = Panel::new(
+        format!("RMS of the residual per {block_words}, all held-out data"),
+        htfid_plot::TIME_LABEL,
+        residual_label(s).replace("residual", "RMS residual"),
     );
+    let top_max = q0
+        .iter()
+        .chain(&q1)
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    if top_max > 0.0 {
+        top.y_range = Some((0.0, 1.1 * top_max));
+    }
+    top.series = vec![Series::new("nominal", tb.clone(), q0, Style::Line).with_role(Role::Nominal)];
+    if !same {
+        top.series
+            .push(Series::new(ext_label.clone(), tb, q1, Style::Line).with_role(Role::Extended));
+    }
+    let win = evidence::time_window(s, record, report);
+    let tw = record.t()[win.clone()].to_vec();
+    let res = |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.x()[i] - sim[i]).collect() };
+    let mut bottom = Panel::new(
+        format!(
+            "measured - simulated over the first {} of held-out data after the burn-in",
+            evidence::window_words(s)
+        ),
+        htfid_plot::TIME_LABEL,
+        residual_label(s),
+    );
+    bottom.series = vec![Series::new(
+        "nominal",
+        tw.clone(),
+        res(&report.nominal_output),
+        Style::Line,
+    )
+    .with_role(Role::Nominal)];
+    if !same {
+        bottom.series.push(
+            Series::new(
+                ext_label.clone(),
+                tw,
+                res(&report.extended_output),
+                Style::Line,
+            )
+            .with_role(Role::Extended),
+        );
+    }
     let fig = stacked_figure(
-        format!("{}: what the nominal model gets wrong", s.name),
-        vec![panel],
+        format!("{}: what the nominal model gets wrong, in time", s.name),
+        vec![top, bottom],
     );
     plots::write(out, "residual_time", &fig)?;
 
@@ -730,17 +841,54 @@ fn draw(
     Ok(Figures { orbit, htf: None })
 }
 
+/// A parameter as `value ± stderr unit`, 4 significant digits (3 for the standard error); the
+/// hopper's units only when the record is the hopper's own `x` and `f`.
+fn param_text(s: &DiagnoseSettings, name: &str, v: f64, se: f64) -> String {
+    use crate::number::sig as num;
+    // In a diagnosis `g` is the sensor's gain (gravity is never refitted) and `b` its offset.
+    let unit = match name {
+        _ if htf_unit(s).is_none() => None,
+        "g" => None,
+        "b" => Some("m"),
+        "tau_s" => Some("s"),
+        "input_offset" => Some("N"),
+        _ => crate::results::hopper_unit(name),
+    }
+    .map_or(String::new(), |u| format!(" {u}"));
+    if se.is_finite() {
+        format!("`{name}` = {} ± {}{unit}", num(v, 4), num(se, 3))
+    } else {
+        format!("`{name}` = {}{unit} (no standard error)", num(v, 4))
+    }
+}
+
 fn fmt_params(
+    s: &DiagnoseSettings,
     p: &std::collections::BTreeMap<String, f64>,
     se: &std::collections::BTreeMap<String, f64>,
 ) -> String {
     p.iter()
-        .map(|(k, v)| match se.get(k) {
-            Some(s) if s.is_finite() => format!("`{k}` = {v:.6e} ± {s:.2e}"),
-            _ => format!("`{k}` = {v:.6e}"),
-        })
+        .map(|(k, v)| param_text(s, k, *v, se.get(k).copied().unwrap_or(f64::NAN)))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// A table cell: `v` with 4 significant digits, or a dash when it is not a number.
+fn cell(v: f64) -> String {
+    if v.is_finite() {
+        crate::number::sig(v, 4)
+    } else {
+        "–".to_string()
+    }
+}
+
+/// A fraction as a percentage cell.
+fn pct_cell(v: f64) -> String {
+    if v.is_finite() {
+        format!("{} %", crate::number::sig(100.0 * v, 4))
+    } else {
+        "–".to_string()
+    }
 }
 
 /// The causes with their shares, strongest first.
@@ -749,76 +897,102 @@ fn causes_text(d: &htfid_diagnose::Diagnosis) -> String {
         .iter()
         .map(|c| {
             format!(
-                "`{}` ({:.0} % of the explained error)",
+                "`{}` ({} % of the explained error)",
                 c.effect,
-                100.0 * c.gain_share
+                crate::number::sig(100.0 * c.gain_share, 3)
             )
         })
         .collect::<Vec<_>>()
         .join(", ")
 }
 
+#[allow(clippy::too_many_arguments)] // reason: the report reads every result of the run
 fn report_md(
     s: &DiagnoseSettings,
     record: &Record,
     report: &DiagnosisReport,
     tests: &[Value],
     figures: &Figures,
+    ev: &evidence::Evidence,
+    htf: &[evidence::HarmonicDifference],
 ) -> String {
+    use crate::number::sig as num;
     let d = &report.diagnosis;
+    let unit = evidence::output_unit(s).unwrap_or_else(|| "output units".into());
     let mut m = String::new();
     let _ = writeln!(m, "# Diagnosis: {}\n", s.name);
     let verdict = match d.cause.as_str() {
         "none" => "**No effect found**: the nominal model explains the data down to the noise.".to_string(),
         "unexplained" if d.causes.is_empty() => "**Unexplained**: the nominal model leaves clear structure in the residual that no candidate effect in the library explains with confidence.".to_string(),
-        "unexplained" => format!("**Unexplained**: the library effects found ({}) lower the held-out simulation error by {:.1} %, but clear structure remains that they do not explain.", causes_text(d), 100.0 * d.gain),
+        "unexplained" => format!("**Unexplained**: the library effects found ({}) lower the held-out simulation error by {} %, but clear structure remains that they do not explain.", causes_text(d), num(100.0 * d.gain, 4)),
         "ambiguous" => format!("**Ambiguous**: {} explain the data equally well; the data cannot tell them apart (see the evidence for the experiment that would).", d.alternatives.iter().map(|a| format!("`{a}`")).collect::<Vec<_>>().join(" and ")),
         "model_mismatch" => format!("**Model mismatch**: the nominal model does not describe these data at all, so no effect is named. Likely reasons: {}", d.mismatch.join("; ")),
-        c if d.causes.len() > 1 => format!("**Causes: {}** (strongest first, `{c}`). Together they lower the held-out simulation error by {:.1} %.", causes_text(d), 100.0 * d.gain),
-        c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {:.1} %.", 100.0 * d.gain),
+        c if d.causes.len() > 1 => format!("**Causes: {}** (strongest first, `{c}`). Together they lower the held-out simulation error by {} %.", causes_text(d), num(100.0 * d.gain, 4)),
+        c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {} %.", num(100.0 * d.gain, 4)),
     };
     let _ = writeln!(m, "{verdict}\n");
+    let _ = writeln!(
+        m,
+        "{}\n",
+        evidence::summary(s, report, ev, htf, &|k, v, e| param_text(s, k, v, e))
+    );
     if let Some(found) = &d.discovered {
         // A hint beside the verdict, never a cause: the library did not hold this term.
         let _ = writeln!(
             m,
-            "**Outside the library**, a term search on the residual proposes the extra force `{}` N (`x_eq` = {:.4e} m{}): it lowers the held-out RMSE from {:.3e} to {:.3e} (gain {:.1} %). Coefficients with standard errors: {}.\n",
+            "**Outside the library**, a term search on the residual proposes the extra force `{}` N (`x_eq` = {} m{}): it lowers the held-out RMSE from {} to {} {unit} (gain {} %). Coefficients with standard errors: {}.\n",
             found.formula,
-            found.x_eq,
-            if found.period > 0.0 { format!(", `T` = {} s", found.period) } else { String::new() },
-            found.rmse_before,
-            found.rmse_after,
-            100.0 * found.gain,
+            num(found.x_eq, 4),
+            if found.period > 0.0 { format!(", `T` = {} s", num(found.period, 4)) } else { String::new() },
+            num(found.rmse_before, 4),
+            num(found.rmse_after, 4),
+            num(100.0 * found.gain, 4),
             found
                 .terms
                 .iter()
-                .map(|t| format!("`{}` {:.4e} +/- {:.2e}", t.term, t.coefficient, t.stderr))
+                .map(|t| format!("`{}` {} ± {}", t.term, num(t.coefficient, 4), num(t.stderr, 3)))
                 .collect::<Vec<_>>()
                 .join(", ")
         );
     }
     let _ = writeln!(
         m,
-        "Data: `{}`, {} samples at {:.6} Hz. Fitted on samples {:?}, judged on held-out samples {:?} (the first {:.3} s of each range are a burn-in, simulated but not scored).\n",
-        s.data.file.display(),
+        "Data: `{}`, {} samples at {} Hz. Fitted on samples {:?}, judged on held-out samples {:?} (the first {} s of each range are a burn-in, simulated but not scored).\n",
+        evidence::shown_path(&s.data.file),
         record.len(),
-        1.0 / record.dt(),
+        num(1.0 / record.dt(), 6),
         report.fit_ranges,
         report.validation_ranges,
-        report.burn_in_s
+        num(report.burn_in_s, 3)
     );
     let _ = writeln!(m, "## 1. What the nominal model gets wrong\n");
     let _ = writeln!(
         m,
-        "The nominal model ({}) with {} refitted: held-out NRMSE **{:.4}** (RMSE {:.4e}); the noise floor of the residual is {}.\n",
+        "The nominal model ({}) with {} refitted: held-out NRMSE **{}** (RMSE {} {unit}); the noise floor of the residual is {}.\n",
         match s.damper {
             htfid_model::DamperLaw::Switching => "the switching hopper",
             htfid_model::DamperLaw::AlwaysOn => "a linear spring-mass-damper",
         },
         s.free.join(", "),
-        d.nominal.nrmse,
-        d.nominal.rmse,
-        report.noise_floor.map_or("not estimable (ranges too short)".into(), |v| format!("{v:.3e}"))
+        pct_cell(d.nominal.nrmse),
+        cell(d.nominal.rmse),
+        report
+            .noise_floor
+            .map_or("not estimable (ranges too short)".into(), |v| format!("{} {unit}", num(v, 4)))
+    );
+    let _ = writeln!(
+        m,
+        "Where the residual sits: the residual acceleration (the acceleration of the measured {out}, from five-point differences, minus the model's acceleration at the measured {out} and velocity driven by the measured {inp}, smoothed as the screening's Savitzky-Golay filter smooths an acceleration) on the held-out data, averaged in bins of {phase}. Each band is ±2 standard errors of the bin mean, with blocks of {block} taken as independent: a mean whose band holds zero is noise. A missing force shows as a function of the state: a cubic spring against position, friction as a step at zero velocity, a damping the model lacks on one side of zero velocity as a change of slope there (the refitted parameters spread part of any missing force over both sides).\n",
+        out = s.data.output,
+        inp = s.data.input,
+        phase = if ev.nominal.by_phase.is_empty() { "position and velocity (no forcing period is configured, so no phase)" } else { "position, velocity and the forcing phase" },
+        block = ev.block_words,
+    );
+    let _ = writeln!(m, "![residual acceleration in bins](residual_bins.png)\n");
+    let _ = writeln!(
+        m,
+        "The residual in time: its RMS per block over all held-out data, and the residual itself over the first {} after the burn-in:\n",
+        evidence::window_words(s)
     );
     let _ = writeln!(m, "![residual in time](residual_time.png)\n");
     let _ = writeln!(m, "![residual spectrum](residual_spectrum.png)\n");
@@ -835,6 +1009,20 @@ fn report_md(
         Some(reason) if reason.is_empty() => {
             let _ = writeln!(m, "Harmonic transfer functions estimated from the data (Siddiqi's estimator on the excited part of the record, deviations from the measured period-averaged orbit) against the exact theory of both models:\n");
             let _ = writeln!(m, "![HTFs of the data](htf_data.png)\n");
+            let _ = writeln!(m, "The same per harmonic as a difference, measured minus each model's theory, over the estimate's noise (shaded up to 2 standard errors): a difference inside the shading is noise.\n");
+            let _ = writeln!(m, "| harmonic | frequency bins | outside the noise, nominal | outside the noise, extended |");
+            let _ = writeln!(m, "|---|---|---|---|");
+            for h in htf {
+                let _ = writeln!(
+                    m,
+                    "| `G_{}` | {} | {} | {} |",
+                    h.n,
+                    h.omega.len(),
+                    pct_cell(h.nominal_outside()),
+                    pct_cell(h.extended_outside())
+                );
+            }
+            let _ = writeln!(m, "\n![HTF differences](htf_difference.png)\n");
         }
         Some(reason) => {
             let _ = writeln!(m, "(No HTF figure: {reason}.)\n");
@@ -847,7 +1035,7 @@ fn report_md(
     }
     let _ = writeln!(
         m,
-        "\nEvery candidate, best first (held-out NRMSE; BIC on the fit data, lower is better):\n"
+        "\nEvery candidate, best first (held-out NRMSE; BIC on the fit data, lower is better; – where the candidate was not fitted):\n"
     );
     let _ = writeln!(
         m,
@@ -855,13 +1043,18 @@ fn report_md(
     );
     let _ = writeln!(m, "|---|---|---|---|---|---|");
     for c in &d.candidates {
+        let params = fmt_params(s, &c.parameters, &c.stderr);
         let _ = writeln!(
             m,
-            "| `{}` | {} | {:.4} | {:.1} | {} | {} |",
+            "| `{}` | {} | {} | {} | {} | {} |",
             c.effect,
-            fmt_params(&c.parameters, &c.stderr),
-            c.nrmse_validation,
-            c.bic,
+            if params.is_empty() {
+                "–".to_string()
+            } else {
+                params
+            },
+            pct_cell(c.nrmse_validation),
+            cell(c.bic),
             if c.significant { "yes" } else { "no" },
             c.note.replace('|', "/")
         );
@@ -871,51 +1064,70 @@ fn report_md(
         let _ = writeln!(
             m,
             "No effect is added; the extended model is the refitted nominal model: {}.\n",
-            fmt_params(&d.parameters, &d.stderr)
+            fmt_params(s, &d.parameters, &d.stderr)
         );
     } else {
         let _ = writeln!(
             m,
             "The nominal model plus `{}`: {}.\n",
             d.cause,
-            fmt_params(&d.parameters, &d.stderr)
+            fmt_params(s, &d.parameters, &d.stderr)
         );
     }
     let _ = writeln!(m, "## 4. The gain\n");
-    let _ = writeln!(m, "| model | held-out NRMSE | held-out RMSE |");
+    let _ = writeln!(m, "| model | held-out NRMSE | held-out RMSE ({unit}) |");
     let _ = writeln!(m, "|---|---|---|");
+    if d.configured.rmse.is_finite() {
+        let _ = writeln!(
+            m,
+            "| configured | {} | {} |",
+            pct_cell(d.configured.nrmse),
+            cell(d.configured.rmse)
+        );
+    }
     let _ = writeln!(
         m,
-        "| nominal | {:.4} | {:.4e} |",
-        d.nominal.nrmse, d.nominal.rmse
+        "| nominal (refitted) | {} | {} |",
+        pct_cell(d.nominal.nrmse),
+        cell(d.nominal.rmse)
     );
     let _ = writeln!(
         m,
-        "| extended | {:.4} | {:.4e} |",
-        d.extended.nrmse, d.extended.rmse
+        "| extended | {} | {} |",
+        pct_cell(d.extended.nrmse),
+        cell(d.extended.rmse)
     );
     let _ = writeln!(
         m,
-        "\nGain `1 - rmse_extended / rmse_nominal` = **{:.1} %**.\n",
-        100.0 * d.gain
+        "\nGain `1 - rmse_extended / rmse_nominal` = **{}**.\n",
+        pct_cell(d.gain)
     );
+    let _ = writeln!(
+        m,
+        "From the configured model to the final one, step by step (each effect's step is its share of the explained error when there are several):\n"
+    );
+    let _ = writeln!(m, "![held-out error, step by step](error_waterfall.png)\n");
     if !tests.is_empty() {
         let _ = writeln!(
             m,
             "Further test ranges (simulated from their own start, burn-in excluded):\n"
         );
-        let _ = writeln!(m, "| samples | nominal RMSE | extended RMSE | gain |");
+        let _ = writeln!(
+            m,
+            "| samples | nominal RMSE ({unit}) | extended RMSE ({unit}) | gain |"
+        );
         let _ = writeln!(m, "|---|---|---|---|");
         for t in tests {
             let _ = writeln!(
                 m,
-                "| {} | {:.4e} | {:.4e} | {:.1} % |",
+                "| {} | {} | {} | {} |",
                 t["range"],
-                t["nominal"]["rmse"].as_f64().unwrap_or(f64::NAN),
-                t["extended"]["rmse"].as_f64().unwrap_or(f64::NAN),
-                100.0 * t["gain"].as_f64().unwrap_or(f64::NAN)
+                cell(t["nominal"]["rmse"].as_f64().unwrap_or(f64::NAN)),
+                cell(t["extended"]["rmse"].as_f64().unwrap_or(f64::NAN)),
+                pct_cell(t["gain"].as_f64().unwrap_or(f64::NAN))
             );
         }
+        let _ = writeln!(m);
     }
     m
 }

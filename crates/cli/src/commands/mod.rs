@@ -1,6 +1,7 @@
 //! One module per command.
 
 pub mod diagnose;
+pub mod diagnose_evidence;
 pub mod diagnose_model;
 pub mod estimate;
 pub mod models;

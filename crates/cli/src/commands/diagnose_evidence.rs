@@ -1,0 +1,626 @@
+//! The evidence figures of `htfid diagnose` and the paragraph that opens its report: the
+//! residual acceleration binned against position, velocity and forcing phase, the held-out
+//! error from the configured to the final model, the HTF difference per harmonic, and a
+//! readable window of the residual in time. The numbers come from `htfid-diagnose`; this
+//! module draws them and puts them into words.
+
+use std::ops::Range;
+use std::path::Path;
+
+use anyhow::Result;
+use htfid_data::OutputDir;
+use htfid_diagnose::{
+    error_waterfall, quantile_range, residual_acceleration, Bin, BinnedResidual, DiagnosisReport,
+    ErrorStep, Interpolation, Record, Structure,
+};
+use htfid_plot::{
+    binned_panel, grid_figure, magnitude_panel, stacked_figure, waterfall_panel, BinnedSeries,
+    BodeSeries, Panel, Role, Series, Style, WaterfallBar, SIGNIFICANT_RATIO,
+};
+use num_complex::Complex64;
+use serde_json::{json, Value};
+
+use crate::number::sig as num;
+use crate::plots;
+use crate::settings::DiagnoseSettings;
+
+/// Natural periods of the nominal model per block of the standard errors, and per window of
+/// the residual in time, when no forcing period is known.
+const NATURAL_PERIODS_PER_BLOCK: f64 = 10.0;
+const NATURAL_PERIODS_PER_WINDOW: f64 = 20.0;
+/// Forcing periods in the window of the residual in time.
+const WINDOW_PERIODS: f64 = 4.0;
+
+/// The binned residual accelerations and the held-out error steps.
+pub struct Evidence {
+    /// Length of the blocks taken as independent in the standard errors (s).
+    pub block_s: f64,
+    /// What a block is, in words.
+    pub block_words: String,
+    /// The refitted nominal model's residual.
+    pub nominal: BinnedResidual,
+    /// The extended model's, when it differs from the nominal one.
+    pub extended: Option<BinnedResidual>,
+    /// Configured, refitted, each effect, final.
+    pub waterfall: Vec<ErrorStep>,
+}
+
+/// The output's unit, when the record's columns or the config say it.
+pub fn output_unit(s: &DiagnoseSettings) -> Option<String> {
+    if let Some(u) = s.data.format.unit(&s.data.output) {
+        Some(u.to_string())
+    } else if s.data.output == "x" {
+        Some("m".into())
+    } else {
+        None
+    }
+}
+
+fn unit_or_words(s: &DiagnoseSettings) -> String {
+    output_unit(s).unwrap_or_else(|| "output units".into())
+}
+
+fn natural_period(report: &DiagnosisReport) -> f64 {
+    let p = &report.nominal_model.params;
+    2.0 * std::f64::consts::PI / (p.k / p.m).sqrt()
+}
+
+fn forcing_period(s: &DiagnoseSettings) -> Option<f64> {
+    (s.params.forcing_amplitude.abs() > 0.0 && s.params.period > 0.0).then_some(s.params.period)
+}
+
+/// The residual accelerations of both models on the held-out samples, binned.
+pub fn compute(
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+    interpolation: Interpolation,
+) -> Result<Evidence> {
+    let period = forcing_period(s);
+    let (block_s, block_words) = match period {
+        Some(p) => (p, "one forcing period".to_string()),
+        None => {
+            let b = NATURAL_PERIODS_PER_BLOCK * natural_period(report);
+            (
+                b,
+                format!("{} s, ten natural periods of the nominal model", num(b, 3)),
+            )
+        }
+    };
+    let ranges = &report.validation_ranges;
+    let nominal = residual_acceleration(
+        record,
+        &report.nominal_model,
+        ranges,
+        report.burn_in_s,
+        interpolation,
+    )?;
+    let (xr, vr) = (quantile_range(&nominal.x), quantile_range(&nominal.v));
+    let binned_nominal = BinnedResidual::new(&nominal, block_s, period, Some(xr), Some(vr));
+    let extended = if report.extended_model == report.nominal_model {
+        None
+    } else {
+        let e = residual_acceleration(
+            record,
+            &report.extended_model,
+            ranges,
+            report.burn_in_s,
+            interpolation,
+        )?;
+        Some(BinnedResidual::new(&e, block_s, period, Some(xr), Some(vr)))
+    };
+    Ok(Evidence {
+        block_s,
+        block_words,
+        nominal: binned_nominal,
+        extended,
+        waterfall: error_waterfall(&report.diagnosis),
+    })
+}
+
+/// `residual_bins` and `error_waterfall` of `diagnosis.json`.
+pub fn json(ev: &Evidence, s: &DiagnoseSettings) -> (Value, Value) {
+    let unit = output_unit(s).map_or(Value::Null, |u| json!(format!("{u}/s^2")));
+    let bins = json!({
+        "quantity": "acceleration",
+        "unit": unit,
+        "block_s": ev.block_s,
+        "band_stderrs": htfid_plot::BIN_BAND_STDERRS,
+        "nominal": ev.nominal,
+        "extended": ev.extended,
+    });
+    (bins, json!(ev.waterfall))
+}
+
+fn columns(bins: &[Bin]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    (
+        bins.iter().map(|b| b.centre).collect(),
+        bins.iter().map(|b| b.mean).collect(),
+        bins.iter().map(|b| b.stderr).collect(),
+    )
+}
+
+/// `residual_bins.png`: one panel per binned variable.
+pub fn draw_bins(
+    out: &mut OutputDir,
+    s: &DiagnoseSettings,
+    report: &DiagnosisReport,
+    ev: &Evidence,
+) -> Result<()> {
+    let u = unit_or_words(s);
+    let y_label = format!("residual acceleration ({u}/s^2)");
+    let ext_label = format!("extended ({})", report.diagnosis.cause);
+    type Pick = fn(&BinnedResidual) -> &Vec<Bin>;
+    let mut panels = Vec::new();
+    let kinds: [(&str, String, Pick); 3] = [
+        (
+            "against position",
+            format!("position {} ({u})", s.data.output),
+            |b| &b.by_position,
+        ),
+        ("against velocity", format!("velocity ({u}/s)"), |b| {
+            &b.by_velocity
+        }),
+        (
+            "against the forcing phase",
+            "time into the forcing period (s)".to_string(),
+            |b| &b.by_phase,
+        ),
+    ];
+    for (title, x_label, pick) in kinds {
+        let nom = columns(pick(&ev.nominal));
+        if nom.0.is_empty() {
+            continue;
+        }
+        // One legend, in the first panel: the others show the same series.
+        let first = panels.is_empty();
+        let ext = ev.extended.as_ref().map(|e| columns(pick(e)));
+        let mut series = vec![BinnedSeries {
+            label: if first { "nominal (refitted)" } else { "" },
+            centre: &nom.0,
+            mean: &nom.1,
+            stderr: &nom.2,
+            role: Role::Nominal,
+        }];
+        if let Some(e) = &ext {
+            series.push(BinnedSeries {
+                label: if first { &ext_label } else { "" },
+                centre: &e.0,
+                mean: &e.1,
+                stderr: &e.2,
+                role: Role::Extended,
+            });
+        }
+        let title = if first {
+            format!(
+                "{title} (bin means; blocks of {} independent)",
+                ev.block_words
+            )
+        } else {
+            title.to_string()
+        };
+        let mut p = binned_panel(&title, &x_label, &y_label, &series);
+        if first {
+            // Room above the data for the legend, which would otherwise hide the outer bins.
+            let (lo, hi) = series
+                .iter()
+                .flat_map(|b| {
+                    b.mean.iter().zip(b.stderr).flat_map(|(m, e)| {
+                        let e = if e.is_finite() { 2.0 * e } else { 0.0 };
+                        [m - e, m + e]
+                    })
+                })
+                .filter(|v| v.is_finite())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(v), b.max(v))
+                });
+            if lo < hi {
+                let pad = 0.05 * (hi - lo);
+                p.y_range = Some((lo - pad, hi + 0.55 * (hi - lo)));
+            }
+        }
+        if title.contains("phase") {
+            if let Some(period) = forcing_period(s) {
+                p.x_range = Some((0.0, period));
+            }
+        }
+        panels.push(p);
+    }
+    let fig = stacked_figure(
+        format!(
+            "{}: residual acceleration, measured minus model (held-out data)",
+            s.name
+        ),
+        panels,
+    );
+    plots::write(out, "residual_bins", &fig)
+}
+
+/// `error_waterfall.png`.
+pub fn draw_waterfall(
+    out: &mut OutputDir,
+    s: &DiagnoseSettings,
+    report: &DiagnosisReport,
+    ev: &Evidence,
+) -> Result<()> {
+    let free = s.free.join(", ");
+    let mut bars = Vec::new();
+    let mut seen_nominal = false;
+    let mut seen_extended = false;
+    for (i, step) in ev.waterfall.iter().enumerate() {
+        let (name, from, role) = match step.step.as_str() {
+            "configured" => ("configured".to_string(), 0.0, Role::Nominal),
+            // Without a configured level the refitted model's level comes first.
+            "refitted" if i == 0 => ("refitted".to_string(), 0.0, Role::Nominal),
+            "refitted" => (format!("refit {free}"), step.before, Role::Nominal),
+            "final" => ("final model".to_string(), 0.0, Role::Extended),
+            effect => (format!("+ {effect}"), step.before, Role::Extended),
+        };
+        let legend = match role {
+            Role::Nominal if !seen_nominal => {
+                seen_nominal = true;
+                "nominal model: as configured, then refitted".to_string()
+            }
+            Role::Extended if !seen_extended => {
+                seen_extended = true;
+                "each effect added, and the final model".to_string()
+            }
+            _ => String::new(),
+        };
+        bars.push(WaterfallBar {
+            name,
+            from,
+            to: step.after,
+            role,
+            legend,
+        });
+    }
+    let u = unit_or_words(s);
+    let mut panel = waterfall_panel(
+        "held-out RMSE, step by step",
+        &format!("held-out RMSE ({u})"),
+        &bars,
+    );
+    if let Some(floor) = report.noise_floor {
+        let (lo, hi) = panel.x_range.unwrap_or((0.0, 1.0));
+        panel.series.push(
+            Series::new(
+                format!("noise floor ({} {u})", num(floor, 3)),
+                vec![lo, hi],
+                vec![floor, floor],
+                Style::Dashed,
+            )
+            .with_role(Role::Bound),
+        );
+    }
+    let fig = stacked_figure(
+        format!(
+            "{}: held-out error from the configured to the final model",
+            s.name
+        ),
+        vec![panel],
+    );
+    let fig = htfid_plot::Figure { height: 420, ..fig };
+    plots::write(out, "error_waterfall", &fig)
+}
+
+/// The samples of the residual-in-time window: a few forcing periods (or natural periods of
+/// the nominal model) from the start of the first held-out range, after its burn-in.
+pub fn time_window(
+    s: &DiagnoseSettings,
+    record: &Record,
+    report: &DiagnosisReport,
+) -> Range<usize> {
+    let dt = record.dt();
+    let r = report
+        .validation_ranges
+        .first()
+        .cloned()
+        .unwrap_or(0..record.len());
+    let burn = (report.burn_in_s / dt).ceil() as usize;
+    let start = (r.start + burn).min(r.end);
+    let span = forcing_period(s).map_or(NATURAL_PERIODS_PER_WINDOW * natural_period(report), |p| {
+        WINDOW_PERIODS * p
+    });
+    let len = ((span / dt).ceil() as usize).max(64);
+    start..(start + len).min(r.end)
+}
+
+/// Words for the window's length.
+pub fn window_words(s: &DiagnoseSettings) -> String {
+    match forcing_period(s) {
+        Some(_) => format!("{WINDOW_PERIODS} forcing periods"),
+        None => format!("{NATURAL_PERIODS_PER_WINDOW} natural periods (of the nominal model)"),
+    }
+}
+
+/// Measured-minus-model HTF differences of one harmonic at the estimate's frequencies.
+pub struct HarmonicDifference {
+    pub n: i32,
+    pub omega: Vec<f64>,
+    pub stderr: Vec<f64>,
+    pub nominal: Vec<Complex64>,
+    pub extended: Vec<Complex64>,
+}
+
+impl HarmonicDifference {
+    /// Share of the frequency bins where `|difference| > 2 stderr` (the estimate's noise).
+    fn outside(d: &[Complex64], se: &[f64]) -> f64 {
+        let n = d.iter().zip(se).filter(|(_, s)| s.is_finite()).count();
+        if n == 0 {
+            return 0.0;
+        }
+        let out = d
+            .iter()
+            .zip(se)
+            .filter(|(g, s)| s.is_finite() && g.norm() > SIGNIFICANT_RATIO * **s)
+            .count();
+        out as f64 / n as f64
+    }
+
+    pub fn nominal_outside(&self) -> f64 {
+        Self::outside(&self.nominal, &self.stderr)
+    }
+
+    pub fn extended_outside(&self) -> f64 {
+        Self::outside(&self.extended, &self.stderr)
+    }
+}
+
+/// `htf_difference` of `diagnosis.json`.
+pub fn htf_json(diffs: &[HarmonicDifference]) -> Value {
+    Value::Array(
+        diffs
+            .iter()
+            .map(|d| {
+                json!({
+                    "n": d.n,
+                    "points": d.omega.len(),
+                    "nominal_outside_noise": d.nominal_outside(),
+                    "extended_outside_noise": d.extended_outside(),
+                })
+            })
+            .collect(),
+    )
+}
+
+/// `htf_difference.png`: per harmonic, `|measured - model|` for both models over the
+/// estimate's noise level `2 stderr`, shaded from the bottom of the axes.
+pub fn draw_htf_difference(
+    out: &mut OutputDir,
+    s: &DiagnoseSettings,
+    report: &DiagnosisReport,
+    diffs: &[HarmonicDifference],
+    unit: Option<&str>,
+) -> Result<()> {
+    let ext_label = format!("extended ({}): measured - theory", report.diagnosis.cause);
+    let panels: Vec<Panel> = diffs
+        .iter()
+        .map(|d| {
+            let mut curves = vec![BodeSeries {
+                label: "nominal: measured - theory",
+                omega: &d.omega,
+                response: &d.nominal,
+                style: Style::Line,
+            }];
+            if report.extended_model != report.nominal_model {
+                curves.push(BodeSeries {
+                    label: &ext_label,
+                    omega: &d.omega,
+                    response: &d.extended,
+                    style: Style::Dashed,
+                });
+            }
+            let mut p = magnitude_panel(&format!("G_{}: measured minus model", d.n), &curves);
+            for (c, role) in p.series.iter_mut().zip([Role::Nominal, Role::Extended]) {
+                c.role = Some(role);
+            }
+            let noise: Vec<f64> = d
+                .stderr
+                .iter()
+                .map(|se| 20.0 * (SIGNIFICANT_RATIO * se).log10())
+                .collect();
+            p.series.insert(
+                0,
+                Series::band(
+                    "estimate's noise: |difference| < 2 stderr",
+                    d.omega.clone(),
+                    vec![f64::NAN; d.omega.len()],
+                    noise,
+                )
+                .with_role(Role::Estimate),
+            );
+            p.y_label = match unit {
+                Some(u) => format!("|difference| (dB re 1 {u})"),
+                None => "|difference| (dB)".into(),
+            };
+            p
+        })
+        .collect();
+    let columns = if panels.len() > 4 {
+        3
+    } else {
+        panels.len().max(1)
+    };
+    let fig = grid_figure(
+        format!(
+            "{}: HTF estimated from the data minus each model's theory, per harmonic",
+            s.name
+        ),
+        panels,
+        columns,
+    );
+    plots::write(out, "htf_difference", &fig)
+}
+
+/// Which binned variable shows the nominal residual most, in words with its numbers.
+fn strongest(ev: &Evidence, s: &DiagnoseSettings) -> Option<String> {
+    let u = unit_or_words(s);
+    let cands = [
+        ("position", Structure::of(&ev.nominal.by_position)),
+        ("velocity", Structure::of(&ev.nominal.by_velocity)),
+        ("the forcing phase", Structure::of(&ev.nominal.by_phase)),
+    ];
+    let (what, st) = cands.iter().filter(|(_, st)| st.bins > 0).max_by(|a, b| {
+        (a.1.chi_square / a.1.bins as f64).total_cmp(&(b.1.chi_square / b.1.bins as f64))
+    })?;
+    let ext = ev.extended.as_ref().map(|e| {
+        let st = match *what {
+            "position" => Structure::of(&e.by_position),
+            "velocity" => Structure::of(&e.by_velocity),
+            _ => Structure::of(&e.by_phase),
+        };
+        format!(
+            "; the extended model's stand at most {} standard errors from zero there",
+            num(st.max_abs_z, 3)
+        )
+    });
+    Some(format!(
+        "The refitted nominal model's residual acceleration varies most against {what}: bin means from {} to {} {u}/s^2, up to {} standard errors of the bin mean from zero (`residual_bins.png`){}.",
+        num(st.min_mean, 4),
+        num(st.max_mean, 4),
+        num(st.max_abs_z, 3),
+        ext.unwrap_or_default()
+    ))
+}
+
+fn pct(x: f64) -> String {
+    format!("{} %", num(100.0 * x, 4))
+}
+
+/// The path as a reader finds it: relative to the working directory (with `..` where it lies
+/// outside), or as given when that cannot be worked out.
+pub fn shown_path(p: &Path) -> String {
+    use std::path::Component;
+    let (Ok(abs), Ok(cwd)) = (std::fs::canonicalize(p), std::env::current_dir()) else {
+        return p.display().to_string();
+    };
+    let cwd = std::fs::canonicalize(&cwd).unwrap_or(cwd);
+    let a: Vec<Component<'_>> = abs.components().collect();
+    let c: Vec<Component<'_>> = cwd.components().collect();
+    let common = a.iter().zip(&c).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return abs.display().to_string();
+    }
+    let mut rel = std::path::PathBuf::new();
+    for _ in common..c.len() {
+        rel.push("..");
+    }
+    for part in &a[common..] {
+        rel.push(part.as_os_str());
+    }
+    rel.display().to_string()
+}
+
+/// The opening paragraph of `report.md`: the decision in words, with its numbers.
+pub fn summary(
+    s: &DiagnoseSettings,
+    report: &DiagnosisReport,
+    ev: &Evidence,
+    htf: &[HarmonicDifference],
+    param_text: &dyn Fn(&str, f64, f64) -> String,
+) -> String {
+    let d = &report.diagnosis;
+    let u = unit_or_words(s);
+    let rmse = |v: f64| format!("{} {u}", num(v, 4));
+    let mut p = format!(
+        "On the held-out data of `{}`, the model as configured",
+        shown_path(&s.data.file)
+    );
+    if d.configured.nrmse.is_finite() {
+        p.push_str(&format!(
+            " predicts {} with NRMSE {} (RMSE {}; NRMSE is the RMS of measured minus simulated {} over the standard deviation of the measured {}, in %)",
+            s.data.output,
+            pct(d.configured.nrmse),
+            rmse(d.configured.rmse),
+            s.data.output,
+            s.data.output
+        ));
+        p.push_str(&format!(
+            "; with {} refitted the nominal model reaches {} ({}).",
+            s.free.join(", "),
+            pct(d.nominal.nrmse),
+            rmse(d.nominal.rmse)
+        ));
+    } else {
+        p.push_str(&format!(
+            " could not be simulated; with {} refitted the nominal model predicts {} with NRMSE {} (RMSE {}; NRMSE is the RMS of measured minus simulated {} over the standard deviation of the measured {}, in %).",
+            s.free.join(", "),
+            s.data.output,
+            pct(d.nominal.nrmse),
+            rmse(d.nominal.rmse),
+            s.data.output,
+            s.data.output
+        ));
+    }
+    let effects: Vec<&htfid_diagnose::Cause> = d
+        .causes
+        .iter()
+        .filter(|c| c.effect != "parameter_error")
+        .collect();
+    if effects.is_empty() {
+        p.push_str(&match d.cause.as_str() {
+            "none" => " No effect is needed: the refitted nominal model explains the data down to the noise.".to_string(),
+            "parameter_error" => " Only the configured parameters are off; no effect of the library improves on the refit.".to_string(),
+            "model_mismatch" => " The model does not describe these data at all, so no effect is named.".to_string(),
+            _ => " No library effect passes the tests, yet structure remains in the residual.".to_string(),
+        });
+    } else {
+        let named: Vec<String> = effects
+            .iter()
+            .map(|c| {
+                let params: Vec<String> = c
+                    .parameters
+                    .iter()
+                    .map(|(k, v)| param_text(k, *v, c.stderr.get(k).copied().unwrap_or(f64::NAN)))
+                    .collect();
+                format!("`{}` ({})", c.effect, params.join(", "))
+            })
+            .collect();
+        p.push_str(&format!(
+            " Adding {} brings it to {} ({}), {} below the refitted model",
+            named.join(" and "),
+            pct(d.extended.nrmse),
+            rmse(d.extended.rmse),
+            pct(d.gain)
+        ));
+        match report.noise_floor {
+            Some(f) if f > 0.0 => p.push_str(&format!(
+                ", at {} times the noise floor ({})",
+                num(d.extended.rmse / f, 3),
+                rmse(f)
+            )),
+            _ => {}
+        }
+        p.push_str(&format!(
+            "; the diagnosis is `{}` (`error_waterfall.png` shows each step).",
+            d.cause
+        ));
+    }
+    if let Some(words) = strongest(ev, s) {
+        p.push(' ');
+        p.push_str(&words);
+    }
+    if !htf.is_empty() {
+        let parts: Vec<String> = htf
+            .iter()
+            .map(|h| {
+                if report.extended_model == report.nominal_model {
+                    format!("`G_{}` {}", h.n, pct(h.nominal_outside()))
+                } else {
+                    format!(
+                        "`G_{}` {} (extended {})",
+                        h.n,
+                        pct(h.nominal_outside()),
+                        pct(h.extended_outside())
+                    )
+                }
+            })
+            .collect();
+        p.push_str(&format!(
+            " In the HTFs estimated from the data, the difference from the nominal model's theory exceeds the estimate's noise (2 standard errors) at these shares of the frequency bins: {} (for noise alone, about 2 % or fewer; `htf_difference.png`).",
+            parts.join(", ")
+        ));
+    }
+    p
+}
