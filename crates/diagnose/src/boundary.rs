@@ -87,6 +87,30 @@ impl BoundaryEffect {
     }
 }
 
+/// The experiment that would tell rival boundary effects (by name) apart.
+pub fn separating_experiment(rivals: &[String]) -> String {
+    let has = |n: &str| rivals.iter().any(|r| r == n);
+    let input_side = has("input_delay") || has("actuator_lag") || has("input_offset");
+    let output_side = has("sensor_lag") || has("sensor_offset_gain");
+    let mut ways = Vec::new();
+    if input_side && output_side {
+        ways.push(
+            "measuring the applied input itself (the actuator's output) or the output with a \
+             second sensor separates the input side from the output side",
+        );
+    }
+    if has("input_delay") && (has("actuator_lag") || has("sensor_lag")) {
+        ways.push(
+            "an input with power over a wider band separates a delay from a lag: a lag's phase \
+             saturates at 90 degrees while a delay's grows with frequency",
+        );
+    }
+    if ways.is_empty() {
+        ways.push("a larger or broader excitation, so that their responses differ above the noise");
+    }
+    ways.join("; ")
+}
+
 /// The boundary of a model: what happens between the recorded input and the model's input,
 /// and between the model's outputs and the recorded ones. The default changes nothing.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -155,6 +179,26 @@ impl Boundary {
 mod tests {
     use super::*;
     use crate::interp::Interpolation;
+
+    #[test]
+    fn rivals_get_the_experiment_that_separates_them() {
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let both = separating_experiment(&names(&["sensor_lag", "actuator_lag"]));
+        assert!(
+            both.contains("second sensor") && !both.contains("delay"),
+            "{both}"
+        );
+        let three = separating_experiment(&names(&["sensor_lag", "actuator_lag", "input_delay"]));
+        assert!(
+            three.contains("second sensor") && three.contains("saturates"),
+            "{three}"
+        );
+        let inputs = separating_experiment(&names(&["actuator_lag", "input_delay"]));
+        assert!(
+            !inputs.contains("second sensor") && inputs.contains("saturates"),
+            "{inputs}"
+        );
+    }
 
     #[test]
     fn names_round_trip_and_parameters_follow_the_outputs() {

@@ -202,7 +202,7 @@ mod select;
 mod sensor;
 mod sim;
 
-pub use boundary::BoundaryEffect;
+pub use boundary::{separating_experiment, BoundaryEffect};
 pub use diagnose::{
     diagnose, diagnose_with_progress, simulate_record, Candidate, Cause, DiagnoseOptions,
     Diagnosis, DiagnosisReport, FittedModel, Score,

@@ -354,15 +354,15 @@ fn report(
             )
         }
         ModelCause::Ambiguous => format!(
-            "Several effects on the boundary of `{}` explain the data equally well: {}. An \
-             experiment that separates the input side from the output side (a measured actuator \
-             output, or a second sensor) would tell them apart.",
+            "**Several effects on the boundary of `{}` explain the data equally well:** {}. \
+             The data cannot tell them apart; to do so, {}.",
             s.model.name(),
             d.alternatives
                 .iter()
                 .map(|a| format!("`{a}`"))
                 .collect::<Vec<_>>()
-                .join(", ")
+                .join(", "),
+            htfid_diagnose::separating_experiment(&d.alternatives)
         ),
         ModelCause::Unexplained => format!(
             "Clear structure remains in the residual of `{}` that neither the refit nor an \
