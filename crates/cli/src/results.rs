@@ -415,8 +415,23 @@ pub fn estimate(summary: &Value, dir: &Path, files: &[PathBuf]) {
     t.print();
 }
 
-/// `htfid diagnose` against the built-in hopper: the cause, its parameters and the gain.
-pub fn diagnose(d: &Value, dir: &Path, files: &[PathBuf]) {
+/// `htfid diagnose` against the built-in hopper: the cause, its parameters and the gain. The
+/// hopper's units (m, N, kg, ...) are shown only when `hopper_units` (the record is the hopper's
+/// own position and force); another record (volts, say) gets bare numbers.
+pub fn diagnose(d: &Value, hopper_units: bool, dir: &Path, files: &[PathBuf]) {
+    let unit = |name: &str| {
+        if !hopper_units {
+            return None;
+        }
+        match name {
+            // In a diagnosis `g` is the sensor's gain and `b` its offset.
+            "g" => None,
+            "b" => Some("m"),
+            "tau_s" => Some("s"),
+            "input_offset" => Some("N"),
+            _ => hopper_unit(name),
+        }
+    };
     let mut t = Table::new(format!(
         "htfid diagnose {}: done in {} s",
         d["data"]["file"].as_str().unwrap_or(""),
@@ -433,12 +448,7 @@ pub fn diagnose(d: &Value, dir: &Path, files: &[PathBuf]) {
     if let Some(params) = d["parameters"].as_object() {
         let lines = params
             .iter()
-            .map(|(name, v)| {
-                format!(
-                    "{name} = {}",
-                    pm(f(v), f(&d["stderr"][name]), hopper_unit(name))
-                )
-            })
+            .map(|(name, v)| format!("{name} = {}", pm(f(v), f(&d["stderr"][name]), unit(name))))
             .collect();
         t.rows("parameters", lines);
     }
@@ -447,9 +457,10 @@ pub fn diagnose(d: &Value, dir: &Path, files: &[PathBuf]) {
         t.row(
             label,
             format!(
-                "held-out NRMSE {}, RMSE {} m",
+                "held-out NRMSE {}, RMSE {}{}",
                 pct(f(&s["nrmse"])),
-                sig(f(&s["rmse"]), 4)
+                sig(f(&s["rmse"]), 4),
+                if hopper_units { " m" } else { "" }
             ),
         );
     }

@@ -164,7 +164,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     ));
     outdir.write_text("report.md", &text)?;
     let written = outdir.commit()?;
-    crate::results::diagnose(&json, &dir, &written);
+    crate::results::diagnose(&json, htf_unit(&settings).is_some(), &dir, &written);
     Ok(())
 }
 
