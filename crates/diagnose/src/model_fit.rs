@@ -8,6 +8,7 @@ use htfid_estimate::{levenberg_marquardt, LmOptions};
 use htfid_hybrid::{simulate, Options};
 use htfid_lang::{InputFn, Model};
 use htfid_orbit::ShootingOptions;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::boundary::{Boundary, BoundaryEffect};
@@ -599,15 +600,22 @@ pub fn diagnose_model(
     let n = est.residual_len();
     // Each candidate with its simulated outputs (when fitted) and its fit residuals.
     let mut candidates: Vec<Tried> = Vec::new();
-    for &effect in &opts.effects {
-        let start = joint.effect_start(effect, &base, &outputs);
+    // The candidates' fits are independent: in parallel.
+    let fits: Vec<_> = opts
+        .effects
+        .par_iter()
+        .map(|&effect| {
+            let start = joint.effect_start(effect, &base, &outputs);
+            joint.fit(Some(effect), &start, &base.state).and_then(|f| {
+                let m = joint.model_at(&f.params[..k])?;
+                let b = Boundary::with(effect, &f.params[k..], outputs.len());
+                let (score, sim) = score_of(&m, &f.state, &b)?;
+                Ok((f, score, sim))
+            })
+        })
+        .collect();
+    for (&effect, fitted) in opts.effects.iter().zip(fits) {
         let names_e = effect.parameter_names(&outputs);
-        let fitted = joint.fit(Some(effect), &start, &base.state).and_then(|f| {
-            let m = joint.model_at(&f.params[..k])?;
-            let b = Boundary::with(effect, &f.params[k..], outputs.len());
-            let (score, sim) = score_of(&m, &f.state, &b)?;
-            Ok((f, score, sim))
-        });
         let (f, score, sim) = match fitted {
             Ok(v) => v,
             Err(e) => {

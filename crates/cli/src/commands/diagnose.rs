@@ -988,7 +988,14 @@ fn report_md(
         phase = if ev.nominal.by_phase.is_empty() { "position and velocity (no forcing period is configured, so no phase)" } else { "position, velocity and the forcing phase" },
         block = ev.block_words,
     );
-    let _ = writeln!(m, "![residual acceleration in bins](residual_bins.png)\n");
+    if ev.nominal.by_position.is_empty() && ev.nominal.by_velocity.is_empty() {
+        let _ = writeln!(
+            m,
+            "The held-out data are too short to fill a bin: no `residual_bins.png`.\n"
+        );
+    } else {
+        let _ = writeln!(m, "![residual acceleration in bins](residual_bins.png)\n");
+    }
     let _ = writeln!(
         m,
         "The residual in time: its RMS per block over all held-out data, and the residual itself over the first {} after the burn-in:\n",

@@ -226,6 +226,10 @@ pub fn draw_bins(
         }
         panels.push(p);
     }
+    if panels.is_empty() {
+        // Too few held-out samples to fill a bin: no figure (the report says nothing of bins).
+        return Ok(());
+    }
     let fig = stacked_figure(
         format!(
             "{}: residual acceleration, measured minus model (held-out data)",
