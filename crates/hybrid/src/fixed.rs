@@ -30,11 +30,9 @@ const MAX_EVENTS_PER_STEP: usize = 8;
 ///
 /// # Errors
 /// [`HybridError::DimensionMismatch`] for a state of the wrong length (or a system larger than
-/// [`FIXED_STEP_MAX_DIM`]), [`HybridError::NonFiniteState`], [`HybridError::Chattering`]
-/// when more than 8 transitions fall within one step, and [`HybridError::SlidingUnsupported`]
-/// where the motion would slide along a declared switching surface
-/// ([`HybridSystem::sliding_chart`]): this method does not slide, use
-/// [`simulate`](crate::simulate).
+/// [`FIXED_STEP_MAX_DIM`]), [`HybridError::NonFiniteState`], and [`HybridError::Chattering`]
+/// when more than 8 transitions fall within one step. A state that starts on a switching
+/// surface starts in `mode0`'s chart (the adaptive method's start rule is not applied).
 pub fn simulate_fixed_step<S: HybridSystem + ?Sized>(
     sys: &S,
     mode0: S::Mode,
