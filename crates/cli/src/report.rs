@@ -301,12 +301,7 @@ pub fn run(
     // The experiment.
     r.section("The experiment");
     let lc = &summary["limit_cycle"];
-    let largest = lc["floquet_multipliers"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter_map(|m| Some(f(m.get(0)?).hypot(f(m.get(1)?))))
-        .fold(f64::NAN, f64::max);
+    let largest = crate::results::largest_floquet(summary);
     let sim = &summary["simulation"];
     let excitation = if !summary["design"].is_null() {
         "a designed periodic multisine".to_string()

@@ -93,16 +93,22 @@ fn title(command: &str, summary: &Value) -> String {
     }
 }
 
-/// Period, and the largest Floquet multiplier's modulus (stability of the orbit).
-fn limit_cycle(t: &mut Table, summary: &Value) {
-    let lc = &summary["limit_cycle"];
-    let mut text = format!("period {} s", sig(f(&lc["period"]), 4));
-    let largest = lc["floquet_multipliers"]
+/// The largest modulus of the orbit's Floquet multipliers (`[re, im]` pairs) in a
+/// `summary.json`; NaN when there are none.
+pub fn largest_floquet(summary: &Value) -> f64 {
+    summary["limit_cycle"]["floquet_multipliers"]
         .as_array()
         .into_iter()
         .flatten()
         .filter_map(|m| Some(f(m.get(0)?).hypot(f(m.get(1)?))))
-        .fold(f64::NAN, f64::max);
+        .fold(f64::NAN, f64::max)
+}
+
+/// Period, and the largest Floquet multiplier's modulus (stability of the orbit).
+fn limit_cycle(t: &mut Table, summary: &Value) {
+    let lc = &summary["limit_cycle"];
+    let mut text = format!("period {} s", sig(f(&lc["period"]), 4));
+    let largest = largest_floquet(summary);
     if largest.is_finite() {
         text.push_str(&format!(
             ", largest Floquet multiplier |μ| {}",

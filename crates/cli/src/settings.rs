@@ -1213,16 +1213,6 @@ fn default_fit(system: &System) -> Vec<String> {
     }
 }
 
-/// A number for a message: one decimal, or three significant digits in scientific notation
-/// beyond a million.
-fn short(v: f64) -> String {
-    if v.abs() < 1e6 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.3e}")
-    }
-}
-
 fn resolve_estimation(
     src: &Source,
     e: Option<&RawEstimation>,
@@ -1280,10 +1270,10 @@ fn resolve_estimation(
                 "= {} rad/s with harmonics up to {h_max} reads outputs up to {} rad/s, at or \
                  beyond the Nyquist frequency {} rad/s of simulation.sample_rate = {} Hz; lower \
                  estimation.omega_max or raise simulation.sample_rate",
-                short(hi),
-                short(top),
-                short(nyquist),
-                short(sample_rate)
+                crate::number::sig(hi, 4),
+                crate::number::sig(top, 4),
+                crate::number::sig(nyquist, 4),
+                crate::number::sig(sample_rate, 4)
             ),
         ));
     }

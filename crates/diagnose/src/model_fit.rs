@@ -598,7 +598,6 @@ pub fn diagnose_model(
     // Boundary effects, each fitted jointly with the free parameters and tested against the
     // refit: a likelihood ratio corrected for the residuals' correlation, and a held-out gain.
     let n = est.residual_len();
-    // Each candidate with its simulated outputs (when fitted) and its fit residuals.
     let mut candidates: Vec<Tried> = Vec::new();
     // The candidates' fits are independent: in parallel.
     let fits: Vec<_> = opts
@@ -619,11 +618,12 @@ pub fn diagnose_model(
         let (f, score, sim) = match fitted {
             Ok(v) => v,
             Err(e) => {
-                candidates.push((
-                    ModelCandidate::failed(effect, format!("fit failed: {e}")),
-                    None,
-                    Vec::new(),
-                ));
+                candidates.push(Tried {
+                    effect,
+                    candidate: ModelCandidate::failed(effect, format!("fit failed: {e}")),
+                    simulated: None,
+                    residuals: Vec::new(),
+                });
                 continue;
             }
         };
@@ -656,8 +656,9 @@ pub fn diagnose_model(
             100.0 * gain_e,
             100.0 * opts.min_gain
         );
-        candidates.push((
-            ModelCandidate {
+        candidates.push(Tried {
+            effect,
+            candidate: ModelCandidate {
                 effect: effect.name().to_string(),
                 parameters,
                 stderr,
@@ -668,26 +669,27 @@ pub fn diagnose_model(
                 significant,
                 note,
             },
-            Some(sim),
-            f.residuals,
-        ));
+            simulated: Some(sim),
+            residuals: f.residuals,
+        });
     }
-    candidates.sort_by(|a, b| a.0.nrmse_validation.total_cmp(&b.0.nrmse_validation));
-    let best = candidates.iter().position(|c| c.0.significant);
+    candidates
+        .sort_by(|a, b| (a.candidate.nrmse_validation).total_cmp(&b.candidate.nrmse_validation));
+    let best = candidates.iter().position(|c| c.candidate.significant);
     // A significant rival within `rival_margin` of the best held-out score explains the data
     // as well: the data cannot tell them apart.
     let alternatives: Vec<String> = match best {
         Some(b) => {
-            let best_score = candidates[b].0.nrmse_validation;
+            let best_score = candidates[b].candidate.nrmse_validation;
             candidates
                 .iter()
                 .enumerate()
                 .filter(|(i, c)| {
                     *i != b
-                        && c.0.significant
-                        && c.0.nrmse_validation <= best_score * (1.0 + opts.rival_margin)
+                        && c.candidate.significant
+                        && c.candidate.nrmse_validation <= best_score * (1.0 + opts.rival_margin)
                 })
-                .map(|(_, c)| c.0.effect.clone())
+                .map(|(_, c)| c.candidate.effect.clone())
                 .collect()
         }
         None => Vec::new(),
@@ -695,13 +697,15 @@ pub fn diagnose_model(
     // The noise floor of the best model's residual (scaled by each output's spread, so in
     // NRMSE units), from the band 60-95 % of the Nyquist frequency.
     let best_residuals = match best {
-        Some(b) => candidates[b].2.clone(),
-        None => base.residuals.clone(),
+        Some(b) => &candidates[b].residuals,
+        None => &base.residuals,
     };
     let rows = est.rows.len().max(1);
     let per_output: Vec<&[f64]> = best_residuals.chunks(rows).collect();
     let noise_floor = crate::noise::noise_floor(&per_output, (0.6, 0.95)).unwrap_or(f64::NAN);
-    let best_score = best.map_or(refitted.validation(), |b| candidates[b].0.nrmse_validation);
+    let best_score = best.map_or(refitted.validation(), |b| {
+        candidates[b].candidate.nrmse_validation
+    });
     let floor2 = noise_floor * noise_floor;
     let explained = if best.is_some() {
         1.0 - (best_score.powi(2) - floor2).max(0.0)
@@ -715,20 +719,21 @@ pub fn diagnose_model(
     let cause = match best {
         _ if structure_left && explained < opts.min_explained => ModelCause::Unexplained,
         Some(_) if !alternatives.is_empty() => ModelCause::Ambiguous,
-        Some(b) => ModelCause::Effect(
-            BoundaryEffect::from_name(&candidates[b].0.effect).unwrap_or(BoundaryEffect::ALL[0]),
-        ),
+        Some(b) => ModelCause::Effect(candidates[b].effect),
         None if moved && gain >= opts.min_gain => ModelCause::ParameterError,
         None => ModelCause::None,
     };
-    let (extended, simulated_extended) = match best {
-        Some(b) => (Some(candidates[b].0.clone()), candidates[b].1.clone()),
-        None => (None, None),
-    };
     let mut alternatives = alternatives;
     if let (ModelCause::Ambiguous, Some(b)) = (cause, best) {
-        alternatives.insert(0, candidates[b].0.effect.clone());
+        alternatives.insert(0, candidates[b].candidate.effect.clone());
     }
+    let (extended, simulated_extended) = match best {
+        Some(b) => (
+            Some(candidates[b].candidate.clone()),
+            candidates[b].simulated.take(),
+        ),
+        None => (None, None),
+    };
     Ok(ModelDiagnosis {
         cause,
         configured,
@@ -738,7 +743,7 @@ pub fn diagnose_model(
         stderr_inflation: inflation,
         iterations: base.iterations,
         stop: base.stop,
-        candidates: candidates.into_iter().map(|c| c.0).collect(),
+        candidates: candidates.into_iter().map(|c| c.candidate).collect(),
         extended,
         alternatives,
         noise_floor,
@@ -749,8 +754,14 @@ pub fn diagnose_model(
     })
 }
 
-/// A candidate, its simulated outputs (when fitted) and its residuals on the fit data.
-type Tried = (ModelCandidate, Option<Vec<Vec<f64>>>, Vec<f64>);
+/// A boundary effect tried: its result, its simulated outputs (when fitted) and its scaled
+/// residuals on the fit data (outputs one after another).
+struct Tried {
+    effect: BoundaryEffect,
+    candidate: ModelCandidate,
+    simulated: Option<Vec<Vec<f64>>>,
+    residuals: Vec<f64>,
+}
 
 /// One joint output-error fit: free parameters, effect parameters and the initial state.
 struct JointFit {
@@ -809,7 +820,7 @@ impl Joint<'_, '_> {
             return effect.neutral(outputs.len());
         }
         let est = self.est;
-        let longest = 0.1 * est.dt * est.rec.t.len() as f64;
+        let longest = self.longest_lag();
         let Ok(m) = self.model_at(&base.params[..self.index.len()]) else {
             return vec![est.dt];
         };
@@ -818,7 +829,7 @@ impl Joint<'_, '_> {
         // Zero (the refit itself) competes, so the start is never worse than the refit.
         for steps in [0.0, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0] {
             let v = steps * est.dt;
-            if v > longest.min(self.longest_lag()) {
+            if v > longest {
                 break;
             }
             let b = Boundary::with(effect, &[v], outputs.len());

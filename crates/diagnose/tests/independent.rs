@@ -149,9 +149,19 @@ fn parameters_within(s: &Scenario, d: &Diagnosis) -> Option<Result<(), String>> 
             }
             // g and x0 errors are a shift of the position, not fitted as such.
             ("parameter_error", _) => continue,
-            (_, "offset") => (cause.parameters.get("input_offset").copied()?, truth),
-            (_, "gain") => (cause.parameters.get("g").copied()?, truth),
-            (_, p) => (cause.parameters.get(p).copied()?, truth),
+            (_, p) => {
+                // The diagnosis's names for the generator's `offset` and `gain`.
+                let ours = match p {
+                    "offset" => "input_offset",
+                    "gain" => "g",
+                    p => p,
+                };
+                // A parameter the diagnosis does not report counts as off.
+                (
+                    cause.parameters.get(ours).copied().unwrap_or(f64::NAN),
+                    truth,
+                )
+            }
         };
         if truth == 0.0 {
             // No scale for a relative error (the offset of a pure gain error).

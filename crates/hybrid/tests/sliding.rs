@@ -138,14 +138,86 @@ fn after_stick(t2: f64, t: f64) -> [f64; 2] {
     ]
 }
 
+/// From rest in `Behind`: slip `x = F/k (1 - cos wt)` until `x' = v` at `t1` (state `x1`),
+/// stuck `x = x1 + v (t - t1)` until `k x = F` at `t2`, then [`after_stick`].
+struct FromRest {
+    t1: f64,
+    x1: f64,
+    t2: f64,
+}
+
+impl FromRest {
+    fn new() -> Self {
+        let w = omega();
+        let t1 = (V * K / (F * w)).asin() / w;
+        let x1 = F / K * (1.0 - (w * t1).cos());
+        FromRest {
+            t1,
+            x1,
+            t2: t1 + (F / K - x1) / V,
+        }
+    }
+
+    fn state(&self, t: f64) -> [f64; 2] {
+        let w = omega();
+        if t < self.t1 {
+            [F / K * (1.0 - (w * t).cos()), F / K * w * (w * t).sin()]
+        } else if t < self.t2 {
+            [self.x1 + V * (t - self.t1), V]
+        } else {
+            after_stick(self.t2, t)
+        }
+    }
+}
+
+/// From `x = 0`, `x' = v + u0` in `Ahead`: slip `x = -F/k + (F/k) cos wt + ((v + u0)/w) sin wt`
+/// until `x' = v` at `t1`, stuck until `k x = F` at `t2`, then [`after_stick`] in `Behind`.
+struct FromAhead {
+    /// `F w / k` and `v + u0`: the slip's velocity is `-a sin wt + b cos wt`.
+    a: f64,
+    b: f64,
+    t1: f64,
+    x1: f64,
+    t2: f64,
+}
+
+impl FromAhead {
+    fn new(u0: f64) -> Self {
+        let w = omega();
+        let (a, b) = (F * w / K, V + u0);
+        let (r, phi) = (a.hypot(b), a.atan2(b));
+        let t1 = ((V / r).acos() - phi) / w;
+        let x1 = -F / K + F / K * (w * t1).cos() + b / w * (w * t1).sin();
+        FromAhead {
+            a,
+            b,
+            t1,
+            x1,
+            t2: t1 + (F / K - x1) / V,
+        }
+    }
+
+    fn state(&self, t: f64) -> [f64; 2] {
+        let w = omega();
+        let (a, b) = (self.a, self.b);
+        if t < self.t1 {
+            [
+                -F / K + F / K * (w * t).cos() + b / w * (w * t).sin(),
+                -a * (w * t).sin() + b * (w * t).cos(),
+            ]
+        } else if t < self.t2 {
+            [self.x1 + V * (t - self.t1), V]
+        } else {
+            after_stick(self.t2, t)
+        }
+    }
+}
+
 #[test]
 fn mass_from_rest_sticks_to_the_belt_and_slips_back_at_the_friction_bound() {
     let w = omega();
-    // Slip from rest in `Behind`: x = F/k (1 - cos wt), x' = (F w / k) sin wt reaches v at t1.
-    let t1 = (V * K / (F * w)).asin() / w;
-    let x1 = F / K * (1.0 - (w * t1).cos());
-    // Stuck: x = x1 + v (t - t1) until k x = F.
-    let t2 = t1 + (F / K - x1) / V;
+    let exact = FromRest::new();
+    let (t1, x1, t2) = (exact.t1, exact.x1, exact.t2);
     // Stop before the slip phase returns tangentially to w = 0 at t2 + 2 pi / w (where
     // k x = F exactly: a degenerate touch of the stick boundary).
     let t_end = t2 + 1.5 * std::f64::consts::PI / w;
@@ -181,13 +253,7 @@ fn mass_from_rest_sticks_to_the_belt_and_slips_back_at_the_friction_bound() {
         assert_abs_diff_eq!(stick.end, t2, epsilon = TOL);
         let mut worst = 0.0_f64;
         for (i, &t) in grid.iter().enumerate() {
-            let exact = if t < t1 {
-                [F / K * (1.0 - (w * t).cos()), F / K * w * (w * t).sin()]
-            } else if t < t2 {
-                [x1 + V * (t - t1), V]
-            } else {
-                after_stick(t2, t)
-            };
+            let exact = exact.state(t);
             let x = traj.state(i);
             worst = worst.max((x[0] - exact[0]).abs().max((x[1] - exact[1]).abs()));
         }
@@ -199,16 +265,12 @@ fn mass_from_rest_sticks_to_the_belt_and_slips_back_at_the_friction_bound() {
 
 #[test]
 fn mass_faster_than_the_belt_sticks_and_leaves_into_the_other_chart() {
-    let w = omega();
     let u0 = 0.3;
-    // Slip in `Ahead` from x = 0, x' = v + u0: x = -F/k + (F/k) cos wt + ((v + u0)/w) sin wt,
-    // x' = -(F w / k) sin wt + (v + u0) cos wt = R cos(wt + phi) reaches v first at t1.
-    let (a, b) = (F * w / K, V + u0);
-    let (r, phi) = (a.hypot(b), a.atan2(b));
-    let t1 = ((V / r).acos() - phi) / w;
-    let x1 = -F / K + F / K * (w * t1).cos() + b / w * (w * t1).sin();
+    // The slip's x' = -(F w / k) sin wt + (v + u0) cos wt = R cos(wt + phi) reaches v first
+    // at t1.
+    let exact = FromAhead::new(u0);
+    let (t1, x1, t2) = (exact.t1, exact.x1, exact.t2);
     assert!((K * x1).abs() < F, "the scenario must stick at t1");
-    let t2 = t1 + (F / K - x1) / V;
     let t_end = t2 + 1.0;
     let grid: Vec<f64> = (0..=300).map(|i| t_end * i as f64 / 300.0).collect();
     for (sys, method) in systems() {
@@ -231,16 +293,7 @@ fn mass_faster_than_the_belt_sticks_and_leaves_into_the_other_chart() {
         assert_eq!(traj.final_mode, Belt::Behind);
         let mut worst = 0.0_f64;
         for (i, &t) in grid.iter().enumerate() {
-            let exact = if t < t1 {
-                [
-                    -F / K + F / K * (w * t).cos() + b / w * (w * t).sin(),
-                    -a * (w * t).sin() + b * (w * t).cos(),
-                ]
-            } else if t < t2 {
-                [x1 + V * (t - t1), V]
-            } else {
-                after_stick(t2, t)
-            };
+            let exact = exact.state(t);
             let x = traj.state(i);
             worst = worst.max((x[0] - exact[0]).abs().max((x[1] - exact[1]).abs()));
             // The chart while stuck is the arrival chart; the velocity is the belt's.
@@ -382,11 +435,8 @@ fn the_fixed_step_method_sticks_and_slips_with_the_closed_form() {
     // exactly, and the entry and exit are located on the Hermite interpolant, whose error of
     // order h^4 |x^(4)| = 6e-11 moves an event by about that over speeds of order 1: 1e-9
     // leaves a margin of more than ten.
-    let w = omega();
-    let t1 = (V * K / (F * w)).asin() / w;
-    let x1 = F / K * (1.0 - (w * t1).cos());
-    let t2 = t1 + (F / K - x1) / V;
-    let t_end = t2 + 1.5 * std::f64::consts::PI / w;
+    let exact = FromRest::new();
+    let t_end = exact.t2 + 1.5 * std::f64::consts::PI / omega();
     let dt = 0.01;
     let samples = (t_end / dt) as usize;
     for gradient in [true, false] {
@@ -399,14 +449,10 @@ fn the_fixed_step_method_sticks_and_slips_with_the_closed_form() {
         let mut stuck = 0;
         for i in 0..samples {
             let t = i as f64 * dt;
-            let exact = if t < t1 {
-                [F / K * (1.0 - (w * t).cos()), F / K * w * (w * t).sin()]
-            } else if t < t2 {
+            if t >= exact.t1 && t < exact.t2 {
                 stuck += 1;
-                [x1 + V * (t - t1), V]
-            } else {
-                after_stick(t2, t)
-            };
+            }
+            let exact = exact.state(t);
             worst = worst.max((pos[i] - exact[0]).abs().max((vel[i] - exact[1]).abs()));
         }
         eprintln!("fixed step, gradient {gradient}: worst state error {worst:e}");
@@ -422,15 +468,10 @@ fn the_fixed_step_method_sticks_and_slips_with_the_closed_form() {
 fn the_fixed_step_method_leaves_into_the_far_chart_as_the_closed_form() {
     // The scenario of `mass_faster_than_the_belt_sticks_and_leaves_into_the_other_chart`:
     // arrives from `Ahead`, sticks, leaves into `Behind`. Tolerance as above.
-    let w = omega();
     let u0 = 0.3;
-    let (a, b) = (F * w / K, V + u0);
-    let (r, phi) = (a.hypot(b), a.atan2(b));
-    let t1 = ((V / r).acos() - phi) / w;
-    let x1 = -F / K + F / K * (w * t1).cos() + b / w * (w * t1).sin();
-    let t2 = t1 + (F / K - x1) / V;
+    let exact = FromAhead::new(u0);
     let dt = 0.01;
-    let samples = ((t2 + 1.0) / dt) as usize;
+    let samples = ((exact.t2 + 1.0) / dt) as usize;
     let sys = Stick {
         gradient: true,
         forcing: (0.0, 0.0),
@@ -438,17 +479,7 @@ fn the_fixed_step_method_leaves_into_the_far_chart_as_the_closed_form() {
     let (pos, vel) = fixed_step(&sys, Belt::Ahead, [0.0, V + u0], dt, samples);
     let mut worst = 0.0_f64;
     for i in 0..samples {
-        let t = i as f64 * dt;
-        let exact = if t < t1 {
-            [
-                -F / K + F / K * (w * t).cos() + b / w * (w * t).sin(),
-                -a * (w * t).sin() + b * (w * t).cos(),
-            ]
-        } else if t < t2 {
-            [x1 + V * (t - t1), V]
-        } else {
-            after_stick(t2, t)
-        };
+        let exact = exact.state(i as f64 * dt);
         worst = worst.max((pos[i] - exact[0]).abs().max((vel[i] - exact[1]).abs()));
     }
     eprintln!("fixed step, leaving into the far chart: worst state error {worst:e}");

@@ -324,6 +324,12 @@ impl Model {
         self.def.params.iter().position(|p| p.name == name)
     }
 
+    /// The declared unit of parameter `name`, if it has one.
+    pub fn parameter_unit(&self, name: &str) -> Option<&str> {
+        let i = self.parameter_index(name)?;
+        self.def.params[i].unit.as_deref()
+    }
+
     /// The current value of parameter `name`.
     pub fn parameter(&self, name: &str) -> Option<f64> {
         self.parameter_index(name).map(|i| self.values[i])

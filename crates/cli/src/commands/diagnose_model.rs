@@ -198,13 +198,7 @@ pub fn run(
         crate::plots::write(&mut outdir, "resid", &fig)?;
     }
     let written = outdir.commit()?;
-    let unit = |name: &str| {
-        s.model
-            .parameters()
-            .iter()
-            .find(|p| p.name == name)
-            .and_then(|p| p.unit.clone())
-    };
+    let unit = |name: &str| s.model.parameter_unit(name).map(str::to_string);
     crate::results::diagnose_model(&json, &unit, &dir, &written);
     Ok(())
 }
@@ -295,13 +289,7 @@ fn report(
     use crate::number::{percent, sig, Quantity};
     let mut r = Report::new(&format!("Diagnosis: {}", s.name));
     let model = s.model.name();
-    let unit = |name: &str| {
-        s.model
-            .parameters()
-            .iter()
-            .find(|p| p.name == name)
-            .and_then(|p| p.unit.clone())
-    };
+    let unit = |name: &str| s.model.parameter_unit(name).map(str::to_string);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let (before, after) = (
         mean(&d.configured.nrmse_validation),

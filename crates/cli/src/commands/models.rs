@@ -559,13 +559,7 @@ pub fn run_model(
         ),
     )?;
     let written = outdir.commit()?;
-    let unit = |name: &str| {
-        model
-            .parameters()
-            .iter()
-            .find(|p| p.name == name)
-            .and_then(|p| p.unit.clone())
-    };
+    let unit = |name: &str| model.parameter_unit(name).map(str::to_string);
     crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
     Ok(())
 }
