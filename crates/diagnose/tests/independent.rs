@@ -325,7 +325,7 @@ const FLOORS: [(&str, f64); 6] = [
 ];
 
 #[test]
-#[ignore = "wide sweep of 200 independent records, 15 to 35 minutes on 2 cores: run with --ignored"]
+#[ignore = "wide sweep of 200 independent records, 20 to 65 minutes on 2 cores: run with --ignored"]
 fn independent_catalogue_sweep() {
     // `HTFID_SWEEP_N` runs a prefix (the first 77 are the core cells: every group).
     let n = std::env::var("HTFID_SWEEP_N")
