@@ -1675,6 +1675,39 @@ fn meaningless_values_are_refused() {
         "refused before simulating: {err}"
     );
     assert!(!out.exists());
+    // A smoothness weight so large that the penalty drowns the data is refused at its line, for
+    // both the simulated and the measured pipeline (the data path is absolute for the copy).
+    let estimate_config = fs::read_to_string(root().join("configs/estimate-hopper.toml"))
+        .unwrap()
+        .replace(
+            "\"../data/",
+            &format!("\"{}/", root().join("data").display()),
+        );
+    for (config, command) in [(&paper, "run"), (&estimate_config, "estimate")] {
+        let edited = config.replacen("alpha = 1.0", "alpha = 9223372036854775807", 1);
+        let line = edited
+            .lines()
+            .position(|l| l.starts_with("alpha = 9223372036854775807"))
+            .unwrap()
+            + 1;
+        fs::write(&path, edited).unwrap();
+        let out = tmp.path().join(format!("alpha-{command}"));
+        let o = htfid(&[
+            command,
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success());
+        let err = stderr(&o);
+        assert!(
+            err.contains(&format!("p.toml:{line}:"))
+                && err.contains("estimation.alpha")
+                && err.contains("must be a number in [0, 1e6]"),
+            "{command}: {err}"
+        );
+        assert!(!out.exists());
+    }
     let diag = fs::read_to_string(root().join("configs/diagnose-hopper.toml"))
         .unwrap()
         .replace(

@@ -203,18 +203,7 @@ impl EstimateSettings {
         };
         let alpha = match e.and_then(|e| e.alpha.as_ref()) {
             None => Some(1.0),
-            Some(v) => match v.get_ref() {
-                toml::Value::String(s) if s == "gcv" => None,
-                toml::Value::Float(f) if f.is_finite() && *f >= 0.0 => Some(*f),
-                toml::Value::Integer(i) if *i >= 0 => Some(*i as f64),
-                other => {
-                    return Err(src.error(
-                        Some(&v.span()),
-                        "estimation.alpha",
-                        format!("must be a number >= 0 or \"gcv\" (got {other})"),
-                    ))
-                }
-            },
+            Some(v) => crate::settings::smoothness_weight(&src, v)?,
         };
         Ok(EstimateSettings {
             name,

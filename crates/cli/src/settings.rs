@@ -341,6 +341,38 @@ pub struct TheorySettings {
     pub plot_harmonics: Vec<i32>,
 }
 
+/// Largest smoothness weight `estimation.alpha` accepts. The weight is dimensionless
+/// (`alpha = 1` weighs one bin's curvature like one bin's data), and the second-difference
+/// penalty leaves straight lines free: far above the data, the normal matrix keeps the data's
+/// part only in its last digits and its Cholesky factor breaks down. Cross-validation searches
+/// 1e-8..1e4; 1e6 leaves two decades above that.
+pub const ALPHA_MAX: f64 = 1e6;
+
+/// `estimation.alpha`: a number in [0, [`ALPHA_MAX`]], or `"gcv"` (returned as `None`).
+pub(crate) fn smoothness_weight(
+    src: &Source,
+    v: &Spanned<toml::Value>,
+) -> Result<Option<f64>, ConfigError> {
+    let weight = match v.get_ref() {
+        toml::Value::String(s) if s == "gcv" => return Ok(None),
+        toml::Value::Float(f) => Some(*f),
+        toml::Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    };
+    match weight {
+        Some(a) if a.is_finite() && (0.0..=ALPHA_MAX).contains(&a) => Ok(Some(a)),
+        _ => Err(src.error(
+            Some(&v.span()),
+            "estimation.alpha",
+            format!(
+                "must be a number in [0, {ALPHA_MAX:e}] or \"gcv\" (got {}); a larger weight \
+                 drowns the data in the smoothness penalty",
+                v.get_ref()
+            ),
+        )),
+    }
+}
+
 fn int_in(src: &Source, v: &Spanned<i64>, key: &str, lo: i64, hi: i64) -> Result<i64, ConfigError> {
     let x = *v.get_ref();
     if (lo..=hi).contains(&x) {
@@ -1322,18 +1354,7 @@ fn resolve_estimation(
     };
     let alpha = match &e.alpha {
         None => AlphaSetting::Fixed(1e-3),
-        Some(v) => match v.get_ref() {
-            toml::Value::String(s) if s == "gcv" => AlphaSetting::Gcv,
-            toml::Value::Float(f) if f.is_finite() && *f >= 0.0 => AlphaSetting::Fixed(*f),
-            toml::Value::Integer(i) if *i >= 0 => AlphaSetting::Fixed(*i as f64),
-            other => {
-                return Err(src.error(
-                    Some(&v.span()),
-                    "estimation.alpha",
-                    format!("must be a number >= 0 or \"gcv\" (got {other})"),
-                ))
-            }
-        },
+        Some(v) => smoothness_weight(src, v)?.map_or(AlphaSetting::Gcv, AlphaSetting::Fixed),
     };
     let fit = match &e.fit {
         None => default_fit(system),

@@ -150,7 +150,16 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
             .run(&format!("estimate ({})", outputs[o]), || {
                 siddiqi(&record, period, &settings.harmonics, settings.band, alpha)
             })
-            .with_context(|| format!("Siddiqi's estimator on output {}", outputs[o]))?;
+            .with_context(|| {
+                format!(
+                    "{}: Siddiqi's estimator on output {} (estimation.alpha = {})",
+                    settings.path.display(),
+                    outputs[o],
+                    settings
+                        .alpha
+                        .map_or("\"gcv\"".to_string(), |a| a.to_string())
+                )
+            })?;
         estimates.push(e);
         orbits.push(y_split);
     }

@@ -314,7 +314,16 @@ pub(crate) fn estimate(
                 AlphaSetting::Fixed(a) => Alpha::Fixed(a),
                 AlphaSetting::Gcv => Alpha::Gcv,
             };
-            Ok(siddiqi(&rec, period, harmonics, band, alpha)?)
+            siddiqi(&rec, period, harmonics, band, alpha).with_context(|| {
+                format!(
+                    "{}: Siddiqi's estimator (estimation.alpha = {})",
+                    settings.path.display(),
+                    match alpha {
+                        Alpha::Fixed(a) => a.to_string(),
+                        Alpha::Gcv => "\"gcv\"".to_string(),
+                    }
+                )
+            })
         }
         Estimator::Multi => {
             let Excitation::ChirpTrain { duration, .. } = settings.excitation else {
