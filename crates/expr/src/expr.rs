@@ -57,6 +57,11 @@ impl Expr {
         Expr(Node::Var(name.to_owned(), 0..0))
     }
 
+    /// The sum `self + other` (unsimplified).
+    pub fn plus(self, other: Expr) -> Expr {
+        Expr::bin(BinOp::Add, self, other)
+    }
+
     pub(crate) fn neg(a: Expr) -> Expr {
         Expr(Node::Neg(Box::new(a)))
     }

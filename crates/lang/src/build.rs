@@ -68,6 +68,8 @@ pub(crate) struct ModelDef {
     pub period: Option<Expr>,
     /// Named forcing signals with where they are written.
     pub signals: Vec<(String, Expr, Option<usize>)>,
+    /// Named definitions, resolved (signals and earlier definitions inlined).
+    pub definitions: Vec<(String, Expr)>,
     pub modes: Vec<String>,
     /// Per mode, one expression per state.
     pub flows: Vec<Vec<Expr>>,
@@ -81,7 +83,7 @@ pub(crate) struct ModelDef {
 
 /// Names a user may not take: time, the constant, and the functions of the expression
 /// language.
-const RESERVED: &[&str] = &[
+pub(crate) const RESERVED: &[&str] = &[
     "t", "pi", "sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "exp", "ln",
     "log", "log10", "sqrt", "abs", "sign", "min", "max", "atan2", "pow", "hypot", "step", "pos",
     "clamp", "if", "sat",
@@ -115,7 +117,7 @@ struct Resolver<'a> {
     inline: Vec<(String, Expr)>,
 }
 
-fn is_identifier(s: &str) -> bool {
+pub(crate) fn is_identifier(s: &str) -> bool {
     let mut c = s.chars();
     matches!(c.next(), Some(ch) if ch.is_ascii_alphabetic() || ch == '_')
         && c.all(|ch| ch.is_ascii_alphanumeric() || ch == '_')
@@ -269,10 +271,12 @@ pub(crate) fn build(spec: &Spec, src: &Source) -> Result<ModelDef, ModelError> {
         r.inline.push((name.clone(), value.clone()));
         signals.push((name.clone(), value, e.at));
     }
+    let mut definitions = Vec::new();
     for (name, e) in &spec.definitions {
         let value = r.resolve(e, ALL, true)?;
         r.declare(name, Kind::Definition, &e.key, e.at)?;
-        r.inline.push((name.clone(), value));
+        r.inline.push((name.clone(), value.clone()));
+        definitions.push((name.clone(), value));
     }
 
     // Modes: `[modes.NAME]` tables, or one implicit mode from `[flow]`.
@@ -458,6 +462,7 @@ pub(crate) fn build(spec: &Spec, src: &Source) -> Result<ModelDef, ModelError> {
         input_unit: spec.input.1.clone(),
         period,
         signals,
+        definitions,
         modes,
         flows,
         guards,

@@ -52,9 +52,11 @@
 
 mod build;
 mod error;
+mod extend;
 mod model;
 mod read;
 
 pub use build::{Output, Parameter, State};
 pub use error::{Location, ModelError};
+pub use extend::{Extension, Site};
 pub use model::{InputFn, Mode, Model, ParameterSensitivity};

@@ -294,6 +294,31 @@ impl Model {
         Ok(())
     }
 
+    /// A model from a resolved definition and its parameter values.
+    pub(crate) fn from_def(
+        def: ModelDef,
+        values: Vec<f64>,
+        input: Option<InputFn>,
+    ) -> Result<Model, ModelError> {
+        let compiled = Compiled::new(&def, &values)?;
+        Ok(Model {
+            def: Arc::new(def),
+            values,
+            compiled: Arc::new(compiled),
+            input,
+        })
+    }
+
+    /// The input function, when one drives the model.
+    pub(crate) fn input_fn(&self) -> Option<&InputFn> {
+        self.input.as_ref()
+    }
+
+    /// The resolved definition.
+    pub(crate) fn def(&self) -> &ModelDef {
+        &self.def
+    }
+
     /// The model's name.
     pub fn name(&self) -> &str {
         &self.def.name
