@@ -55,6 +55,20 @@ struct RawOptions {
     rival_margin: Option<Spanned<f64>>,
     unexplained_ratio: Option<Spanned<f64>>,
     min_explained: Option<Spanned<f64>>,
+    terms: Option<Vec<Spanned<RawTerm>>>,
+}
+
+/// `[[diagnose.terms]]`: a user's own candidate effect, a term added to a state equation or a
+/// guard of the model.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTerm {
+    name: Spanned<String>,
+    state: Option<Spanned<String>>,
+    mode: Option<Spanned<String>>,
+    guard: Option<Spanned<String>>,
+    term: Spanned<String>,
+    parameters: Spanned<toml::Table>,
 }
 
 /// Resolved settings of a model-file diagnosis.
@@ -218,12 +232,21 @@ impl ModelDiagnoseSettings {
             })?;
         }
         if let Some(list) = o.and_then(|o| o.effects.as_ref()) {
-            let mut effects = Vec::new();
+            let (mut effects, mut terms) = (Vec::new(), Vec::new());
             for name in list.get_ref() {
-                let Some(e) = htfid_diagnose::BoundaryEffect::from_name(name) else {
+                if let Some(e) = htfid_diagnose::BoundaryEffect::from_name(name) {
+                    if !effects.contains(&e) {
+                        effects.push(e);
+                    }
+                } else if let Some(k) = htfid_diagnose::TermKind::from_name(name) {
+                    if !terms.contains(&k) {
+                        terms.push(k);
+                    }
+                } else {
                     let known: Vec<&str> = htfid_diagnose::BoundaryEffect::ALL
                         .iter()
                         .map(|e| e.name())
+                        .chain(htfid_diagnose::TermKind::ALL.iter().map(|k| k.name()))
                         .collect();
                     return Err(src.error(
                         Some(&list.span()),
@@ -233,12 +256,20 @@ impl ModelDiagnoseSettings {
                             known.join(", ")
                         ),
                     ));
-                };
-                if !effects.contains(&e) {
-                    effects.push(e);
                 }
             }
             options.effects = effects;
+            options.terms = terms;
+        }
+        for (i, raw) in o
+            .and_then(|o| o.terms.as_ref())
+            .into_iter()
+            .flatten()
+            .enumerate()
+        {
+            options
+                .user_terms
+                .push(user_term(&src, &model, raw, i, &options.user_terms)?);
         }
         Ok(ModelDiagnoseSettings {
             name,
@@ -263,4 +294,104 @@ impl ModelDiagnoseSettings {
             options,
         })
     }
+}
+
+/// One `[[diagnose.terms]]` entry, checked by extending the model with it.
+fn user_term(
+    src: &Source,
+    model: &htfid_lang::Model,
+    raw: &Spanned<RawTerm>,
+    i: usize,
+    earlier: &[htfid_diagnose::TermEffect],
+) -> Result<htfid_diagnose::TermEffect, ConfigError> {
+    use htfid_lang::{Extension, Parameter, Site};
+    let key = |k: &str| format!("diagnose.terms[{i}].{k}");
+    let r = raw.get_ref();
+    let name = r.name.get_ref().trim().to_string();
+    if name.is_empty() || earlier.iter().any(|t| t.name == name) {
+        return Err(src.error(
+            Some(&r.name.span()),
+            &key("name"),
+            "must be a name not used by another term",
+        ));
+    }
+    if htfid_diagnose::BoundaryEffect::from_name(&name).is_some() {
+        return Err(src.error(
+            Some(&r.name.span()),
+            &key("name"),
+            format!("\"{name}\" is the name of a library effect; choose another"),
+        ));
+    }
+    let site = match (&r.state, &r.guard, &r.mode) {
+        (Some(state), None, mode) => Site::Flow {
+            state: state.get_ref().clone(),
+            mode: mode.as_ref().map(|m| m.get_ref().clone()),
+        },
+        (None, Some(guard), None) => Site::Guard {
+            name: guard.get_ref().clone(),
+        },
+        (None, Some(_), Some(mode)) => {
+            return Err(src.error(
+                Some(&mode.span()),
+                &key("mode"),
+                "a mode goes with `state`, not with `guard`",
+            ))
+        }
+        _ => {
+            return Err(src.error(
+                Some(&raw.span()),
+                &format!("diagnose.terms[{i}]"),
+                "needs exactly one of `state` (the equation of that state gains the term) and \
+                 `guard` (that guard's expression gains it)",
+            ))
+        }
+    };
+    let mut parameters = Vec::new();
+    for (p, v) in r.parameters.get_ref() {
+        let value = match v {
+            toml::Value::Float(f) if f.is_finite() => *f,
+            toml::Value::Integer(n) => *n as f64,
+            other => {
+                return Err(src.error(
+                    Some(&r.parameters.span()),
+                    &key(&format!("parameters.{p}")),
+                    format!("must be a finite number, the starting value (got {other})"),
+                ))
+            }
+        };
+        parameters.push(Parameter {
+            name: p.clone(),
+            value,
+            unit: None,
+            min: f64::NEG_INFINITY,
+            max: f64::INFINITY,
+            free: true,
+        });
+    }
+    if parameters.is_empty() {
+        return Err(src.error(
+            Some(&r.parameters.span()),
+            &key("parameters"),
+            "needs at least one parameter to fit, `name = starting value`",
+        ));
+    }
+    let extension = Extension {
+        parameters,
+        terms: vec![(site, r.term.get_ref().clone())],
+    };
+    // Checked here, against the model, so that a mistake names this config's line.
+    if let Err(e) = model.with_extension(&extension) {
+        let message = match &e {
+            htfid_lang::ModelError::Invalid { message, .. } => message.clone(),
+            other => other.to_string(),
+        };
+        return Err(src.error(Some(&r.term.span()), &key("term"), message));
+    }
+    // A moved guard's cost is not convex in the shift: try both signs.
+    let multistart = r.guard.is_some();
+    Ok(htfid_diagnose::TermEffect {
+        name,
+        extension,
+        multistart,
+    })
 }

@@ -201,6 +201,7 @@ mod screen;
 mod select;
 mod sensor;
 mod sim;
+mod term;
 
 pub use boundary::{separating_experiment, BoundaryEffect};
 pub use diagnose::{
@@ -223,3 +224,4 @@ pub use nominal::NominalModel;
 pub use record::Record;
 pub use sensor::Sensor;
 pub use sim::SimMethod;
+pub use term::{term_library, velocity_pairs, TermEffect, TermKind};

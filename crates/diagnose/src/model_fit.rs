@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use htfid_estimate::{levenberg_marquardt, LmOptions};
-use htfid_hybrid::{simulate, Options};
+use htfid_hybrid::{simulate, HybridSystem, Options};
 use htfid_lang::{InputFn, Model};
 use htfid_orbit::ShootingOptions;
 use rayon::prelude::*;
@@ -13,7 +13,9 @@ use serde::Serialize;
 
 use crate::boundary::{Boundary, BoundaryEffect};
 use crate::interp::{Interpolation, SampledSignal};
+use crate::term::{term_library, TermEffect, TermKind};
 use crate::DiagnoseError;
+use htfid_lang::Site;
 
 /// A measured record for a model: uniform times, the input `u`, and one column per model
 /// output (in the model's order).
@@ -45,6 +47,11 @@ pub struct ModelFitOptions {
     pub rtol: f64,
     /// Boundary effects tried after the refit (all by default).
     pub effects: Vec<BoundaryEffect>,
+    /// Kinds of term the library adds to the model's own equations and guards, at every site
+    /// the model offers (all by default).
+    pub terms: Vec<TermKind>,
+    /// The user's own candidate terms (`[[diagnose.terms]]`), tried with the library's.
+    pub user_terms: Vec<TermEffect>,
     /// Significance level of the likelihood-ratio test of an effect.
     pub alpha: f64,
     /// Two significant effects whose held-out NRMSEs differ by less than this fraction of the
@@ -73,6 +80,8 @@ impl Default for ModelFitOptions {
             min_gain: 0.05,
             rtol: 1e-8,
             effects: BoundaryEffect::ALL.to_vec(),
+            terms: TermKind::ALL.to_vec(),
+            user_terms: Vec::new(),
             alpha: 1e-4,
             rival_margin: 0.05,
             unexplained_ratio: 5.0,
@@ -116,14 +125,15 @@ pub struct ParameterChange {
 }
 
 /// What a model-file diagnosis names (in JSON, its [`ModelCause::name`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ModelCause {
-    /// A boundary effect passes the likelihood-ratio test and improves the held-out error
-    /// over the refit by at least `min_gain`, and no other explains the data as well.
-    Effect(BoundaryEffect),
-    /// Two or more boundary effects pass and fit equally well (`alternatives`).
+    /// An effect (on the boundary, or a term in the model's equations or guards; by its name)
+    /// passes the likelihood-ratio test and improves the held-out error over the refit by at
+    /// least `min_gain`, and no other explains the data as well.
+    Effect(String),
+    /// Two or more effects pass and fit equally well (`alternatives`).
     Ambiguous,
-    /// Clear structure remains that neither the refit nor a boundary effect explains.
+    /// Clear structure remains that neither the refit nor any effect tried explains.
     Unexplained,
     /// Some parameter moved significantly and the refit improves the held-out error by at
     /// least `min_gain`.
@@ -134,9 +144,9 @@ pub enum ModelCause {
 
 impl ModelCause {
     /// The name used in `diagnosis.json`.
-    pub fn name(self) -> &'static str {
+    pub fn name(&self) -> &str {
         match self {
-            ModelCause::Effect(e) => e.name(),
+            ModelCause::Effect(e) => e,
             ModelCause::Ambiguous => "ambiguous",
             ModelCause::Unexplained => "unexplained",
             ModelCause::ParameterError => "parameter_error",
@@ -151,11 +161,14 @@ impl Serialize for ModelCause {
     }
 }
 
-/// One boundary effect fitted jointly with the free parameters.
+/// One effect fitted jointly with the free parameters.
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelCandidate {
-    /// The effect's name ([`BoundaryEffect::name`]).
+    /// The effect's name ([`BoundaryEffect::name`], or [`TermEffect::name`]).
     pub effect: String,
+    /// For a term in the model's equations or guards: what it adds, where
+    /// ([`TermEffect::describe`]); `null` for an effect on the boundary.
+    pub term: Option<String>,
     /// The fitted free parameters and the effect's parameters, by name.
     pub parameters: std::collections::BTreeMap<String, f64>,
     /// Their standard errors, inflated for correlated residuals.
@@ -175,9 +188,10 @@ pub struct ModelCandidate {
 }
 
 impl ModelCandidate {
-    fn failed(effect: BoundaryEffect, note: String) -> Self {
+    fn failed(trial: &Trial, note: String) -> Self {
         ModelCandidate {
-            effect: effect.name().to_string(),
+            effect: trial.name(),
+            term: trial.describe(),
             parameters: Default::default(),
             stderr: Default::default(),
             nrmse_validation: f64::NAN,
@@ -210,7 +224,7 @@ pub struct ModelDiagnosis {
     pub iterations: usize,
     /// Why it stopped.
     pub stop: String,
-    /// Every boundary effect tried, best held-out score first.
+    /// Every effect tried (on the boundary and inside the model), best held-out score first.
     pub candidates: Vec<ModelCandidate>,
     /// The chosen effect's fit, when the cause is an effect.
     pub extended: Option<ModelCandidate>,
@@ -396,6 +410,50 @@ impl<'a> Prepared<'a> {
         })
     }
 
+    /// The states of `model` from `x0` at (at most about 2000 of) the scored samples, with
+    /// their modes, times and inputs.
+    fn state_samples(&self, model: &Model, x0: &[f64]) -> Result<StateSamples, DiagnoseError> {
+        let input = Boundary::default().input(&self.signal);
+        let driven = model.with_input(Some(input.clone()));
+        let stride = (self.rows.len() / 2000).max(1);
+        let times: Vec<f64> = self
+            .rows
+            .clone()
+            .step_by(stride)
+            .map(|i| self.rec.t[i])
+            .collect();
+        let (t0, end) = (self.rec.t[0], *times.last().unwrap_or(&self.rec.t[0]));
+        let traj = simulate(&driven, self.mode0, t0, x0, end, &times, &self.sim_opts)
+            .map_err(sim_failure)?;
+        Ok(StateSamples {
+            modes: traj.modes.clone(),
+            x: (0..times.len()).map(|i| traj.state(i).to_vec()).collect(),
+            u: times.iter().map(|&t| input(t)).collect(),
+            t: times,
+        })
+    }
+
+    /// `model` with its parameter `name` at the best of 0 and +-0.1, 0.3 and 1 times `scale`,
+    /// by the output error from `x0` (a moved switching surface: the cost is not convex in
+    /// the shift, and the neutral start may sit in the wrong valley).
+    fn best_shift(&self, model: &Model, name: &str, scale: f64, x0: &[f64]) -> Model {
+        let mut r = vec![0.0; self.residual_len()];
+        let mut best = (f64::INFINITY, model.clone());
+        for step in [0.0, 0.1, -0.1, 0.3, -0.3, 1.0, -1.0] {
+            let Ok(m) = model.with_parameters(&[(name, step * scale)]) else {
+                continue;
+            };
+            if let Ok(sim) = self.simulate(&m, x0, &Boundary::default()) {
+                self.fill(&sim, &mut r);
+                let cost: f64 = r.iter().map(|v| v * v).sum();
+                if cost < best.0 {
+                    best = (cost, m);
+                }
+            }
+        }
+        best.1
+    }
+
     fn residual_len(&self) -> usize {
         self.rec.y.len() * self.rows.len()
     }
@@ -564,6 +622,10 @@ pub fn diagnose_model(
         model,
         names: &names,
         index: &index,
+        scales: index
+            .iter()
+            .map(|&i| model.values()[i].abs().max(1e-3))
+            .collect(),
     };
     // The refit of the free parameters (and the initial state) alone.
     let base = joint.fit(None, &[], &x_configured)?;
@@ -595,32 +657,83 @@ pub fn diagnose_model(
         .iter()
         .any(|p| p.z.abs() >= opts.significance_sigma);
 
-    // Boundary effects, each fitted jointly with the free parameters and tested against the
-    // refit: a likelihood ratio corrected for the residuals' correlation, and a held-out gain.
+    // Every candidate effect, each fitted jointly with the free parameters and tested against
+    // the refit: a likelihood ratio corrected for the residuals' correlation, and a held-out
+    // gain. On the boundary, and inside the model: the library's terms at every site the
+    // model offers, and the user's own.
+    let samples = est.state_samples(&refitted_model, &base.state)?;
+    let means = samples.means(model.states().len());
+    let trials: Vec<Trial> = opts
+        .effects
+        .iter()
+        .map(|&e| Trial::Boundary(e))
+        .chain(
+            term_library(model, &opts.terms, &means)
+                .into_iter()
+                .chain(opts.user_terms.iter().cloned())
+                .map(Trial::Term),
+        )
+        .collect();
     let n = est.residual_len();
     let mut candidates: Vec<Tried> = Vec::new();
     // The candidates' fits are independent: in parallel.
-    let fits: Vec<_> = opts
-        .effects
+    let fits: Vec<_> = trials
         .par_iter()
-        .map(|&effect| {
-            let start = joint.effect_start(effect, &base, &outputs);
-            joint.fit(Some(effect), &start, &base.state).and_then(|f| {
-                let m = joint.model_at(&f.params[..k])?;
-                let b = Boundary::with(effect, &f.params[k..], outputs.len());
-                let (score, sim) = score_of(&m, &f.state, &b)?;
-                Ok((f, score, sim))
-            })
+        .map(|trial| match trial {
+            Trial::Boundary(effect) => {
+                let effect = *effect;
+                let start = joint.effect_start(effect, &base, &outputs);
+                joint.fit(Some(effect), &start, &base.state).and_then(|f| {
+                    let m = joint.model_at(&f.params[..k])?;
+                    let b = Boundary::with(effect, &f.params[k..], outputs.len());
+                    let (score, sim) = score_of(&m, &f.state, &b)?;
+                    Ok((f, score, sim))
+                })
+            }
+            Trial::Term(term) => {
+                let extended = refitted_model
+                    .with_extension(&term.extension)
+                    .map_err(|e| DiagnoseError::NominalFit {
+                        reason: e.to_string(),
+                    })?;
+                let added = term.parameter_names();
+                let all: Vec<&str> = names
+                    .iter()
+                    .copied()
+                    .chain(added.iter().map(String::as_str))
+                    .collect();
+                let index_t: Vec<usize> = all
+                    .iter()
+                    .filter_map(|n| extended.parameter_index(n))
+                    .collect();
+                let mut scales = joint.scales.clone();
+                scales.extend(samples.term_scales(&extended, &est.signal, term));
+                let mut extended = extended;
+                if term.multistart {
+                    extended = est.best_shift(&extended, &added[0], scales[k], &base.state);
+                }
+                let joint_t = Joint {
+                    est: &est,
+                    model: &extended,
+                    names: &all,
+                    index: &index_t,
+                    scales,
+                };
+                joint_t.fit(None, &[], &base.state).and_then(|f| {
+                    let m = joint_t.model_at(&f.params)?;
+                    let (score, sim) = score_of(&m, &f.state, &ideal)?;
+                    Ok((f, score, sim))
+                })
+            }
         })
         .collect();
-    for (&effect, fitted) in opts.effects.iter().zip(fits) {
-        let names_e = effect.parameter_names(&outputs);
+    for (trial, fitted) in trials.iter().zip(fits) {
+        let names_e = trial.parameter_names(&outputs);
         let (f, score, sim) = match fitted {
             Ok(v) => v,
             Err(e) => {
                 candidates.push(Tried {
-                    effect,
-                    candidate: ModelCandidate::failed(effect, format!("fit failed: {e}")),
+                    candidate: ModelCandidate::failed(trial, format!("fit failed: {e}")),
                     simulated: None,
                     residuals: Vec::new(),
                 });
@@ -657,9 +770,9 @@ pub fn diagnose_model(
             100.0 * opts.min_gain
         );
         candidates.push(Tried {
-            effect,
             candidate: ModelCandidate {
-                effect: effect.name().to_string(),
+                effect: trial.name(),
+                term: trial.describe(),
                 parameters,
                 stderr,
                 nrmse_validation: score.validation(),
@@ -719,12 +832,12 @@ pub fn diagnose_model(
     let cause = match best {
         _ if structure_left && explained < opts.min_explained => ModelCause::Unexplained,
         Some(_) if !alternatives.is_empty() => ModelCause::Ambiguous,
-        Some(b) => ModelCause::Effect(candidates[b].effect),
+        Some(b) => ModelCause::Effect(candidates[b].candidate.effect.clone()),
         None if moved && gain >= opts.min_gain => ModelCause::ParameterError,
         None => ModelCause::None,
     };
     let mut alternatives = alternatives;
-    if let (ModelCause::Ambiguous, Some(b)) = (cause, best) {
+    if let (ModelCause::Ambiguous, Some(b)) = (&cause, best) {
         alternatives.insert(0, candidates[b].candidate.effect.clone());
     }
     let (extended, simulated_extended) = match best {
@@ -754,10 +867,125 @@ pub fn diagnose_model(
     })
 }
 
-/// A boundary effect tried: its result, its simulated outputs (when fitted) and its scaled
-/// residuals on the fit data (outputs one after another).
+/// A model's states at samples of a record: where a term's parameters are scaled.
+struct StateSamples {
+    t: Vec<f64>,
+    modes: Vec<htfid_lang::Mode>,
+    x: Vec<Vec<f64>>,
+    u: Vec<f64>,
+}
+
+impl StateSamples {
+    /// Each state's mean.
+    fn means(&self, n: usize) -> Vec<f64> {
+        let count = self.x.len().max(1) as f64;
+        (0..n)
+            .map(|j| self.x.iter().map(|x| x[j]).sum::<f64>() / count)
+            .collect()
+    }
+
+    /// The size of a meaningful value of each of `term`'s parameters in `model` (extended by
+    /// it): the RMS of the expressions the term joins (a state's equation, a guard) over the
+    /// RMS of their exact derivative by the parameter, on these samples. A parameter that
+    /// changes nothing here gets 1.
+    fn term_scales(
+        &self,
+        model: &Model,
+        signal: &Arc<SampledSignal>,
+        term: &TermEffect,
+    ) -> Vec<f64> {
+        let names = term.parameter_names();
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let k = refs.len();
+        let Ok(sens) = model.parameter_sensitivity(&refs) else {
+            return vec![1.0; k];
+        };
+        let input = Boundary::default().input(signal);
+        let driven = model.with_input(Some(input));
+        let n = model.states().len();
+        let guards = model.guard_names();
+        let (mut size, mut slope) = (vec![0.0; k], vec![0.0; k]);
+        let mut f = vec![0.0; n];
+        let mut dfdp = vec![0.0; n * k];
+        let mut dhdp = vec![0.0; k];
+        for (site, _) in &term.extension.terms {
+            for i in 0..self.t.len() {
+                let (t, x, u, mode) = (self.t[i], &self.x[i], self.u[i], self.modes[i]);
+                match site {
+                    Site::Flow { state, mode: only } => {
+                        if only.as_deref().is_some_and(|m| m != model.mode_name(mode)) {
+                            continue;
+                        }
+                        let Some(s) = model.states().iter().position(|q| q.name == *state) else {
+                            continue;
+                        };
+                        driven.vector_field(mode, t, x, &mut f);
+                        sens.flow(mode, t, x, u, &mut dfdp);
+                        for j in 0..k {
+                            size[j] += f[s] * f[s];
+                            slope[j] += dfdp[s * k + j].powi(2);
+                        }
+                    }
+                    Site::Guard { name } => {
+                        let Some(g) = guards.iter().position(|h| h == name) else {
+                            continue;
+                        };
+                        let h = model.guard_value(g, t, x, u);
+                        sens.guard(g, t, x, u, &mut dhdp);
+                        for j in 0..k {
+                            size[j] += h * h;
+                            slope[j] += dhdp[j].powi(2);
+                        }
+                    }
+                }
+            }
+        }
+        size.iter()
+            .zip(&slope)
+            .map(|(a, b)| {
+                let v = (a / b).sqrt();
+                if v.is_finite() && v > 0.0 {
+                    v
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    }
+}
+
+/// A candidate effect to try.
+enum Trial {
+    Boundary(BoundaryEffect),
+    Term(TermEffect),
+}
+
+impl Trial {
+    fn name(&self) -> String {
+        match self {
+            Trial::Boundary(e) => e.name().to_string(),
+            Trial::Term(t) => t.name.clone(),
+        }
+    }
+
+    fn describe(&self) -> Option<String> {
+        match self {
+            Trial::Boundary(_) => None,
+            Trial::Term(t) => Some(t.describe()),
+        }
+    }
+
+    fn parameter_names(&self, outputs: &[String]) -> Vec<String> {
+        match self {
+            Trial::Boundary(e) => e.parameter_names(outputs),
+            Trial::Term(t) => t.parameter_names(),
+        }
+    }
+}
+
+/// An effect tried: its result, its simulated outputs (when fitted) and its scaled residuals
+/// on the fit data (outputs one after another).
 struct Tried {
-    effect: BoundaryEffect,
     candidate: ModelCandidate,
     simulated: Option<Vec<Vec<f64>>>,
     residuals: Vec<f64>,
@@ -781,6 +1009,8 @@ struct Joint<'a, 'r> {
     model: &'a Model,
     names: &'a [&'a str],
     index: &'a [usize],
+    /// The size of a meaningful change of each parameter in `names` (the fit's scaling).
+    scales: Vec<f64>,
 }
 
 impl Joint<'_, '_> {
@@ -887,7 +1117,7 @@ impl Joint<'_, '_> {
             .take(e),
         );
         bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(x0.len()));
-        let mut scales: Vec<f64> = p0[..k].iter().map(|v| v.abs().max(1e-3)).collect();
+        let mut scales: Vec<f64> = self.scales.clone();
         scales.extend(effect_start.iter().enumerate().map(|(j, v)| {
             if lag {
                 v.abs().max(est.dt)

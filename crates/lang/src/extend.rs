@@ -63,6 +63,30 @@ impl Model {
     /// recompiled: every derivative the pipeline uses (Jacobians, saltation, parameter
     /// sensitivities) is taken of the extended expressions, exactly.
     ///
+    /// ```
+    /// use htfid_lang::{Extension, Model, Parameter, Site};
+    ///
+    /// let model = Model::parse(r#"
+    ///     states = ["x", "v"]
+    ///     parameters = { k = 4.0, c = 0.5 }
+    ///     flow = { x = "v", v = "-k*x - c*v + u" }
+    /// "#)?;
+    /// let drag = Extension {
+    ///     parameters: vec![Parameter {
+    ///         name: "d".into(),
+    ///         value: 0.1,
+    ///         unit: None,
+    ///         min: 0.0,
+    ///         max: f64::INFINITY,
+    ///         free: true,
+    ///     }],
+    ///     terms: vec![(Site::Flow { state: "v".into(), mode: None }, "-d*abs(v)*v".into())],
+    /// };
+    /// let extended = model.with_extension(&drag)?;
+    /// assert_eq!(extended.parameter("d"), Some(0.1));
+    /// # Ok::<(), htfid_lang::ModelError>(())
+    /// ```
+    ///
     /// # Errors
     /// [`ModelError::Invalid`], keyed `parameters.NAME` or `terms[i]`, for a parameter name that
     /// is taken or not a valid name, a term that does not parse or names something unknown

@@ -461,6 +461,22 @@ impl Model {
         &self.def.guards[self.def.guards_of[mode.index()][index]].name
     }
 
+    /// The equation of state `state` (its index) in `mode`, as resolved: definitions and
+    /// forcing signals inlined, parameters by name.
+    pub fn equation(&self, mode: Mode, state: usize) -> &Expr {
+        &self.def.flows[mode.index()][state]
+    }
+
+    /// The expression of guard `index` (in the order of [`Model::guard_names`]), as resolved.
+    pub fn guard_expr(&self, index: usize) -> &Expr {
+        &self.def.guards[index].when
+    }
+
+    /// The value of guard `index` (in the order of [`Model::guard_names`]) at `(t, x, u)`.
+    pub fn guard_value(&self, index: usize, t: f64, x: &[f64], u: f64) -> f64 {
+        with_vars(t, x, u, |v| self.compiled.guard[index].eval_one(0, v))
+    }
+
     /// The outputs.
     pub fn outputs(&self) -> &[Output] {
         &self.def.outputs

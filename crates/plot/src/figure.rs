@@ -47,6 +47,8 @@ pub enum Role {
     Nominal,
     /// The extended (or refitted) model: orange.
     Extended,
+    /// The nominal model with its parameters refitted, beside an extended one: teal.
+    Refitted,
     /// The exact theory of the simulated system: green.
     Theory,
     /// A non-parametric estimate and its confidence band: red.

@@ -42,6 +42,7 @@ pub(crate) fn role_colour(role: Role) -> RGBColor {
         Role::EstimateAlt => PALETTE[4],
         Role::EstimateAlt2 => PALETTE[5],
         Role::Bound => PALETTE[7],
+        Role::Refitted => PALETTE[9],
     }
 }
 

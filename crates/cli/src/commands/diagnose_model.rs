@@ -140,6 +140,11 @@ pub fn run(
             "unexplained_ratio": s.options.unexplained_ratio,
             "min_explained": s.options.min_explained,
             "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+            "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
+            "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({
+                "name": t.name,
+                "term": t.describe(),
+            })).collect::<Vec<_>>(),
         },
     });
     outdir.write_text("diagnosis.json", &json_text(&json))?;
@@ -154,13 +159,34 @@ pub fn run(
             .unit(name)
             .or(s.model.outputs()[o].unit.as_deref())
             .map_or(String::new(), |u| format!(" ({u})"));
+        // Beside the configured and the refitted model, the model with the chosen effect.
+        let mut models = models_of(&d, o);
+        let mut fits = checks[o].fits.clone();
+        if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
+            models[1].role = Role::Refitted;
+            let label = format!("with {}", c.effect);
+            fits.push((
+                label.clone(),
+                htfid_validate::fit_percent(
+                    &shown.y[o][held_out.clone()],
+                    &ext[o][held_out.clone()],
+                )
+                .ok(),
+            ));
+            models.push(crate::validation::Simulated {
+                label,
+                role: Role::Extended,
+                style: Style::Line,
+                y: &ext[o],
+            });
+        }
         panels.push(crate::validation::compare_panel(
             &format!("{name}: measured and simulated (held-out data; fit over all of it)"),
             &format!("{name}{unit}"),
             &shown.t,
             &shown.y[o],
-            &models_of(&d, o),
-            &checks[o].fits,
+            &models,
+            &fits,
             win.clone(),
         ));
         let tw = shown.t[win.clone()].to_vec();
@@ -179,9 +205,29 @@ pub fn run(
                 Style::Dashed,
             )
             .with_role(Role::Nominal),
-            Series::new("refitted model", tw, residual(&d.simulated[o]), Style::Line)
-                .with_role(Role::Extended),
+            Series::new(
+                "refitted model",
+                tw.clone(),
+                residual(&d.simulated[o]),
+                Style::Line,
+            )
+            .with_role(if d.simulated_extended.is_some() {
+                Role::Refitted
+            } else {
+                Role::Extended
+            }),
         ];
+        if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
+            panel.series.push(
+                Series::new(
+                    format!("with {}", c.effect),
+                    tw,
+                    residual(&ext[o]),
+                    Style::Line,
+                )
+                .with_role(Role::Extended),
+            );
+        }
         panels.push(panel);
     }
     let fig = stacked_figure(format!("{}: {}", s.name, d.cause.name()), panels);
@@ -310,7 +356,7 @@ fn report(
             )
         })
         .collect();
-    let mut decision = match d.cause {
+    let mut decision = match &d.cause {
         ModelCause::ParameterError => format!(
             "**The configured parameters of model `{model}` are off.** Refitting them moves {}, \
              and lowers the error on held-out data from {} to {} NRMSE, {} less.",
@@ -321,12 +367,16 @@ fn report(
         ),
         ModelCause::Effect(e) => {
             let c = d.extended.as_ref();
+            let site = match c.and_then(|c| c.term.as_ref()) {
+                Some(term) => format!("in its equations ({term})"),
+                None => "on its boundary".to_string(),
+            };
             format!(
-                "The configured model `{}` misses an effect on its boundary: `{}` ({}) lowers the \
+                "The configured model `{}` misses an effect {site}: `{}` ({}) lowers the \
                  held-out error by {:.1} % beyond the refit of the free parameters (likelihood \
                  ratio {:.1}, at least {:.1} needed).",
                 s.model.name(),
-                e.name(),
+                e,
                 c.map(|c| {
                     c.parameters
                         .iter()
@@ -342,7 +392,7 @@ fn report(
             )
         }
         ModelCause::Ambiguous => format!(
-            "**Several effects on the boundary of `{}` explain the data equally well:** {}. \
+            "**Several effects explain the data of `{}` equally well:** {}. \
              The data cannot tell them apart; to do so, {}.",
             s.model.name(),
             d.alternatives
@@ -353,11 +403,10 @@ fn report(
             htfid_diagnose::separating_experiment(&d.alternatives)
         ),
         ModelCause::Unexplained => format!(
-            "Clear structure remains in the residual of `{}` that neither the refit nor an \
-             effect on its boundary explains: the best model's held-out NRMSE {:.3} % stays \
-             above {} times the noise floor {:.3} %{}. The cause is likely inside the model's \
-             equations (friction, an extra damping, a stiffness law): extend the model with a \
-             candidate term and diagnose again.",
+            "Clear structure remains in the residual of `{}` that neither the refit nor any \
+             effect tried explains: the best model's held-out NRMSE {:.3} % stays above {} \
+             times the noise floor {:.3} %{}. Write the suspected effect as a term of the \
+             model's equations (`[[diagnose.terms]]`, see docs/config.md) and diagnose again.",
             s.model.name(),
             100.0
                 * d.extended
@@ -395,11 +444,21 @@ fn report(
              model lacks.",
         );
     } else {
+        let next = match (&d.cause, &d.extended) {
+            (ModelCause::Effect(_) | ModelCause::Ambiguous, Some(c)) => format!(
+                "the effects above account for it: `{}` removes {} of the error above the \
+                 noise floor.",
+                c.effect,
+                percent(d.explained, 3)
+            ),
+            _ => "no effect tried accounts for it. Write the suspected effect as a term of \
+                  the model's equations (`[[diagnose.terms]]`) and diagnose again to measure \
+                  its gain."
+                .to_string(),
+        };
         decision.push_str(&format!(
             " The refitted model's residual in {} is not white: structure remains that the \
-             model's own parameters cannot explain, a sign of an effect the model lacks \
-             (friction, an extra damping, a sensor lag). Extend the model with a candidate \
-             term and diagnose again to measure its gain.",
+             model's own parameters cannot explain; {next}",
             structured
                 .iter()
                 .map(|o| format!("`{o}`"))
@@ -436,16 +495,17 @@ fn report(
     ]);
 
     if !d.candidates.is_empty() {
-        r.section("Effects on the model's boundary");
+        r.section("Effects tried");
         r.para(
-            "Beside the model's own parameters, effects on its boundary are tried, each fitted \
-             jointly with the free parameters and the initial state: an input offset, delay or \
-             lag, and a sensor offset and gain or lag. An effect is significant when its \
+            "Beside the model's own parameters, candidate effects are tried, each fitted \
+             jointly with the free parameters and the initial state. On the model's boundary: \
+             an input offset, delay or lag, and a sensor offset and gain or lag. Inside its \
+             equations, at every site the model offers: drag and a stiffness law on the \
+             equation of each velocity state, an extra damping in each mode, each switching \
+             surface moved; and the config's own terms. An effect is significant when its \
              likelihood ratio against the refit (corrected for the residuals' correlation) \
              passes the chi-square critical value and it lowers the held-out NRMSE by at least \
-             the minimum gain. An effect inside the model's equations (friction, an extra \
-             damping) is not among them: it shows as shifted parameters and structure left in \
-             the residual.",
+             the minimum gain.",
         );
         let mut rows = Vec::new();
         for c in &d.candidates {
@@ -463,6 +523,7 @@ fn report(
                     .collect();
                 rows.push(vec![
                     format!("`{}`", c.effect),
+                    c.term.clone().unwrap_or_else(|| "on the boundary".into()),
                     own.join(", "),
                     percent(c.nrmse_validation, 3),
                     percent(c.gain, 3),
@@ -473,6 +534,7 @@ fn report(
                 let why = r.missing(&c.note);
                 rows.push(vec![
                     format!("`{}`", c.effect),
+                    c.term.clone().unwrap_or_else(|| "on the boundary".into()),
                     why.clone(),
                     why.clone(),
                     why.clone(),
@@ -484,6 +546,7 @@ fn report(
         r.table(
             &[
                 "effect",
+                "where",
                 "its parameters",
                 "held-out NRMSE",
                 "gain over the refit",
