@@ -558,7 +558,7 @@ pub fn simulate_record(
         ..model.params
     };
     let input = MeasuredForce::new(record.t()[0], record.dt(), record.f(), interpolation);
-    let hopper = input.drive(p, model.damper, model.effects)?;
+    let (hopper, force) = input.drive_with(p, model.damper, model.effects)?;
     let f_n = (p.k / p.m).sqrt() / (2.0 * std::f64::consts::PI);
     let half = init_half_width(f_n, record.dt());
     let init = match init {
@@ -585,6 +585,7 @@ pub fn simulate_record(
     let mut out = vec![0.0; range.len()];
     crate::sim::simulate_positions(
         &hopper,
+        Some(&force),
         record.t()[range.start],
         init,
         record.dt(),

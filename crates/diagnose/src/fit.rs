@@ -4,14 +4,15 @@
 use std::ops::Range;
 use std::sync::Arc;
 
-use htfid_estimate::{levenberg_marquardt, FdScheme, LmOptions};
+use htfid_estimate::{levenberg_marquardt_parallel, FdScheme, LmOptions};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 use crate::effect::Slot;
 use crate::sim::{
-    simulate_positions_with, Extent, ExtraForce, MeasuredForce, SimFailure, SimMethod, Stepping,
+    simulate_positions_with, Extent, ExtraForce, Force, MeasuredForce, SimFailure, SimMethod,
+    Stepping,
 };
 use crate::{Record, Sensor};
 
@@ -81,6 +82,8 @@ impl ModelPoint {
 /// sensor.
 pub(crate) struct Driven {
     pub hopper: Hopper,
+    /// The force `hopper` reads, for the simulation to read directly.
+    pub force: Option<Force>,
     pub sensor: Sensor,
     /// A force beyond the library's terms (a formula from the term search), if any.
     pub extra: Option<Arc<ExtraForce>>,
@@ -145,12 +148,13 @@ impl Layout {
 
 impl Context<'_> {
     pub(crate) fn hopper(&self, p: &ModelPoint) -> Result<Driven, String> {
-        let hopper = self
+        let (hopper, force) = self
             .input
-            .drive(p.params, self.damper, p.effects)
+            .drive_with(p.params, self.damper, p.effects)
             .map_err(|e| e.to_string())?;
         Ok(Driven {
             hopper,
+            force: Some(force),
             sensor: p.sensor,
             extra: None,
         })
@@ -184,6 +188,7 @@ impl Context<'_> {
         let t0 = self.record.t()[seg.range.start];
         simulate_positions_with(
             &model.hopper,
+            model.force.as_ref(),
             model.extra.as_deref(),
             t0,
             init,
@@ -356,7 +361,7 @@ impl Context<'_> {
             bounds: Some(bounds.clone()),
             lambda0: 1e-3,
         };
-        let lm = levenberg_marquardt(residual_fn, &u0, n, &opts).map_err(|e| {
+        let lm = levenberg_marquardt_parallel(residual_fn, &u0, n, &opts).map_err(|e| {
             let names: Vec<&str> = slots.iter().map(|s| s.name()).collect();
             format!("{e}; {}", fit_advice(&e, &names))
         })?;

@@ -1,5 +1,6 @@
 //! Simulation of a model driven by the measured force.
 
+use std::cell::Cell;
 use std::sync::Arc;
 
 use htfid_hybrid::{Crossing, HybridSystem, Method, Options};
@@ -132,6 +133,11 @@ impl MeasuredForce {
         }
     }
 
+    /// The measured force at time `t`, read between samples as the simulation reads it.
+    pub(crate) fn at(&self, t: f64) -> f64 {
+        self.signal.eval(t)
+    }
+
     /// The model driven by the measured force.
     ///
     /// An actuator lag acts on the input alone, so it is applied to the interpolated force
@@ -139,30 +145,57 @@ impl MeasuredForce {
     /// simulated with `tau = 0` and the lagged force: the dynamics of the model's lag state,
     /// without a stiff third state that would need sub-steps shorter than `tau`. A delay then
     /// shifts the lagged force, which equals lagging the delayed one.
-    /// The measured force at time `t`, read between samples as the simulation reads it.
-    pub(crate) fn at(&self, t: f64) -> f64 {
-        self.signal.eval(t)
-    }
-
     pub(crate) fn drive(
         &self,
         params: HopperParams,
         damper: DamperLaw,
         effects: Effects,
     ) -> Result<Hopper, ModelError> {
-        let f: InputFn = if effects.tau > 0.0 {
-            let lagged = LaggedSignal::new(Arc::clone(&self.signal), effects.tau);
-            Arc::new(move |t| lagged.eval(t))
+        self.drive_with(params, damper, effects).map(|(h, _)| h)
+    }
+
+    /// [`MeasuredForce::drive`], and the force the model reads as a concrete signal, which
+    /// the simulation reads directly (the same values as the hopper's input function).
+    pub(crate) fn drive_with(
+        &self,
+        params: HopperParams,
+        damper: DamperLaw,
+        effects: Effects,
+    ) -> Result<(Hopper, Force), ModelError> {
+        let force = if effects.tau > 0.0 {
+            Force::Lagged(Arc::new(LaggedSignal::new(
+                Arc::clone(&self.signal),
+                effects.tau,
+            )))
         } else {
-            let signal = Arc::clone(&self.signal);
-            Arc::new(move |t| signal.eval(t))
+            Force::Sampled(Arc::clone(&self.signal))
         };
+        let read = force.clone();
+        let f: InputFn = Arc::new(move |t| read.eval(t));
         let effects = Effects {
             tau: 0.0,
             ..effects
         };
         let hopper = Hopper::with_effects(params, damper, effects)?;
-        Ok(hopper.with_input(Some(f)))
+        Ok((hopper.with_input(Some(f)), force))
+    }
+}
+
+/// The input of a model driven by the measured force: the interpolated samples, or the same
+/// passed through an actuator lag.
+#[derive(Debug, Clone)]
+pub(crate) enum Force {
+    Sampled(Arc<SampledSignal>),
+    Lagged(Arc<LaggedSignal>),
+}
+
+impl Force {
+    #[inline]
+    pub(crate) fn eval(&self, t: f64) -> f64 {
+        match self {
+            Force::Sampled(s) => s.eval(t),
+            Force::Lagged(l) => l.eval(t),
+        }
     }
 }
 
@@ -173,20 +206,34 @@ impl MeasuredForce {
 /// there keeps the simulated output a smooth function of the parameters, which finite
 /// differences need (a kink stepped over leaves an error of `O(h^2)` that jitters with the
 /// parameters).
+///
+/// Given the force the hopper reads ([`Force`]), the vector field reads it directly, without
+/// the hopper's input function, and reads it once for the two stages of a Runge-Kutta step
+/// at the same time: the same values, fewer calls.
 struct Located<'a> {
     hopper: &'a Hopper,
     extra: Option<&'a ExtraForce>,
+    force: Option<&'a Force>,
+    /// The hopper's acceleration, its coefficients gathered for the direct path.
+    field: Field,
+    /// The last time the force was read at and its value there.
+    last: Cell<(f64, f64)>,
     base: [usize; 2],
     contact: Option<f64>,
     friction: bool,
 }
 
 impl<'a> Located<'a> {
-    fn new(hopper: &'a Hopper, extra: Option<&'a ExtraForce>) -> Self {
+    fn new(hopper: &'a Hopper, extra: Option<&'a ExtraForce>, force: Option<&'a Force>) -> Self {
         let e = hopper.effects();
         Located {
             hopper,
             extra,
+            // A lag state of the hopper's own (never present when driven by the measured
+            // force) reads the force in its own equation: the hopper's field then.
+            force: force.filter(|_| !e.has_lag()),
+            field: Field::new(hopper),
+            last: Cell::new((f64::NAN, 0.0)),
             base: [
                 hopper.num_guards(HopperMode::Damped),
                 hopper.num_guards(HopperMode::Free),
@@ -222,8 +269,27 @@ impl HybridSystem for Located<'_> {
         self.hopper.dim()
     }
 
+    #[inline]
     fn vector_field(&self, mode: HopperMode, t: f64, x: &[f64], dxdt: &mut [f64]) {
-        self.hopper.vector_field(mode, t, x, dxdt);
+        match self.force {
+            // `Hopper::vector_field` without a lag state, reading the force directly.
+            Some(force) => {
+                let h = self.hopper;
+                let td = t - h.effects().delay;
+                let (t_last, u_last) = self.last.get();
+                let u = if td.to_bits() == t_last.to_bits() {
+                    u_last
+                } else {
+                    let u = force.eval(td);
+                    self.last.set((td, u));
+                    u
+                };
+                let f = h.commanded_force_with(td, u);
+                dxdt[0] = x[1];
+                dxdt[1] = self.field.acceleration(mode, x[0], x[1], f);
+            }
+            None => self.hopper.vector_field(mode, t, x, dxdt),
+        }
         if let Some(extra) = self.extra {
             dxdt[1] += extra(t, x[0], x[1]) / self.hopper.params().m;
         }
@@ -280,26 +346,95 @@ impl HybridSystem for Located<'_> {
     }
 }
 
+/// [`Hopper::acceleration`] with its coefficients gathered and its terms summed as a shallow
+/// tree, then multiplied by `1 / m`: the same force law (equal to rounding), with a short
+/// chain of dependent operations from the state to the acceleration, which is what a
+/// Runge-Kutta step waits on.
+#[derive(Debug, Clone, Copy)]
+struct Field {
+    x0: f64,
+    inv_m: f64,
+    weight: f64,
+    k: f64,
+    k3: f64,
+    mu: f64,
+    /// Linear damping in the damped and the free chart: `c` and `c_f`.
+    c_damped: f64,
+    c_free: f64,
+    c2: f64,
+    /// Friction's sign from the chart (the switching damper) rather than from the velocity.
+    sign_from_chart: bool,
+    stop: Option<(f64, f64)>,
+}
+
+impl Field {
+    fn new(hopper: &Hopper) -> Self {
+        let p = hopper.params();
+        let e = hopper.effects();
+        Field {
+            x0: p.x0,
+            inv_m: 1.0 / p.m,
+            weight: p.m * p.g,
+            k: p.k,
+            k3: e.k3,
+            mu: e.mu,
+            c_damped: p.c,
+            c_free: e.c_f,
+            c2: e.c2,
+            sign_from_chart: hopper.damper() == DamperLaw::Switching,
+            stop: e.hard_stop.map(|h| (h.x_stop, h.k_stop)),
+        }
+    }
+
+    #[inline]
+    fn acceleration(&self, mode: HopperMode, pos: f64, vel: f64, force: f64) -> f64 {
+        let damped = mode == HopperMode::Damped;
+        let dx = pos - self.x0;
+        let spring = (self.k + self.k3 * (dx * dx)) * dx;
+        let c_lin = if damped { self.c_damped } else { self.c_free };
+        let damping = (c_lin + self.c2 * vel.abs()) * vel;
+        let sign = if self.sign_from_chart {
+            if damped {
+                1.0
+            } else {
+                -1.0
+            }
+        } else {
+            vel.signum()
+        };
+        let contact = match self.stop {
+            Some((x_stop, k_stop)) if pos < x_stop => k_stop * (pos - x_stop),
+            _ => 0.0,
+        };
+        ((force - self.weight - self.mu * sign) - (damping + (spring + contact))) * self.inv_m
+    }
+}
+
 /// A force `F(t, x, v)` added to the model's (terms found outside the library by the term
 /// search of `discover`); smooth, so it needs no guard of its own.
 pub(crate) type ExtraForce = dyn Fn(f64, f64, f64) -> f64 + Send + Sync;
 
 /// Simulates `out.len()` samples from `t0` (step `dt`) starting at position and velocity
 /// `xv0`, writing positions. A lag state starts at the commanded force.
+/// `force`, when given, is the force the hopper's input function reads (see
+/// [`MeasuredForce::drive_with`]).
 pub(crate) fn simulate_positions(
     hopper: &Hopper,
+    force: Option<&Force>,
     t0: f64,
     xv0: [f64; 2],
     dt: f64,
     stepping: &Stepping,
     out: &mut [f64],
 ) -> Result<(), SimFailure> {
-    simulate_positions_with(hopper, None, t0, xv0, dt, stepping, out)
+    simulate_positions_with(hopper, force, None, t0, xv0, dt, stepping, out)
 }
 
 /// [`simulate_positions`] with an extra force in the vector field.
+#[allow(clippy::too_many_arguments)] // reason: the model, its input and the grid, each needed
 pub(crate) fn simulate_positions_with(
     hopper: &Hopper,
+    force: Option<&Force>,
     extra: Option<&ExtraForce>,
     t0: f64,
     xv0: [f64; 2],
@@ -312,7 +447,7 @@ pub(crate) fn simulate_positions_with(
         state.push(hopper.commanded_force(t0 - hopper.effects().delay));
     }
     let mode0 = hopper.mode_of(xv0[1]);
-    let sys = Located::new(hopper, extra);
+    let sys = Located::new(hopper, extra, force);
     match stepping {
         Stepping::Fixed { substeps } => {
             htfid_hybrid::simulate_fixed_step(&sys, mode0, t0, &state, dt, *substeps, 0, out)
@@ -334,6 +469,71 @@ pub(crate) fn simulate_positions_with(
                 *o = traj.state(i)[0];
             }
             Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use htfid_hybrid::HybridSystem;
+    use htfid_model::HardStop;
+
+    /// The gathered acceleration and the direct read of the force agree with the hopper's
+    /// own vector field (through its input function) to rounding, in both charts, on both
+    /// sides of a contact, for every effect and both damper laws.
+    #[test]
+    fn the_direct_field_equals_the_hoppers_field() {
+        let samples: Vec<f64> = (0..200).map(|i| (0.37 * i as f64).sin()).collect();
+        let input = MeasuredForce::new(0.0, 0.01, &samples, Interpolation::CubicSpline);
+        let params = HopperParams {
+            m: 0.7,
+            k: 3.0,
+            c: 0.4,
+            g: 9.81,
+            x0: 0.05,
+            forcing_amplitude: 0.3,
+            period: 1.3,
+        };
+        let effects = Effects {
+            k3: 40.0,
+            mu: 0.2,
+            c_f: 0.1,
+            c2: 0.3,
+            delay: 0.013,
+            input_offset: 0.02,
+            hard_stop: Some(HardStop {
+                x_stop: -0.1,
+                k_stop: 50.0,
+            }),
+            ..Effects::default()
+        };
+        for damper in [DamperLaw::Switching, DamperLaw::AlwaysOn] {
+            for tau in [0.0, 0.05] {
+                let (hopper, force) = input
+                    .drive_with(params, damper, Effects { tau, ..effects })
+                    .unwrap();
+                let sys = Located::new(&hopper, None, Some(&force));
+                for (i, (x, v)) in [(0.3, 1.2), (-0.2, -0.7), (0.0, 0.0), (-0.1, 2.0)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let t = 0.3 + 0.217 * i as f64;
+                    for mode in [HopperMode::Damped, HopperMode::Free] {
+                        let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+                        hopper.vector_field(mode, t, &[x, v], &mut a);
+                        sys.vector_field(mode, t, &[x, v], &mut b);
+                        assert_eq!(a[0].to_bits(), b[0].to_bits());
+                        let scale = a[1].abs().max(1.0);
+                        assert!(
+                            (a[1] - b[1]).abs() <= 1e-14 * scale,
+                            "{damper:?} tau {tau} {mode:?} ({x}, {v}): {} vs {}",
+                            a[1],
+                            b[1]
+                        );
+                    }
+                }
+            }
         }
     }
 }

@@ -107,7 +107,9 @@ mod uncertainty;
 pub use error::{Error, Result};
 pub use estimate::{BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
-pub use lm::{levenberg_marquardt, FdScheme, LmFit, LmOptions, LmStop};
+pub use lm::{
+    levenberg_marquardt, levenberg_marquardt_parallel, FdScheme, LmFit, LmOptions, LmStop,
+};
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};
 pub use record::{dft, Record};

@@ -3,6 +3,7 @@
 use std::fmt::Display;
 
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
@@ -107,29 +108,151 @@ const LAMBDA_MAX: f64 = 1e16;
 /// multiplicative increase could never recover.
 const LAMBDA_MIN: f64 = 1e-15;
 
+/// Evaluates `f`; a failure of the function or a non-finite residual is an error.
+fn checked<E: Display>(
+    f: impl FnOnce(&[f64], &mut [f64]) -> std::result::Result<(), E>,
+    x: &[f64],
+    r: &mut [f64],
+) -> Result<()> {
+    f(x, r).map_err(|e| Error::ResidualFailed {
+        message: e.to_string(),
+    })?;
+    match r.iter().position(|v| !v.is_finite()) {
+        Some(index) => Err(Error::NonFiniteResidual {
+            index,
+            value: r[index],
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The residual function as the iteration sees it: single evaluations and the
+/// finite-difference Jacobian (column by column, or columns in parallel).
+trait Residuals {
+    fn eval(&mut self, x: &[f64], r: &mut [f64]) -> Result<()>;
+    #[allow(clippy::too_many_arguments)] // reason: the difference scheme's inputs
+    fn jacobian(
+        &mut self,
+        x: &[f64],
+        r: &[f64],
+        jac: &mut DMatrix<f64>,
+        scheme: FdScheme,
+        step: f64,
+        typical: &[f64],
+        bounds: &[(f64, f64)],
+    ) -> Result<()>;
+    fn evaluations(&self) -> usize;
+}
+
 struct Problem<F> {
     f: F,
     evaluations: usize,
+    scratch: (Vec<f64>, Vec<f64>),
 }
 
-impl<F, E> Problem<F>
+impl<F, E> Residuals for Problem<F>
 where
     F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
     E: Display,
 {
-    /// Evaluates; a failure of the function or a non-finite residual is an error.
     fn eval(&mut self, x: &[f64], r: &mut [f64]) -> Result<()> {
         self.evaluations += 1;
-        (self.f)(x, r).map_err(|e| Error::ResidualFailed {
-            message: e.to_string(),
-        })?;
-        match r.iter().position(|v| !v.is_finite()) {
-            Some(index) => Err(Error::NonFiniteResidual {
-                index,
-                value: r[index],
-            }),
-            None => Ok(()),
+        checked(&mut self.f, x, r)
+    }
+
+    fn jacobian(
+        &mut self,
+        x: &[f64],
+        r: &[f64],
+        jac: &mut DMatrix<f64>,
+        scheme: FdScheme,
+        step: f64,
+        typical: &[f64],
+        bounds: &[(f64, f64)],
+    ) -> Result<()> {
+        let (mut rp, mut rm) = std::mem::take(&mut self.scratch);
+        rp.resize(r.len(), 0.0);
+        rm.resize(r.len(), 0.0);
+        let mut xp = x.to_vec();
+        let mut result = Ok(());
+        let m = r.len();
+        for (j, col) in jac.as_mut_slice().chunks_mut(m).enumerate() {
+            let mut eval = |v: &[f64], out: &mut [f64]| {
+                self.evaluations += 1;
+                checked(&mut self.f, v, out).is_ok()
+            };
+            if let Err(e) = fd_column(
+                &mut eval, &mut xp, x, r, j, col, scheme, step, typical[j], bounds[j], &mut rp,
+                &mut rm,
+            ) {
+                result = Err(e);
+                break;
+            }
         }
+        self.scratch = (rp, rm);
+        result
+    }
+
+    fn evaluations(&self) -> usize {
+        self.evaluations
+    }
+}
+
+/// A residual function that may be called from several threads: the Jacobian's columns are
+/// formed in parallel (the same differences as column by column).
+struct ParallelProblem<F> {
+    f: F,
+    evaluations: usize,
+}
+
+impl<F, E> Residuals for ParallelProblem<F>
+where
+    F: Fn(&[f64], &mut [f64]) -> std::result::Result<(), E> + Sync,
+    E: Display,
+{
+    fn eval(&mut self, x: &[f64], r: &mut [f64]) -> Result<()> {
+        self.evaluations += 1;
+        checked(&self.f, x, r)
+    }
+
+    fn jacobian(
+        &mut self,
+        x: &[f64],
+        r: &[f64],
+        jac: &mut DMatrix<f64>,
+        scheme: FdScheme,
+        step: f64,
+        typical: &[f64],
+        bounds: &[(f64, f64)],
+    ) -> Result<()> {
+        let m = r.len();
+        let f = &self.f;
+        let columns: Vec<(Result<()>, usize)> = jac
+            .as_mut_slice()
+            .par_chunks_mut(m)
+            .enumerate()
+            .map(|(j, col)| {
+                let mut evaluations = 0;
+                let mut eval = |v: &[f64], out: &mut [f64]| {
+                    evaluations += 1;
+                    checked(f, v, out).is_ok()
+                };
+                let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
+                let mut xp = x.to_vec();
+                let result = fd_column(
+                    &mut eval, &mut xp, x, r, j, col, scheme, step, typical[j], bounds[j], &mut rp,
+                    &mut rm,
+                );
+                (result, evaluations)
+            })
+            .collect();
+        self.evaluations += columns.iter().map(|c| c.1).sum::<usize>();
+        // The first failing column, as column by column would report it.
+        columns.into_iter().try_for_each(|c| c.0)
+    }
+
+    fn evaluations(&self) -> usize {
+        self.evaluations
     }
 }
 
@@ -151,6 +274,44 @@ where
     F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
     E: Display,
 {
+    solve(
+        Problem {
+            f: residuals,
+            evaluations: 0,
+            scratch: (Vec::new(), Vec::new()),
+        },
+        p0,
+        m,
+        options,
+    )
+}
+
+/// [`levenberg_marquardt`] for a residual function that may be called from several threads
+/// at once: the columns of each finite-difference Jacobian are evaluated in parallel (rayon).
+/// The iterates, the result and the count of evaluations are those of
+/// [`levenberg_marquardt`].
+pub fn levenberg_marquardt_parallel<F, E>(
+    residuals: F,
+    p0: &[f64],
+    m: usize,
+    options: &LmOptions,
+) -> Result<LmFit>
+where
+    F: Fn(&[f64], &mut [f64]) -> std::result::Result<(), E> + Sync,
+    E: Display,
+{
+    solve(
+        ParallelProblem {
+            f: residuals,
+            evaluations: 0,
+        },
+        p0,
+        m,
+        options,
+    )
+}
+
+fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -> Result<LmFit> {
     let np = p0.len();
     if np == 0 || m == 0 {
         return Err(Error::LmDimensions {
@@ -173,34 +334,19 @@ where
             .map(|&v| if v != 0.0 { v.abs() } else { 1.0 })
             .collect(),
     };
-    let mut prob = Problem {
-        f: residuals,
-        evaluations: 0,
-    };
     let mut x = p0.to_vec();
     let mut r = vec![0.0; m];
     prob.eval(&x, &mut r)?;
     let mut cost = sum_sq(&r);
     let mut lambda = options.lambda0;
     let mut jac = DMatrix::<f64>::zeros(m, np);
-    let mut scratch = (vec![0.0; m], vec![0.0; m]);
     let mut r_trial = vec![0.0; m];
     let mut x_trial = vec![0.0; np];
     let mut iterations = 0;
     let mut jac_current = false;
     let mut stop = LmStop::MaxIterations;
     while iterations < options.max_iter {
-        jacobian(
-            &mut prob,
-            &x,
-            &r,
-            &mut jac,
-            options.fd_scheme,
-            step,
-            &typical,
-            &bounds,
-            &mut scratch,
-        )?;
+        prob.jacobian(&x, &r, &mut jac, options.fd_scheme, step, &typical, &bounds)?;
         jac_current = true;
         iterations += 1;
         let rv = DVector::from_column_slice(&r);
@@ -299,17 +445,7 @@ where
         }
     }
     if !jac_current {
-        jacobian(
-            &mut prob,
-            &x,
-            &r,
-            &mut jac,
-            options.fd_scheme,
-            step,
-            &typical,
-            &bounds,
-            &mut scratch,
-        )?;
+        prob.jacobian(&x, &r, &mut jac, options.fd_scheme, step, &typical, &bounds)?;
     }
     let covariance = covariance(&jac, cost, m);
     let stderr = covariance
@@ -325,7 +461,7 @@ where
             .map(|i| (0..np).map(|j| jac[(i, j)]).collect())
             .collect(),
         iterations,
-        evaluations: prob.evaluations,
+        evaluations: prob.evaluations(),
         stop,
     })
 }
@@ -416,66 +552,61 @@ fn validate(options: &LmOptions, p0: &[f64]) -> Result<Vec<(f64, f64)>> {
     Ok(bounds)
 }
 
-/// Fills `jac` (m x p) by finite differences at `x`, where the residuals are `r`. A side that
-/// leaves the bounds or fails falls back to a one-sided difference on the other side.
-fn jacobian<F, E>(
-    prob: &mut Problem<F>,
+/// Fills column `j` of the Jacobian by a finite difference at `x` (residuals `r`), with
+/// `xp` a copy of `x` used for the trial points. A side that leaves the bounds or fails falls
+/// back to a one-sided difference on the other side.
+#[allow(clippy::too_many_arguments)] // reason: the difference scheme's inputs
+fn fd_column(
+    eval: &mut dyn FnMut(&[f64], &mut [f64]) -> bool,
+    xp: &mut [f64],
     x: &[f64],
     r: &[f64],
-    jac: &mut DMatrix<f64>,
+    j: usize,
+    col: &mut [f64],
     scheme: FdScheme,
     step: f64,
-    typical: &[f64],
-    bounds: &[(f64, f64)],
-    scratch: &mut (Vec<f64>, Vec<f64>),
-) -> Result<()>
-where
-    F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
-    E: Display,
-{
-    let mut xp = x.to_vec();
-    let (rp, rm) = scratch;
-    for j in 0..x.len() {
-        let h = step * x[j].abs().max(typical[j]);
-        let (lo, hi) = bounds[j];
-        let up = x[j] + h;
-        let down = x[j] - h;
-        let mut eval_at = |v: f64, out: &mut Vec<f64>| -> Option<f64> {
-            xp[j] = v;
-            let ok = prob.eval(&xp, out).is_ok();
-            xp[j] = x[j];
-            // The realised step, exact in floating point.
-            ok.then_some(v - x[j])
-        };
-        let plus = if up <= hi { eval_at(up, rp) } else { None };
-        let minus = match (scheme, plus) {
-            (FdScheme::Forward, Some(_)) => None,
-            _ if down >= lo => eval_at(down, rm),
-            _ => None,
-        };
-        let col = jac.column_mut(j);
-        match (plus, minus) {
-            (Some(hp), Some(hm)) => {
-                for (i, c) in col.into_iter().enumerate() {
-                    *c = (rp[i] - rm[i]) / (hp - hm);
-                }
+    typical: f64,
+    (lo, hi): (f64, f64),
+    rp: &mut [f64],
+    rm: &mut [f64],
+) -> Result<()> {
+    let h = step * x[j].abs().max(typical);
+    let up = x[j] + h;
+    let down = x[j] - h;
+    let mut eval_at = |v: f64, out: &mut [f64]| -> Option<f64> {
+        xp[j] = v;
+        let ok = eval(xp, out);
+        xp[j] = x[j];
+        // The realised step, exact in floating point.
+        ok.then_some(v - x[j])
+    };
+    let plus = if up <= hi { eval_at(up, rp) } else { None };
+    let minus = match (scheme, plus) {
+        (FdScheme::Forward, Some(_)) => None,
+        _ if down >= lo => eval_at(down, rm),
+        _ => None,
+    };
+    match (plus, minus) {
+        (Some(hp), Some(hm)) => {
+            for (i, c) in col.iter_mut().enumerate() {
+                *c = (rp[i] - rm[i]) / (hp - hm);
             }
-            (Some(hp), None) => {
-                for (i, c) in col.into_iter().enumerate() {
-                    *c = (rp[i] - r[i]) / hp;
-                }
+        }
+        (Some(hp), None) => {
+            for (i, c) in col.iter_mut().enumerate() {
+                *c = (rp[i] - r[i]) / hp;
             }
-            (None, Some(hm)) => {
-                for (i, c) in col.into_iter().enumerate() {
-                    *c = (rm[i] - r[i]) / hm;
-                }
+        }
+        (None, Some(hm)) => {
+            for (i, c) in col.iter_mut().enumerate() {
+                *c = (rm[i] - r[i]) / hm;
             }
-            (None, None) => {
-                return Err(Error::JacobianFailed {
-                    index: j,
-                    value: x[j],
-                })
-            }
+        }
+        (None, None) => {
+            return Err(Error::JacobianFailed {
+                index: j,
+                value: x[j],
+            })
         }
     }
     Ok(())

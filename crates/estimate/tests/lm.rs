@@ -1,6 +1,8 @@
 //! Levenberg-Marquardt against problems with known answers.
 
-use htfid_estimate::{levenberg_marquardt, Error, FdScheme, LmOptions, LmStop};
+use htfid_estimate::{
+    levenberg_marquardt, levenberg_marquardt_parallel, Error, FdScheme, LmOptions, LmStop,
+};
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -205,4 +207,36 @@ fn bounds_hold_and_invalid_options_are_rejected() {
         levenberg_marquardt(f, &[0.5], 2, &bad),
         Err(Error::WrongLength { what: "scales", .. })
     ));
+}
+
+#[test]
+fn parallel_jacobians_give_the_same_iterates() {
+    // Both schemes, a bound the fit runs into, and a residual that fails at some trial points:
+    // the parallel variant must reproduce the serial one exactly.
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (t, y) = decay_data(&mut rng, 0.05);
+    let f = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+        if p[1] > 5.0 {
+            return Err("too fast".into());
+        }
+        for i in 0..t.len() {
+            r[i] = p[0] * (-p[1] * t[i]).exp() + p[2] - y[i];
+        }
+        Ok(())
+    };
+    for scheme in [FdScheme::Forward, FdScheme::Central] {
+        let opts = LmOptions {
+            fd_scheme: scheme,
+            bounds: Some(vec![(0.0, 10.0), (0.0, 10.0), (0.05, 1.0)]),
+            ..LmOptions::default()
+        };
+        let serial = levenberg_marquardt(f, &[1.0, 0.2, 0.3], t.len(), &opts).unwrap();
+        let parallel = levenberg_marquardt_parallel(f, &[1.0, 0.2, 0.3], t.len(), &opts).unwrap();
+        assert_eq!(serial.params, parallel.params, "{scheme:?}");
+        assert_eq!(serial.cost.to_bits(), parallel.cost.to_bits());
+        assert_eq!(serial.jacobian, parallel.jacobian);
+        assert_eq!(serial.iterations, parallel.iterations);
+        assert_eq!(serial.evaluations, parallel.evaluations);
+        assert_eq!(serial.stop, parallel.stop);
+    }
 }

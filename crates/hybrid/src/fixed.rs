@@ -50,16 +50,41 @@ pub fn simulate_fixed_step<S: HybridSystem + ?Sized>(
             found: x0.len(),
         });
     }
-    let mut st = Stepper {
+    // One copy per dimension: the state lives in arrays of exactly its length, so the
+    // stage loops unroll and nothing beyond the state is copied or zeroed.
+    match n {
+        1 => run::<S, 1>(sys, mode0, t0, x0, dt, substeps, component, out),
+        2 => run::<S, 2>(sys, mode0, t0, x0, dt, substeps, component, out),
+        3 => run::<S, 3>(sys, mode0, t0, x0, dt, substeps, component, out),
+        4 => run::<S, 4>(sys, mode0, t0, x0, dt, substeps, component, out),
+        5 => run::<S, 5>(sys, mode0, t0, x0, dt, substeps, component, out),
+        6 => run::<S, 6>(sys, mode0, t0, x0, dt, substeps, component, out),
+        7 => run::<S, 7>(sys, mode0, t0, x0, dt, substeps, component, out),
+        _ => run::<S, MAX_DIM>(sys, mode0, t0, x0, dt, substeps, component, out),
+    }
+}
+
+/// [`simulate_fixed_step`] for a system of dimension `N`.
+#[allow(clippy::too_many_arguments)] // reason: the arguments of `simulate_fixed_step`
+fn run<S: HybridSystem + ?Sized, const N: usize>(
+    sys: &S,
+    mode0: S::Mode,
+    t0: f64,
+    x0: &[f64],
+    dt: f64,
+    substeps: usize,
+    component: usize,
+    out: &mut [f64],
+) -> Result<(), HybridError> {
+    let mut st = Stepper::<S, N> {
         sys,
-        n,
         mode: mode0,
-        x: [0.0; MAX_DIM],
-        f: [0.0; MAX_DIM],
+        x: [0.0; N],
+        f: [0.0; N],
         slide: None,
     };
-    st.x[..n].copy_from_slice(x0);
-    sys.vector_field(mode0, t0, &st.x[..n], &mut st.f[..n]);
+    st.x.copy_from_slice(x0);
+    sys.vector_field(mode0, t0, &st.x, &mut st.f);
     let Some((first, rest)) = out.split_first_mut() else {
         return Ok(());
     };
@@ -80,30 +105,26 @@ pub fn simulate_fixed_step<S: HybridSystem + ?Sized>(
     Ok(())
 }
 
-struct Stepper<'a, S: HybridSystem + ?Sized> {
+struct Stepper<'a, S: HybridSystem + ?Sized, const N: usize> {
     sys: &'a S,
-    n: usize,
     mode: S::Mode,
-    x: [f64; MAX_DIM],
+    x: [f64; N],
     /// Vector field at `x` in `mode` (the sliding field while sliding).
-    f: [f64; MAX_DIM],
+    f: [f64; N],
     /// The sliding motion, while the state slides along a switching surface.
     slide: Option<Filippov<'a, S>>,
 }
 
 /// The outcome of one trial step.
-enum Trial {
+enum Trial<const N: usize> {
     /// The step reached its end without a crossing: the state and field there.
-    Reached([f64; MAX_DIM], [f64; MAX_DIM]),
+    Reached([f64; N], [f64; N]),
     /// Guard `guard` (of the chart stepped in) fired at `te`, with the state `xe` there.
-    Event {
-        te: f64,
-        guard: usize,
-        xe: [f64; MAX_DIM],
-    },
+    Event { te: f64, guard: usize, xe: [f64; N] },
 }
 
-impl<'a, S: HybridSystem + ?Sized> Stepper<'a, S> {
+impl<'a, S: HybridSystem + ?Sized, const N: usize> Stepper<'a, S, N> {
+    #[inline]
     fn advance(&mut self, ta: f64, tb: f64) -> Result<(), HybridError> {
         let mut t = ta;
         // The guard that just fired sits at zero at the restart; it is not watched again within
@@ -112,8 +133,8 @@ impl<'a, S: HybridSystem + ?Sized> Stepper<'a, S> {
         let mut fired: Option<usize> = None;
         for _ in 0..=MAX_EVENTS_PER_STEP {
             let trial = match &self.slide {
-                None => trial(self.sys, self.mode, t, tb, &self.x, &self.f, self.n, fired),
-                Some(fl) => trial(fl, self.mode, t, tb, &self.x, &self.f, self.n, fired),
+                None => trial(self.sys, self.mode, t, tb, &self.x, &self.f, fired),
+                Some(fl) => trial(fl, self.mode, t, tb, &self.x, &self.f, fired),
             }?;
             match trial {
                 Trial::Reached(xb, fb) => {
@@ -136,8 +157,8 @@ impl<'a, S: HybridSystem + ?Sized> Stepper<'a, S> {
     /// Applies the event of guard `guard` at `(te, xe)`: a transition, the start of sliding
     /// along a switching surface whose far side's field points back into it, or, while
     /// sliding, its end. Returns the guard of the new chart that sits at zero.
-    fn event(&mut self, te: f64, guard: usize, mut xe: [f64; MAX_DIM]) -> Option<usize> {
-        let n = self.n;
+    #[inline(never)]
+    fn event(&mut self, te: f64, guard: usize, mut xe: [f64; N]) -> Option<usize> {
         if let Some(fl) = self.slide.take() {
             // Wrapper guard 0 leaves into the arrival chart, 1 into the far side's, `k >= 2`
             // is another guard of the arrival chart, whose transition follows at once.
@@ -155,7 +176,7 @@ impl<'a, S: HybridSystem + ?Sized> Stepper<'a, S> {
                 }
                 k => {
                     let inner = fl.inner_guard(k);
-                    self.mode = self.sys.transition(from, inner, te, &mut xe[..n]);
+                    self.mode = self.sys.transition(from, inner, te, &mut xe);
                     Some(inner)
                 }
             };
@@ -163,19 +184,11 @@ impl<'a, S: HybridSystem + ?Sized> Stepper<'a, S> {
             return next;
         }
         if let Some(to) = self.sys.sliding_chart(self.mode, guard) {
-            let (mut grad, mut xs) = ([0.0; MAX_DIM], [0.0; MAX_DIM]);
+            let (mut grad, mut xs) = ([0.0; N], [0.0; N]);
             let mut on = xe;
-            sliding::project(
-                self.sys,
-                self.mode,
-                guard,
-                te,
-                &mut on[..n],
-                &mut grad[..n],
-                &mut xs[..n],
-            );
+            sliding::project(self.sys, self.mode, guard, te, &mut on, &mut grad, &mut xs);
             let fl = Filippov::new(self.sys, self.mode, to, guard, 1.0);
-            let (a, b) = fl.speeds(te, &on[..n]);
+            let (a, b) = fl.speeds(te, &on);
             if a * b < 0.0 {
                 // Both fields push into the surface: the state slides on it.
                 self.slide = Some(Filippov::new(self.sys, self.mode, to, guard, a.signum()));
@@ -183,60 +196,54 @@ impl<'a, S: HybridSystem + ?Sized> Stepper<'a, S> {
                 return None;
             }
         }
-        self.mode = self.sys.transition(self.mode, guard, te, &mut xe[..n]);
+        self.mode = self.sys.transition(self.mode, guard, te, &mut xe);
         self.restart(te, xe);
         Some(guard)
     }
 
     /// Restarts at `(t, x)` in the current chart (or sliding motion).
-    fn restart(&mut self, t: f64, x: [f64; MAX_DIM]) {
-        let n = self.n;
+    fn restart(&mut self, t: f64, x: [f64; N]) {
         self.x = x;
         match &self.slide {
-            None => self
-                .sys
-                .vector_field(self.mode, t, &self.x[..n], &mut self.f[..n]),
-            Some(fl) => fl.vector_field(self.mode, t, &self.x[..n], &mut self.f[..n]),
+            None => self.sys.vector_field(self.mode, t, &self.x, &mut self.f),
+            Some(fl) => fl.vector_field(self.mode, t, &self.x, &mut self.f),
         }
     }
 }
 
 /// One RK4 step of `sys` in chart `mode` from `(t, x)` to `tb`, with the first crossing of a
 /// guard (other than `skip`) located on the step's cubic Hermite interpolant.
-#[allow(clippy::too_many_arguments)] // reason: the stepper's state, passed without copies
-fn trial<H: HybridSystem + ?Sized>(
+#[inline]
+fn trial<H: HybridSystem + ?Sized, const N: usize>(
     sys: &H,
     mode: H::Mode,
     t: f64,
     tb: f64,
-    x: &[f64; MAX_DIM],
-    f: &[f64; MAX_DIM],
-    n: usize,
+    x: &[f64; N],
+    f: &[f64; N],
     skip: Option<usize>,
-) -> Result<Trial, HybridError> {
+) -> Result<Trial<N>, HybridError> {
     let h = tb - t;
-    let mut xb = [0.0; MAX_DIM];
-    rk4_step(sys, mode, t, x, f, h, n, &mut xb);
-    if !xb[..n].iter().all(|v| v.is_finite()) {
+    let xb = rk4_step(sys, mode, t, x, f, h);
+    if !xb.iter().all(|v| v.is_finite()) {
         return Err(HybridError::NonFiniteState { time: tb });
     }
-    let mut fb = [0.0; MAX_DIM];
-    sys.vector_field(mode, tb, &xb[..n], &mut fb[..n]);
+    let mut fb = [0.0; N];
+    sys.vector_field(mode, tb, &xb, &mut fb);
     let mut first: Option<(f64, usize)> = None;
     for g in 0..sys.num_guards(mode) {
         if skip == Some(g) {
             continue;
         }
-        let ga = sys.guard(mode, g, t, &x[..n]);
-        let gb = sys.guard(mode, g, tb, &xb[..n]);
+        let ga = sys.guard(mode, g, t, x);
+        let gb = sys.guard(mode, g, tb, &xb);
         if !sys.guard_direction(mode, g).accepts(ga, gb) {
             continue;
         }
-        let mut buf = [0.0; MAX_DIM];
         let theta = locate(
             |th| {
-                hermite(x, f, &xb, &fb, h, th, n, &mut buf);
-                sys.guard(mode, g, t + th * h, &buf[..n])
+                let buf = hermite(x, f, &xb, &fb, h, th);
+                sys.guard(mode, g, t + th * h, &buf)
             },
             ga,
             gb,
@@ -249,65 +256,64 @@ fn trial<H: HybridSystem + ?Sized>(
         return Ok(Trial::Reached(xb, fb));
     };
     let te = t + theta * h;
-    let mut xe = [0.0; MAX_DIM];
-    rk4_step(sys, mode, t, x, f, te - t, n, &mut xe);
+    let xe = rk4_step(sys, mode, t, x, f, te - t);
     Ok(Trial::Event { te, guard, xe })
 }
 
 #[inline]
-fn rk4_step<S: HybridSystem + ?Sized>(
+fn rk4_step<S: HybridSystem + ?Sized, const N: usize>(
     sys: &S,
     mode: S::Mode,
     t: f64,
-    x: &[f64; MAX_DIM],
-    f0: &[f64; MAX_DIM],
+    x: &[f64; N],
+    f0: &[f64; N],
     h: f64,
-    n: usize,
-    out: &mut [f64; MAX_DIM],
-) {
-    let mut tmp = [0.0; MAX_DIM];
-    let mut k2 = [0.0; MAX_DIM];
-    let mut k3 = [0.0; MAX_DIM];
-    let mut k4 = [0.0; MAX_DIM];
+) -> [f64; N] {
+    let mut tmp = [0.0; N];
+    let mut k2 = [0.0; N];
+    let mut k3 = [0.0; N];
+    let mut k4 = [0.0; N];
     let half = 0.5 * h;
-    for i in 0..n {
+    for i in 0..N {
         tmp[i] = x[i] + half * f0[i];
     }
-    sys.vector_field(mode, t + half, &tmp[..n], &mut k2[..n]);
-    for i in 0..n {
+    sys.vector_field(mode, t + half, &tmp, &mut k2);
+    for i in 0..N {
         tmp[i] = x[i] + half * k2[i];
     }
-    sys.vector_field(mode, t + half, &tmp[..n], &mut k3[..n]);
-    for i in 0..n {
+    sys.vector_field(mode, t + half, &tmp, &mut k3);
+    for i in 0..N {
         tmp[i] = x[i] + h * k3[i];
     }
-    sys.vector_field(mode, t + h, &tmp[..n], &mut k4[..n]);
+    sys.vector_field(mode, t + h, &tmp, &mut k4);
     let sixth = h / 6.0;
-    for i in 0..n {
+    let mut out = [0.0; N];
+    for i in 0..N {
         out[i] = x[i] + sixth * (f0[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
     }
+    out
 }
 
 /// Cubic Hermite interpolant of a step of length `h` at fraction `th`.
 #[inline]
-fn hermite(
-    xa: &[f64; MAX_DIM],
-    fa: &[f64; MAX_DIM],
-    xb: &[f64; MAX_DIM],
-    fb: &[f64; MAX_DIM],
+fn hermite<const N: usize>(
+    xa: &[f64; N],
+    fa: &[f64; N],
+    xb: &[f64; N],
+    fb: &[f64; N],
     h: f64,
     th: f64,
-    n: usize,
-    out: &mut [f64; MAX_DIM],
-) {
+) -> [f64; N] {
     let s = 1.0 - th;
     let h00 = (1.0 + 2.0 * th) * s * s;
     let h10 = th * s * s;
     let h01 = th * th * (3.0 - 2.0 * th);
     let h11 = -th * th * s;
-    for i in 0..n {
+    let mut out = [0.0; N];
+    for i in 0..N {
         out[i] = h00 * xa[i] + h10 * h * fa[i] + h01 * xb[i] + h11 * h * fb[i];
     }
+    out
 }
 
 /// Root of `g` on `[0, 1]` given `g(0) = ga` and `g(1) = gb` of opposite signs (or `gb`

@@ -19,6 +19,7 @@ pub enum HopperMode {
 
 impl HopperMode {
     /// The damping switch `s`: 1 when damped.
+    #[inline]
     pub fn switch(self) -> f64 {
         match self {
             HopperMode::Damped => 1.0,
@@ -90,21 +91,25 @@ impl Hopper {
     }
 
     /// Parameters.
+    #[inline]
     pub fn params(&self) -> &HopperParams {
         &self.params
     }
 
     /// Extra terms.
+    #[inline]
     pub fn effects(&self) -> &Effects {
         &self.effects
     }
 
     /// Damper law.
+    #[inline]
     pub fn damper(&self) -> DamperLaw {
         self.damper
     }
 
     /// The forcing `A cos(2 pi t / T)` (N).
+    #[inline]
     pub fn forcing(&self, t: f64) -> f64 {
         let a = self.params.forcing_amplitude;
         // Measured data carry the forcing in their input: skip the cosine when there is none.
@@ -115,8 +120,16 @@ impl Hopper {
     }
 
     /// The commanded force `f(t) = A cos(2 pi t/T) + u(t) + offset`, before delay and lag.
+    #[inline]
     pub fn commanded_force(&self, t: f64) -> f64 {
         let u = self.input.as_ref().map_or(0.0, |u| u(t));
+        self.commanded_force_with(t, u)
+    }
+
+    /// The commanded force at `t` with the input's value `u` there given: for a caller that
+    /// reads the input itself (a sampled signal, without the indirection of [`InputFn`]).
+    #[inline]
+    pub fn commanded_force_with(&self, t: f64, u: f64) -> f64 {
         self.forcing(t) + u + self.effects.input_offset
     }
 
@@ -154,6 +167,7 @@ impl Hopper {
 
     /// The applied force at `(t, state)`: the lag state when present, else the (delayed)
     /// commanded force.
+    #[inline]
     fn applied_force(&self, t: f64, x: &[f64]) -> f64 {
         if self.effects.has_lag() {
             x[2]
@@ -162,8 +176,10 @@ impl Hopper {
         }
     }
 
-    /// Acceleration of the mass at `(t, x, x', F)` in chart `mode`.
-    fn acceleration(&self, mode: HopperMode, pos: f64, vel: f64, force: f64) -> f64 {
+    /// Acceleration of the mass at position `pos`, velocity `vel` and applied force `force` in
+    /// chart `mode` (the second component of the vector field).
+    #[inline]
+    pub fn acceleration(&self, mode: HopperMode, pos: f64, vel: f64, force: f64) -> f64 {
         let p = &self.params;
         let e = &self.effects;
         let s = mode.switch();

@@ -148,6 +148,7 @@ impl Effects {
     }
 
     /// Whether the actuator-lag state is present.
+    #[inline]
     pub fn has_lag(&self) -> bool {
         self.tau > 0.0
     }
