@@ -21,7 +21,6 @@ mod config;
 mod estimate_config;
 mod limits;
 mod model_diagnose_config;
-mod number;
 mod output;
 mod plots;
 mod progress;

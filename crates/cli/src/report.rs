@@ -11,8 +11,8 @@ use std::path::{Component, Path, PathBuf};
 
 use serde_json::Value;
 
-pub use crate::number::MISSING;
-use crate::number::{percent, sig, Quantity};
+pub use htfid_number::MISSING;
+use htfid_number::{percent, sig, Quantity};
 
 /// A Markdown document with numbered footnotes.
 #[derive(Debug, Default)]

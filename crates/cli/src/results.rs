@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::Value;
 
-use crate::number::{percent, sig, Quantity};
+use htfid_number::{percent, sig, Quantity};
 
 /// Label column, then values; a value may span several lines.
 #[derive(Debug)]

@@ -1302,10 +1302,10 @@ fn resolve_estimation(
                 "= {} rad/s with harmonics up to {h_max} reads outputs up to {} rad/s, at or \
                  beyond the Nyquist frequency {} rad/s of simulation.sample_rate = {} Hz; lower \
                  estimation.omega_max or raise simulation.sample_rate",
-                crate::number::sig(hi, 4),
-                crate::number::sig(top, 4),
-                crate::number::sig(nyquist, 4),
-                crate::number::sig(sample_rate, 4)
+                htfid_number::sig(hi, 4),
+                htfid_number::sig(top, 4),
+                htfid_number::sig(nyquist, 4),
+                htfid_number::sig(sample_rate, 4)
             ),
         ));
     }

@@ -218,7 +218,7 @@ fn p_text(p: f64) -> String {
     if p < 1e-10 {
         "< 10⁻¹⁰".into()
     } else {
-        crate::number::sig(p, 2)
+        htfid_number::sig(p, 2)
     }
 }
 
@@ -245,7 +245,7 @@ pub fn report(heading: &str, vs: &[&OutputValidation], residual_of: &str, input:
             .fits
             .iter()
             .map(|(l, f)| match f {
-                Some(f) => format!("{l} {}", crate::number::sig(*f, 3)) + " %",
+                Some(f) => format!("{l} {}", htfid_number::sig(*f, 3)) + " %",
                 None => format!(
                     "{l} — (not defined: a constant measured output or too few finite samples)"
                 ),

@@ -1,5 +1,6 @@
 //! The diagnosis: nominal fit, candidate fits, held-out scores and the decision.
 
+use htfid_number::{percent, sig, Quantity};
 use std::collections::BTreeMap;
 use std::ops::Range;
 
@@ -445,9 +446,9 @@ pub fn diagnose_with_progress(
         noise_floor(&parts, opts.noise_band).map(|s| s.max(floor))
     };
     progress(&format!(
-        "nominal fit: held-out RMSE {:.3e}, noise floor {}",
-        nominal_val.score.rmse,
-        noise.map_or("unknown".to_string(), |s| format!("{s:.3e}"))
+        "nominal fit: held-out RMSE {}, noise floor {}",
+        sig(nominal_val.score.rmse, 4),
+        noise.map_or("unknown".to_string(), |s| sig(s, 3))
     ));
 
     let configured_val = ctx
@@ -1216,21 +1217,23 @@ fn conclude(
     let free_names: Vec<&str> = nominal.free.iter().map(|p| p.name()).collect();
     let ratio = noise.map(|s| nominal_rmse / s);
     evidence.push(format!(
-        "configured model: held-out RMSE {:.3e} (NRMSE {:.2} %); nominal model ({} refitted): \
-         held-out RMSE {:.3e} (NRMSE {:.2} %){}",
-        configured.rmse,
-        100.0 * configured.nrmse,
+        "configured model: held-out RMSE {} (NRMSE {}); nominal model ({} refitted): \
+         held-out RMSE {} (NRMSE {}){}",
+        sig(configured.rmse, 4),
+        percent(configured.nrmse, 3),
         if free_names.is_empty() {
             "nothing".to_string()
         } else {
             free_names.join(", ")
         },
-        nominal_rmse,
-        100.0 * nominal_score.nrmse,
+        sig(nominal_rmse, 4),
+        percent(nominal_score.nrmse, 3),
         match (noise, ratio) {
             (Some(s), Some(r)) => format!(
-                ", {r:.2} times the noise floor {s:.3e} estimated from the residual spectrum \
+                ", {} times the noise floor {} estimated from the residual spectrum \
                  between {:.0} % and {:.0} % of the Nyquist frequency",
+                sig(r, 3),
+                sig(s, 3),
                 100.0 * opts.noise_band.0,
                 100.0 * opts.noise_band.1
             ),
@@ -1296,7 +1299,11 @@ fn conclude(
             for (name, v, e, c) in &moved {
                 parameters.insert(name.to_string(), *v);
                 stderr.insert(name.to_string(), *e);
-                words.push(format!("{name} = {v:.4} +/- {e:.2} (configured {c:.4})"));
+                words.push(format!(
+                    "{name} = {} (configured {})",
+                    Quantity::new(*v).stderr(*e),
+                    sig(*c, 4)
+                ));
             }
             evidence.push(format!(
                 "the configured parameters are off: refitted {} ({:.1} % better held out)",

@@ -19,6 +19,7 @@
 //! Two first-round candidates whose fits differ by less than `bic_margin` in BIC are rivals:
 //! unless the later rounds add both, the data cannot tell them apart.
 
+use htfid_number::{sig, Quantity};
 use rayon::prelude::*;
 
 use crate::diagnose::{evaluate, run_candidate, Outcome};
@@ -206,7 +207,7 @@ fn judge(
     for (i, s) in fit.slots.iter().enumerate() {
         if !before.slots.contains(s) {
             let (v, e) = (fit.values[i], fit.stderr[i]);
-            note.push_str(&format!("; {} = {v:.4e} +/- {e:.2e}", s.name()));
+            note.push_str(&format!("; {} = {}", s.name(), Quantity::new(v).stderr(e)));
             if fit.at_bound[i] {
                 note.push_str(" (on its bound)");
             }
@@ -226,13 +227,15 @@ fn judge(
         let e = &ctx.extent;
         match s {
             Slot::XStop if !(v > e.x_min && v < e.x_max) => reasons.push(format!(
-                "the contact position {v:.4e} lies outside the measured positions \
-                 [{:.4e}, {:.4e}]",
-                e.x_min, e.x_max
+                "the contact position {} lies outside the measured positions [{}, {}]",
+                sig(v, 4),
+                sig(e.x_min, 4),
+                sig(e.x_max, 4)
             )),
             Slot::VTh if v.is_nan() || v.abs() >= e.v_max => reasons.push(format!(
-                "the threshold {v:.4e} lies outside the measured velocities (|v| < {:.4e})",
-                e.v_max
+                "the threshold {} lies outside the measured velocities (|v| < {})",
+                sig(v, 4),
+                sig(e.v_max, 4)
             )),
             _ => {}
         }
@@ -296,8 +299,8 @@ pub(crate) fn select(
         // Nothing left above the noise floor: there is nothing more to explain.
         if noise.is_some_and(|s| current_score.rmse <= s) {
             evidence.push(format!(
-                "the held-out residual {:.3e} is at the noise floor: nothing more to explain",
-                current_score.rmse
+                "the held-out residual {} is at the noise floor: nothing more to explain",
+                sig(current_score.rmse, 4)
             ));
             break;
         }

@@ -687,9 +687,9 @@ fn draw(
     let (tb, q0) = rms(&r0);
     let (_, q1) = rms(&r1);
     let block_words = if s.params.forcing_amplitude.abs() > 0.0 {
-        format!("forcing period ({} s)", crate::number::sig(period, 3))
+        format!("forcing period ({} s)", htfid_number::sig(period, 3))
     } else {
-        format!("{} s (ten natural periods)", crate::number::sig(period, 3))
+        format!("{} s (ten natural periods)", htfid_number::sig(period, 3))
     };
     let mut top = Panel::new(
         format!("RMS of the residual per {block_words}, all held-out data"),
@@ -844,7 +844,7 @@ fn draw(
 /// A parameter as `value ± stderr unit`, 4 significant digits (3 for the standard error); the
 /// hopper's units only when the record is the hopper's own `x` and `f`.
 fn param_text(s: &DiagnoseSettings, name: &str, v: f64, se: f64) -> String {
-    use crate::number::sig as num;
+    use htfid_number::sig as num;
     // In a diagnosis `g` is the sensor's gain (gravity is never refitted) and `b` its offset.
     let unit = match name {
         _ if htf_unit(s).is_none() => None,
@@ -876,7 +876,7 @@ fn fmt_params(
 /// A table cell: `v` with 4 significant digits, or a dash when it is not a number.
 fn cell(v: f64) -> String {
     if v.is_finite() {
-        crate::number::sig(v, 4)
+        htfid_number::sig(v, 4)
     } else {
         "–".to_string()
     }
@@ -885,7 +885,7 @@ fn cell(v: f64) -> String {
 /// A fraction as a percentage cell.
 fn pct_cell(v: f64) -> String {
     if v.is_finite() {
-        format!("{} %", crate::number::sig(100.0 * v, 4))
+        format!("{} %", htfid_number::sig(100.0 * v, 4))
     } else {
         "–".to_string()
     }
@@ -899,7 +899,7 @@ fn causes_text(d: &htfid_diagnose::Diagnosis) -> String {
             format!(
                 "`{}` ({} % of the explained error)",
                 c.effect,
-                crate::number::sig(100.0 * c.gain_share, 3)
+                htfid_number::sig(100.0 * c.gain_share, 3)
             )
         })
         .collect::<Vec<_>>()
@@ -916,7 +916,7 @@ fn report_md(
     ev: &evidence::Evidence,
     htf: &[evidence::HarmonicDifference],
 ) -> String {
-    use crate::number::sig as num;
+    use htfid_number::sig as num;
     let d = &report.diagnosis;
     let unit = evidence::output_unit(s).unwrap_or_else(|| "output units".into());
     let mut m = String::new();
@@ -1061,7 +1061,12 @@ fn report_md(
                 params
             },
             pct_cell(c.nrmse_validation),
-            cell(c.bic),
+            // BIC differences of a unit matter, its size does not: whole numbers.
+            if c.bic.is_finite() {
+                format!("{:.0}", c.bic).replace('-', "−")
+            } else {
+                "–".to_string()
+            },
             if c.significant { "yes" } else { "no" },
             c.note.replace('|', "/")
         );

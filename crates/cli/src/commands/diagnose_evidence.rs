@@ -20,9 +20,9 @@ use htfid_plot::{
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use crate::number::sig as num;
 use crate::plots;
 use crate::settings::DiagnoseSettings;
+use htfid_number::sig as num;
 
 /// Natural periods of the nominal model per block of the standard errors, and per window of
 /// the residual in time, when no forcing period is known.

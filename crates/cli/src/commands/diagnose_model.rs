@@ -332,7 +332,7 @@ fn report(
     d: &ModelDiagnosis,
     checks: &[crate::validation::OutputValidation],
 ) -> String {
-    use crate::number::{percent, sig, Quantity};
+    use htfid_number::{percent, sig, Quantity};
     let mut r = Report::new(&format!("Diagnosis: {}", s.name));
     let model = s.model.name();
     let unit = |name: &str| s.model.parameter_unit(name).map(str::to_string);
