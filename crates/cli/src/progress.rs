@@ -75,6 +75,8 @@ fn hide(bar: &ProgressBar) {
 #[derive(Debug, Default)]
 pub struct Stages {
     timings: Vec<(String, f64)>,
+    /// Stages of a worker thread: timed, shown when absorbed by the main thread's stages.
+    silent: bool,
 }
 
 impl Stages {
@@ -82,8 +84,35 @@ impl Stages {
         Stages::default()
     }
 
+    /// Stages run on a worker thread, beside others: timed but not shown until
+    /// [`Stages::absorb`], so that lines of parallel stages never interleave.
+    pub fn silent() -> Self {
+        Stages {
+            silent: true,
+            ..Stages::default()
+        }
+    }
+
+    /// Takes the timings of stages that ran on a worker thread, showing each as run in
+    /// parallel.
+    pub fn absorb(&mut self, other: Stages) {
+        for (name, ms) in other.timings {
+            if mode() != Mode::Quiet {
+                eprintln!("[htfid] {name} ... {} (in parallel)", duration(ms));
+            }
+            self.timings.push((name, ms));
+        }
+    }
+
     /// Runs `f` as the stage `name`, showing it while it runs and its duration after.
     pub fn run<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
+        if self.silent {
+            let start = Instant::now();
+            let out = f();
+            self.timings
+                .push((name.to_string(), start.elapsed().as_secs_f64() * 1e3));
+            return out;
+        }
         let spinner = match mode() {
             Mode::Quiet => None,
             Mode::Plain => {
@@ -112,7 +141,8 @@ impl Stages {
         out
     }
 
-    /// `{"stage": ms, ...}` in the order run.
+    /// `{"stage": ms, ...}` in the order run; `total` is their sum (stages run in parallel
+    /// overlap, so it can exceed the wall time).
     pub fn to_json(&self) -> serde_json::Value {
         let mut map = serde_json::Map::new();
         let mut total = 0.0;

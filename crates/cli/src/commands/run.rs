@@ -82,54 +82,39 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     let (estimates, errors, fits, alpha) = std::thread::scope(|scope| -> Result<_> {
         let writer =
             scope.spawn(move || crate::commands::simulate::write_timeseries(&ts_path, sim_ref));
-        let mut estimates: Vec<(Estimator, HtfEstimate)> = Vec::new();
-        for &est in &settings.estimation.estimators {
-            let e = stages
-                .run(&format!("estimate ({})", est.name()), || {
-                    estimate(
-                        &settings,
-                        (&sim.t, &sim.u),
-                        &sim.excitation,
-                        &deviation,
-                        est,
-                    )
+        // Each estimator's chain (estimate, fit, uncertainty) is independent of the others':
+        // one thread each.
+        let chains: Vec<_> = settings
+            .estimation
+            .estimators
+            .iter()
+            .map(|&est| {
+                let (settings, sim, deviation, theory) = (&settings, sim_ref, &deviation, &theory);
+                scope.spawn(move || {
+                    let mut local = Stages::silent();
+                    let chain =
+                        estimator_chain(settings, sim, deviation, &theory.exact, est, &mut local);
+                    (local, chain)
                 })
-                .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
-            estimates.push((est, e));
-        }
-
+            })
+            .collect();
+        let mut estimates: Vec<(Estimator, HtfEstimate)> = Vec::new();
         let mut errors = serde_json::Map::new();
         let mut fits = serde_json::Map::new();
         let mut alpha = serde_json::Map::new();
-        for (est, e) in &estimates {
-            errors.insert(
-                est.name().into(),
-                harmonic_errors(&settings, &theory.exact, e),
-            );
-            let outcome = stages
-                .run(&format!("fit ({})", est.name()), || {
-                    fit_parameters(&settings, &sim, e)
-                })
-                .with_context(|| {
-                    format!("parametric fit to the \"{}\" estimates failed", est.name())
-                })?;
-            let budget = stages.run(&format!("uncertainty ({})", est.name()), || {
-                fit_uncertainty(&settings, *est, e, &outcome)
-            });
-            let mut fit = outcome.json;
-            // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run):
-            // the reason is recorded instead.
-            fit["uncertainty"] = match budget {
-                Ok((b, method)) => uncertainty_json(&settings.estimation.fit, &b, method),
-                Err(err) => json!({ "error": format!("{err:#}") }),
-            };
-            fits.insert(est.name().into(), fit);
-            if let Some(a) = e.alpha() {
+        for handle in chains {
+            let (local, chain) = handle.join().expect("an estimator chain does not panic");
+            stages.absorb(local);
+            let chain = chain?;
+            errors.insert(chain.est.name().into(), chain.errors);
+            fits.insert(chain.est.name().into(), chain.fit);
+            if let Some(a) = chain.estimate.alpha() {
                 alpha.insert(
-                    est.name().into(),
-                    json!({"alpha": a, "alpha_effective": e.alpha_effective()}),
+                    chain.est.name().into(),
+                    json!({"alpha": a, "alpha_effective": chain.estimate.alpha_effective()}),
                 );
             }
+            estimates.push((chain.est, chain.estimate));
         }
 
         writer.join().expect("the CSV writer does not panic")?;
@@ -290,6 +275,53 @@ fn record(
         dt,
         i0 as f64 * dt,
     )?)
+}
+
+/// One estimator's results: its estimate, its errors against the exact HTF, and its
+/// parametric fit with the uncertainty budget.
+struct Chain {
+    est: Estimator,
+    estimate: HtfEstimate,
+    errors: serde_json::Value,
+    fit: serde_json::Value,
+}
+
+/// Estimate, errors, fit and uncertainty of one estimator, timed in `stages`.
+fn estimator_chain(
+    settings: &Settings,
+    sim: &Simulated,
+    deviation: &[f64],
+    exact: &dyn HarmonicTransferFunction,
+    est: Estimator,
+    stages: &mut Stages,
+) -> Result<Chain> {
+    let e = stages
+        .run(&format!("estimate ({})", est.name()), || {
+            estimate(settings, (&sim.t, &sim.u), &sim.excitation, deviation, est)
+        })
+        .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
+    let errors = harmonic_errors(settings, exact, &e);
+    let outcome = stages
+        .run(&format!("fit ({})", est.name()), || {
+            fit_parameters(settings, sim, &e)
+        })
+        .with_context(|| format!("parametric fit to the \"{}\" estimates failed", est.name()))?;
+    let budget = stages.run(&format!("uncertainty ({})", est.name()), || {
+        fit_uncertainty(settings, est, &e, &outcome)
+    });
+    let mut fit = outcome.json;
+    // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run): the
+    // reason is recorded instead.
+    fit["uncertainty"] = match budget {
+        Ok((b, method)) => uncertainty_json(&settings.estimation.fit, &b, method),
+        Err(err) => json!({ "error": format!("{err:#}") }),
+    };
+    Ok(Chain {
+        est,
+        estimate: e,
+        errors,
+        fit,
+    })
 }
 
 /// Estimates the HTFs of output `y` driven by `u` (sampled at `t`) with `est`.
