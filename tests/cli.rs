@@ -1453,6 +1453,35 @@ fn a_users_own_term_is_a_candidate() {
             && err.contains("unknown name `w`"),
         "{err}"
     );
+    // A state, mode or guard the model lacks, or a parameter name it already has, is named at
+    // its own key.
+    for (from, to, needle) in [
+        (
+            "state = \"v\"",
+            "state = \"w\"",
+            "diagnose.terms[0].state: `w` is not a state",
+        ),
+        (
+            "mode = \"free\"",
+            "mode = \"flight\"",
+            "diagnose.terms[0].mode: no mode `flight`",
+        ),
+        (
+            "parameters = { cf = 0.0 }",
+            "parameters = { k = 0.0 }",
+            "diagnose.terms[0].parameters: `k` is already a name of the model",
+        ),
+    ] {
+        fs::write(&path, with_term("-cf*v").replacen(from, to, 1)).unwrap();
+        let o = htfid(&[
+            "diagnose",
+            path.to_str().unwrap(),
+            "--out",
+            tmp.path().join("bad").to_str().unwrap(),
+        ]);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+    }
 }
 
 /// The diagnosis on the terminal: cause, gain, refitted parameters with standard errors and

@@ -385,7 +385,20 @@ fn user_term(
             htfid_lang::ModelError::Invalid { message, .. } => message.clone(),
             other => other.to_string(),
         };
-        return Err(src.error(Some(&r.term.span()), &key("term"), message));
+        // The key the mistake is in: the state, mode or guard named, a parameter's name, or
+        // the term itself.
+        let (span, k) = if message.contains("is not a state") {
+            (r.state.as_ref().map(|v| v.span()), "state")
+        } else if message.starts_with("no mode") {
+            (r.mode.as_ref().map(|v| v.span()), "mode")
+        } else if message.starts_with("no guard") {
+            (r.guard.as_ref().map(|v| v.span()), "guard")
+        } else if message.contains("already a name") || message.contains("usable name") {
+            (Some(r.parameters.span()), "parameters")
+        } else {
+            (Some(r.term.span()), "term")
+        };
+        return Err(src.error(span.as_ref(), &key(k), message));
     }
     // A moved guard's cost is not convex in the shift: try both signs.
     let multistart = r.guard.is_some();
