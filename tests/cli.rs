@@ -1472,7 +1472,11 @@ fn a_users_own_term_is_a_candidate() {
             "diagnose.terms[0].parameters: `k` is already a name of the model",
         ),
     ] {
-        fs::write(&path, with_term("-cf*v").replacen(from, to, 1)).unwrap();
+        // In the appended term, not in the config's commented example.
+        let mut text = with_term("-cf*v");
+        let at = text.rfind(from).unwrap();
+        text.replace_range(at..at + from.len(), to);
+        fs::write(&path, text).unwrap();
         let o = htfid(&[
             "diagnose",
             path.to_str().unwrap(),
