@@ -3114,3 +3114,52 @@ fn an_override_that_loses_the_limit_cycle_is_named() {
         )
     );
 }
+
+/// A record whose output never changes says nothing about the dynamics: both diagnoses refuse
+/// it, naming the config, the data file and the output key, and write nothing.
+#[test]
+fn a_record_without_motion_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = fs::read_to_string(root().join("data/hopper-protocol.csv")).unwrap();
+    let mut header: Option<usize> = None;
+    let mut out = String::new();
+    for line in text.lines() {
+        if line.starts_with('#') || line.trim().is_empty() {
+            out.push_str(line);
+        } else if let Some(xi) = header {
+            let mut cells: Vec<&str> = line.split(',').collect();
+            cells[xi] = "0.15";
+            out.push_str(&cells.join(","));
+        } else {
+            header = line.split(',').position(|c| c.trim() == "x");
+            out.push_str(line);
+        }
+        out.push('\n');
+    }
+    let data = tmp.path().join("still.csv");
+    fs::write(&data, out).unwrap();
+    for (config, key) in [
+        ("configs/diagnose-hopper.toml", "data.file"),
+        ("configs/diagnose-hopper-model.toml", "data.outputs"),
+    ] {
+        let dir = tmp.path().join("d");
+        let o = htfid(&[
+            "diagnose",
+            config,
+            "--data",
+            data.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success());
+        let err = stderr(&o);
+        assert!(
+            err.contains(config)
+                && err.contains("still.csv")
+                && err.contains(key)
+                && err.contains("the measured output is constant (0.15)"),
+            "{err}"
+        );
+        assert!(!dir.exists(), "{config}");
+    }
+}

@@ -365,6 +365,9 @@ pub fn diagnose_with_progress(
     let n = record.len();
     let dt = record.dt();
     let (fit_ranges, val_ranges) = resolve_ranges(opts, n)?;
+    for (which, ranges) in [("fit", &fit_ranges), ("validation", &val_ranges)] {
+        crate::error::check_varies(record.x(), ranges, which)?;
+    }
     let free = nominal.free_slots();
     let start = ModelPoint {
         params: nominal.measured_params(),

@@ -104,6 +104,23 @@ pub enum DiagnoseError {
         /// Smallest accepted number.
         min: usize,
     },
+    /// The measured output does not change over a range: a record without motion says
+    /// nothing about the dynamics, and every normalised error of it divides by zero.
+    #[error(
+        "the measured output is constant ({value}) over the {which} samples {start}..{end}: a \
+         record without motion says nothing about the dynamics; check the output column and \
+         that the system was excited"
+    )]
+    ConstantOutput {
+        /// `fit` or `validation` (or the output's name for a model file).
+        which: String,
+        /// First sample.
+        start: usize,
+        /// Last sample (exclusive).
+        end: usize,
+        /// The constant value.
+        value: f64,
+    },
     /// The same nominal parameter is listed twice as free.
     #[error("nominal parameter {name} is listed twice in `free`")]
     DuplicateFree {
@@ -157,4 +174,27 @@ pub enum DiagnoseError {
         /// What went wrong.
         reason: String,
     },
+}
+
+/// [`DiagnoseError::ConstantOutput`] when `y` holds one value throughout all of `ranges`.
+pub(crate) fn check_varies(
+    y: &[f64],
+    ranges: &[std::ops::Range<usize>],
+    which: &str,
+) -> Result<(), DiagnoseError> {
+    let mut values = ranges.iter().flat_map(|r| y[r.clone()].iter().copied());
+    let Some(first) = values.next() else {
+        return Ok(());
+    };
+    if values.all(|v| v == first) {
+        let start = ranges.iter().map(|r| r.start).min().unwrap_or(0);
+        let end = ranges.iter().map(|r| r.end).max().unwrap_or(0);
+        return Err(DiagnoseError::ConstantOutput {
+            which: which.to_string(),
+            start,
+            end,
+            value: first,
+        });
+    }
+    Ok(())
 }

@@ -386,6 +386,10 @@ impl<'a> Prepared<'a> {
         let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
         let skip = ((opts.burn_in / dt).ceil() as usize).min(n / 4);
         let rows = skip..rows_end.min(n);
+        for (o, y) in rec.y.iter().enumerate() {
+            let name = model.outputs()[o].name.as_str();
+            crate::error::check_varies(y, std::slice::from_ref(&rows), &format!("scored {name}"))?;
+        }
         let scale: Vec<f64> = rec
             .y
             .iter()

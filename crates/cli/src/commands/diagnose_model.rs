@@ -59,6 +59,7 @@ pub fn run(
                 htfid_diagnose::DiagnoseError::ScaleMismatch { .. } => {
                     "model.parameters (or the units of data.outputs)"
                 }
+                htfid_diagnose::DiagnoseError::ConstantOutput { .. } => "data.outputs",
                 _ => "model.parameters",
             };
             anyhow::anyhow!(
