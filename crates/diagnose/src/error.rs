@@ -186,7 +186,8 @@ pub(crate) fn check_varies(
     let Some(first) = values.next() else {
         return Ok(());
     };
-    if values.all(|v| v == first) {
+    // Exactly one value: a sensor that never changes, not a small motion.
+    if values.all(|v| v.to_bits() == first.to_bits()) {
         let start = ranges.iter().map(|r| r.start).min().unwrap_or(0);
         let end = ranges.iter().map(|r| r.end).max().unwrap_or(0);
         return Err(DiagnoseError::ConstantOutput {

@@ -333,7 +333,7 @@ fn degenerate_records_are_refused_or_claim_no_effect() {
     )
     .unwrap_err();
     assert!(
-        matches!(e, DiagnoseError::ConstantOutput { value, .. } if value == 0.15),
+        matches!(e, DiagnoseError::ConstantOutput { value, .. } if value.to_bits() == 0.15f64.to_bits()),
         "{e:?}"
     );
     let unrelated: Vec<(Vec<f64>, Vec<f64>)> = vec![
