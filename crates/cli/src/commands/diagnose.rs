@@ -841,10 +841,10 @@ fn draw(
     Ok(Figures { orbit, htf: None })
 }
 
-/// A parameter as `value ± stderr unit`, 4 significant digits (3 for the standard error); the
+/// A parameter as `value ± stderr unit`, to the precision its standard error allows; the
 /// hopper's units only when the record is the hopper's own `x` and `f`.
 fn param_text(s: &DiagnoseSettings, name: &str, v: f64, se: f64) -> String {
-    use htfid_number::sig as num;
+    use htfid_number::{sig as num, Quantity};
     // In a diagnosis `g` is the sensor's gain (gravity is never refitted) and `b` its offset.
     let unit = match name {
         _ if htf_unit(s).is_none() => None,
@@ -853,11 +853,11 @@ fn param_text(s: &DiagnoseSettings, name: &str, v: f64, se: f64) -> String {
         "tau_s" => Some("s"),
         "input_offset" => Some("N"),
         _ => crate::results::hopper_unit(name),
-    }
-    .map_or(String::new(), |u| format!(" {u}"));
+    };
     if se.is_finite() {
-        format!("`{name}` = {} ± {}{unit}", num(v, 4), num(se, 3))
+        format!("`{name}` = {}", Quantity::new(v).stderr(se).unit(unit))
     } else {
+        let unit = unit.map_or(String::new(), |u| format!(" {u}"));
         format!("`{name}` = {}{unit} (no standard error)", num(v, 4))
     }
 }
