@@ -366,7 +366,7 @@ pub fn diagnose_with_progress(
     let dt = record.dt();
     let (fit_ranges, val_ranges) = resolve_ranges(opts, n)?;
     for (which, ranges) in [("fit", &fit_ranges), ("validation", &val_ranges)] {
-        crate::error::check_varies(record.x(), ranges, which)?;
+        crate::record::check_varies(record.x(), ranges, which)?;
     }
     let free = nominal.free_slots();
     let start = ModelPoint {

@@ -388,7 +388,7 @@ impl<'a> Prepared<'a> {
         let rows = skip..rows_end.min(n);
         for (o, y) in rec.y.iter().enumerate() {
             let name = model.outputs()[o].name.as_str();
-            crate::error::check_varies(y, std::slice::from_ref(&rows), &format!("scored {name}"))?;
+            crate::record::check_varies(y, std::slice::from_ref(&rows), &format!("scored {name}"))?;
         }
         let scale: Vec<f64> = rec
             .y

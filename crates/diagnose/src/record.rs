@@ -153,3 +153,27 @@ fn check_columns(t: &[f64], f: &[f64], x: &[f64]) -> Result<(), DiagnoseError> {
     }
     Ok(())
 }
+
+/// [`DiagnoseError::ConstantOutput`] when `y` holds one value throughout all of `ranges`.
+pub(crate) fn check_varies(
+    y: &[f64],
+    ranges: &[std::ops::Range<usize>],
+    which: &str,
+) -> Result<(), DiagnoseError> {
+    let mut values = ranges.iter().flat_map(|r| y[r.clone()].iter().copied());
+    let Some(first) = values.next() else {
+        return Ok(());
+    };
+    // Exactly one value: a sensor that never changes, not a small motion.
+    if values.all(|v| v.to_bits() == first.to_bits()) {
+        let start = ranges.iter().map(|r| r.start).min().unwrap_or(0);
+        let end = ranges.iter().map(|r| r.end).max().unwrap_or(0);
+        return Err(DiagnoseError::ConstantOutput {
+            which: which.to_string(),
+            start,
+            end,
+            value: first,
+        });
+    }
+    Ok(())
+}

@@ -116,9 +116,7 @@ fn fresh(model: &Model, taken: &[String], base: &str) -> String {
 /// The state pairs `(q, v)` with `q' = v` in every mode.
 pub fn velocity_pairs(model: &Model) -> Vec<(usize, usize)> {
     let states = model.states();
-    let modes: Vec<_> = (0..model.modes().len())
-        .filter_map(|i| model.mode(&model.modes()[i]))
-        .collect();
+    let modes: Vec<_> = model.modes().iter().filter_map(|m| model.mode(m)).collect();
     let mut pairs = Vec::new();
     for q in 0..states.len() {
         for v in 0..states.len() {
@@ -139,6 +137,10 @@ pub fn velocity_pairs(model: &Model) -> Vec<(usize, usize)> {
 pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<TermEffect> {
     let states = model.states();
     let pairs = velocity_pairs(model);
+    // Each velocity state once, even when several positions integrate it.
+    let mut velocities: Vec<usize> = pairs.iter().map(|&(_, v)| v).collect();
+    velocities.sort_unstable();
+    velocities.dedup();
     let mut out = Vec::new();
     let flow = |state: &str, mode: Option<&str>| Site::Flow {
         state: state.to_string(),
@@ -147,12 +149,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<Ter
     for &kind in kinds {
         match kind {
             TermKind::QuadraticDrag => {
-                let mut seen = Vec::new();
-                for &(_, v) in &pairs {
-                    if seen.contains(&v) {
-                        continue;
-                    }
-                    seen.push(v);
+                for &v in &velocities {
                     let vn = &states[v].name;
                     let p = fresh(model, &[], &format!("drag_{vn}"));
                     out.push(TermEffect {
@@ -189,12 +186,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<Ter
                 }
             }
             TermKind::ModeDamping if model.modes().len() > 1 => {
-                let mut seen = Vec::new();
-                for &(_, v) in &pairs {
-                    if seen.contains(&v) {
-                        continue;
-                    }
-                    seen.push(v);
+                for &v in &velocities {
                     let vn = &states[v].name;
                     for mode in model.modes() {
                         let p = fresh(model, &[], &format!("damping_{vn}_{mode}"));

@@ -33,6 +33,44 @@ fn options() -> ModelFitOptions {
     }
 }
 
+/// The diagnosis of a 90 s record of the paper's protocol from the truth generator with one
+/// `effect` and 2e-6 m of position noise.
+fn diagnose_single(effect: htfid_truth::Effect) -> htfid_diagnose::ModelDiagnosis {
+    let scenario = Scenario {
+        effects: vec![effect],
+        noise: htfid_truth::Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.0,
+        },
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap()
+}
+
+/// Whether the diagnosis names `effect`: as its cause, or among an `ambiguous` answer's rivals.
+fn names(d: &htfid_diagnose::ModelDiagnosis, effect: &str) -> bool {
+    match &d.cause {
+        ModelCause::Effect(e) => e == effect,
+        ModelCause::Ambiguous => d.alternatives.iter().any(|a| a == effect),
+        _ => false,
+    }
+}
+
+/// Every candidate's name, score, parameters and note, a line each (for failure messages).
+fn candidate_table(d: &htfid_diagnose::ModelDiagnosis) -> String {
+    d.candidates
+        .iter()
+        .map(|c| {
+            format!(
+                "{} {:.4e} {:?} {}",
+                c.effect, c.nrmse_validation, c.parameters, c.note
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 /// A spring 3 % stiffer than configured is found: the configured simulation is the baseline,
 /// so the refit of k is itself the finding, with k within 0.5 % of the truth (206) and c
 /// unmoved.
@@ -83,7 +121,7 @@ fn the_nominal_hopper_gives_none() {
 /// far more closely than that.
 #[test]
 fn effects_on_the_boundary_of_a_model_file_are_named_with_their_parameters() {
-    use htfid_truth::{Effect, Noise};
+    use htfid_truth::Effect;
     let cases = [
         (
             Effect::SensorLag { tau_s: 0.01 },
@@ -105,38 +143,16 @@ fn effects_on_the_boundary_of_a_model_file_are_named_with_their_parameters() {
         ),
     ];
     for (effect, name, parameter, truth) in cases {
-        let scenario = Scenario {
-            effects: vec![effect],
-            noise: Noise {
-                sigma_x: 2e-6,
-                sigma_f: 0.0,
-            },
-            record_s: 90.0,
-            ..Scenario::default()
-        };
-        let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
-        let named = match &d.cause {
-            ModelCause::Effect(e) => e == name,
-            ModelCause::Ambiguous => d.alternatives.iter().any(|a| a == name),
-            _ => false,
-        };
-        let table: Vec<String> = d
-            .candidates
-            .iter()
-            .map(|c| {
-                format!(
-                    "{} {:.4e} {:?} {}",
-                    c.effect, c.nrmse_validation, c.parameters, c.note
-                )
-            })
-            .collect();
+        let d = diagnose_single(effect);
+        let named = names(&d, name);
+        let table = candidate_table(&d);
         assert!(
             named,
             "{name}: cause {} ({:?}); refit {:.4e}\n{}",
             d.cause.name(),
             d.alternatives,
             d.refitted.validation(),
-            table.join("\n")
+            table
         );
         let c = d
             .candidates
@@ -165,7 +181,7 @@ fn effects_on_the_boundary_of_a_model_file_are_named_with_their_parameters() {
 /// promises for a single effect.
 #[test]
 fn effects_inside_the_equations_of_a_model_file_are_named_with_their_parameters() {
-    use htfid_truth::{Effect, Noise};
+    use htfid_truth::Effect;
     let cases = [
         (
             Effect::QuadraticDrag { c2: 20.0 },
@@ -194,31 +210,9 @@ fn effects_inside_the_equations_of_a_model_file_are_named_with_their_parameters(
     ];
     let mut failures = Vec::new();
     for (effect, name, parameter, truth) in cases {
-        let scenario = Scenario {
-            effects: vec![effect],
-            noise: Noise {
-                sigma_x: 2e-6,
-                sigma_f: 0.0,
-            },
-            record_s: 90.0,
-            ..Scenario::default()
-        };
-        let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
-        let named = match &d.cause {
-            ModelCause::Effect(e) => e == name,
-            ModelCause::Ambiguous => d.alternatives.iter().any(|a| a == name),
-            _ => false,
-        };
-        let table: Vec<String> = d
-            .candidates
-            .iter()
-            .map(|c| {
-                format!(
-                    "{} {:.4e} {:?} {}",
-                    c.effect, c.nrmse_validation, c.parameters, c.note
-                )
-            })
-            .collect();
+        let d = diagnose_single(effect);
+        let named = names(&d, name);
+        let table = candidate_table(&d);
         let fitted = d
             .candidates
             .iter()
@@ -230,7 +224,7 @@ fn effects_inside_the_equations_of_a_model_file_are_named_with_their_parameters(
                 d.cause.name(),
                 d.alternatives,
                 d.refitted.validation(),
-                table.join("\n")
+                table
             ));
         }
     }
