@@ -162,7 +162,8 @@ pub enum Error {
     /// The banded normal matrix lost positive definiteness.
     #[error(
         "normal matrix is not positive definite at unknown {index} (pivot {pivot}); the data do \
-         not determine the estimate: increase alpha or the number of records"
+         not determine the estimate: with a small alpha, increase it or the number of records; \
+         an alpha far above 1 drowns the data in the smoothness penalty, lower it"
     )]
     NotPositiveDefinite {
         /// Unknown (row) index where the Cholesky pivot failed.
