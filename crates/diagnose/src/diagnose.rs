@@ -1384,8 +1384,8 @@ fn conclude(
         } else if !at_floor && explained < opts.min_explained {
             cause = "unexplained".to_string();
             evidence.push(format!(
-                "the selected effects remove only {:.0} % of the nominal's error above the noise \
-                 floor (at least {:.0} % required) and the residual stays {:.2} times the floor: \
+                "the selected effects remove only {:.1} % of the nominal's error above the noise \
+                 floor (at least {:.1} % required) and the residual stays {:.2} times the floor: \
                  something outside the library is at work as well",
                 100.0 * explained,
                 100.0 * opts.min_explained,

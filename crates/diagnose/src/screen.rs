@@ -156,12 +156,15 @@ impl<'c, 'a> Screening<'c, 'a> {
         let mut scored: Vec<(f64, ModelPoint, i8)> = Vec::new();
         match effect {
             Effect::SwitchThreshold => {
-                let v_std = self.ctx.scales.v_std;
+                // Thresholds up to nine tenths of the largest measured speed: a threshold
+                // close to it (the damper off only near the fastest motion) changes the force
+                // on the whole stroke.
+                let v_max = self.ctx.extent.v_max;
                 let v0 = base.get(Slot::VTh);
-                for q in [0.02, 0.05, 0.1, 0.2, 0.35] {
+                for q in [0.01, 0.03, 0.06, 0.1, 0.16, 0.25, 0.35, 0.5, 0.65, 0.8, 0.9] {
                     for side in [-1i8, 1] {
                         let mut p = *base;
-                        p.set(Slot::VTh, v0 + f64::from(side) * q * v_std);
+                        p.set(Slot::VTh, v0 + f64::from(side) * q * v_max);
                         if let Some(c) = self.ctx.fit_cost(&p) {
                             scored.push((c, p, side));
                         }
@@ -184,15 +187,23 @@ impl<'c, 'a> Screening<'c, 'a> {
                         p.set(Slot::KStop, 0.0);
                         let mut slots = free.to_vec();
                         slots.push(Slot::KStop);
-                        let k_stop = self
+                        let regressed = self
                             .regress(&p, &slots)
                             .map(|(b, _)| b[free.len()])
-                            .filter(|k| *k > 0.0)
-                            .unwrap_or(0.1 * p.params.k);
-                        p.set(Slot::KStop, k_stop);
-                        if let Some(c) = self.ctx.fit_cost(&p) {
-                            // Every grid point competes with every other: side 0.
-                            scored.push((c, p, 0));
+                            .filter(|k| *k > 0.0);
+                        // The smoothed acceleration blurs a brief, stiff contact, so the
+                        // regression's stiffness competes with stiffnesses across decades of
+                        // the spring's.
+                        let k = p.params.k;
+                        for k_stop in regressed
+                            .into_iter()
+                            .chain([0.1 * k, k, 10.0 * k, 100.0 * k])
+                        {
+                            p.set(Slot::KStop, k_stop);
+                            if let Some(c) = self.ctx.fit_cost(&p) {
+                                // Every grid point competes with every other: side 0.
+                                scored.push((c, p, 0));
+                            }
                         }
                     }
                 }

@@ -10,7 +10,9 @@
 //!   residual cannot fake significance;
 //! - a held-out improvement of at least `min_gain` over the model of the round before.
 //!
-//! After the first round, only the candidates that passed it are tried again. The passing
+//! After the first round, the candidates that passed it are tried again, and so are a switching
+//! threshold or a contact whose fit alone left its parameters within one standard error of
+//! their absent values (masked by another effect until that one is modelled). The passing
 //! candidate with the lowest held-out error is added, except that a candidate
 //! nested in it (its added parameters a subset) that passes too is preferred unless the
 //! richer one is itself a significant improvement over it. Selection stops when no candidate
@@ -251,6 +253,27 @@ fn judge(
     }
 }
 
+/// Whether a first-round candidate may be masked: an effect that acts on part of the motion
+/// only (a switching threshold, a contact) whose fit alone found nothing to move, every added
+/// parameter within one standard error of its absent value (or undetermined). Its cost is flat
+/// or kinked where it does not act, so another effect can hide it until that one is modelled
+/// (damping while the damper is off hides a late switch, whose threshold alone stays at zero).
+/// Effects acting on the whole motion have smooth costs: one that does not move alone is
+/// absent, and trying it beside others would only let it compensate for them.
+fn masked(j: &Judged, before: &[Slot], absent: &ModelPoint) -> bool {
+    if !matches!(j.outcome.effect, Effect::SwitchThreshold | Effect::HardStop) {
+        return false;
+    }
+    let Some(fit) = j.outcome.fit.as_ref() else {
+        return false;
+    };
+    fit.slots.iter().enumerate().all(|(i, s)| {
+        before.contains(s)
+            || !fit.stderr[i].is_finite()
+            || (fit.values[i] - absent.get(*s)).abs() <= fit.stderr[i]
+    })
+}
+
 /// Fits `slots` from `from` with the slots of `drop` reset to their values in `absent`.
 fn refit_without(
     ctx: &Context<'_>,
@@ -293,7 +316,7 @@ pub(crate) fn select(
     let mut rivals: Vec<Effect> = Vec::new();
     let mut evidence = Vec::new();
     let mut evaluations = 0;
-    let mut first_passing: Vec<Effect> = Vec::new();
+    let mut retried: Vec<Effect> = Vec::new();
 
     for round in 0..opts.max_effects {
         // Nothing left above the noise floor: there is nothing more to explain.
@@ -309,9 +332,10 @@ pub(crate) fn select(
         let mut seen: Vec<Vec<Slot>> = Vec::new();
         let mut tried = Vec::new();
         for &e in &opts.candidates {
-            // After the first round only the effects that passed it are tried again: an effect
-            // that cannot improve the nominal model on its own is not looked for beside others.
-            if chosen.contains(&e) || (round > 0 && !first_passing.contains(&e)) {
+            // After the first round the effects that passed it are tried again, and so are a
+            // threshold and a contact whose fit on their own found nothing to move (see
+            // `masked`). An effect that moved but did not help is not looked for beside others.
+            if chosen.contains(&e) || (round > 0 && !retried.contains(&e)) {
                 continue;
             }
             let mut added = added_slots(e, &slots);
@@ -353,7 +377,11 @@ pub(crate) fn select(
         }
         let passing: Vec<usize> = (0..judged.len()).filter(|&i| judged[i].passes).collect();
         if round == 0 {
-            first_passing = passing.iter().map(|&i| judged[i].outcome.effect).collect();
+            retried = judged
+                .iter()
+                .filter(|j| j.passes || masked(j, &slots, absent))
+                .map(|j| j.outcome.effect)
+                .collect();
         }
         let Some(&first) = passing.first() else {
             if round == 0 {

@@ -375,3 +375,36 @@ fn the_cause_does_not_depend_on_the_sample_rate() {
         }
     }
 }
+
+/// One catalogue record by the end of its name, with its whole evidence printed: the
+/// sweep's failures reproduced one at a time (`HTFID_CELL=switch_threshold+flight_damping`).
+#[test]
+#[ignore = "a development aid: set HTFID_CELL and run with --ignored --nocapture"]
+fn one_cell() {
+    let Ok(name) = std::env::var("HTFID_CELL") else {
+        return;
+    };
+    let s = catalogue(2026, 200)
+        .into_iter()
+        .find(|s| s.name.ends_with(&name))
+        .unwrap_or_else(|| panic!("no catalogue cell {name}"));
+    let r = generate(&s).expect("generator");
+    let record = Record::new(r.t, r.f, r.x).expect("record");
+    let report = diagnose(&record, &nominal(), &DiagnoseOptions::default()).expect("diagnosis");
+    eprintln!("{}: label {:?}", s.name, s.label());
+    eprintln!(
+        "cause {} names {:?}",
+        report.diagnosis.cause,
+        names_of(&report.diagnosis)
+    );
+    for e in &report.diagnosis.evidence {
+        eprintln!("  {e}");
+    }
+    for c in &report.diagnosis.candidates {
+        eprintln!(
+            "  first round: {:<22} held-out NRMSE {:.5} BIC {:.0} {:?} {}",
+            c.effect, c.nrmse_validation, c.bic, c.parameters, c.note
+        );
+    }
+    eprintln!("verdict: {:?}", judge(&s, &report.diagnosis));
+}
