@@ -238,9 +238,14 @@ fn sweep(n: usize, seed: u64) -> Vec<(Scenario, Outcome)> {
         .collect()
 }
 
-/// The catalogue's cell of this name (drawn with the sweep's seed).
+/// The catalogue's core cell of this name (drawn with the sweep's seed).
 fn cell(name: &str) -> Scenario {
-    catalogue(2026, htfid_truth::core_size())
+    cell_among(name, htfid_truth::core_size())
+}
+
+/// The cell of this name among the sweep's first `n` records.
+fn cell_among(name: &str, n: usize) -> Scenario {
+    catalogue(2026, n)
         .into_iter()
         .find(|s| s.name.ends_with(name))
         .unwrap_or_else(|| panic!("no catalogue cell {name}"))
@@ -376,18 +381,17 @@ fn the_cause_does_not_depend_on_the_sample_rate() {
     }
 }
 
-/// One catalogue record by the end of its name, with its whole evidence printed: the
-/// sweep's failures reproduced one at a time (`HTFID_CELL=switch_threshold+flight_damping`).
+/// One record of the wide sweep by the end of its name, judged like the sweep judges it, with
+/// its whole evidence and first-round table printed: the sweep's failures reproduced one at a
+/// time (`HTFID_CELL=switch_threshold-large`); run by `just sweep` with its default record.
 #[test]
-#[ignore = "a development aid: set HTFID_CELL and run with --ignored --nocapture"]
+#[ignore = "one record of the sweep (HTFID_CELL, by default a masked threshold): run with --ignored"]
 fn one_cell() {
-    let Ok(name) = std::env::var("HTFID_CELL") else {
-        return;
-    };
-    let s = catalogue(2026, 200)
-        .into_iter()
-        .find(|s| s.name.ends_with(&name))
-        .unwrap_or_else(|| panic!("no catalogue cell {name}"));
+    // Without a name: the pair whose threshold stays hidden until the flight damping is
+    // modelled (found only since masked thresholds are tried again).
+    let name = std::env::var("HTFID_CELL")
+        .unwrap_or_else(|_| "switch_threshold+flight_damping".to_string());
+    let s = cell_among(&name, 200);
     let r = generate(&s).expect("generator");
     let record = Record::new(r.t, r.f, r.x).expect("record");
     let report = diagnose(&record, &nominal(), &DiagnoseOptions::default()).expect("diagnosis");
@@ -406,5 +410,7 @@ fn one_cell() {
             c.effect, c.nrmse_validation, c.bic, c.parameters, c.note
         );
     }
-    eprintln!("verdict: {:?}", judge(&s, &report.diagnosis));
+    if let Err(e) = judge(&s, &report.diagnosis) {
+        panic!("{}: {e}", s.name);
+    }
 }
