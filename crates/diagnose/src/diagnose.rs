@@ -1123,6 +1123,24 @@ fn effect_parameters(
     (p, s)
 }
 
+/// Asymmetric friction read both ways: the same force law as Coulomb friction with a constant
+/// force beside it, which the data cannot tell apart from a true asymmetry of the contact.
+fn asymmetry_reading(c: &Cause) -> String {
+    let get = |k: &str| c.parameters.get(k).copied().unwrap_or(f64::NAN);
+    let (pos, neg) = (get("mu_pos"), get("mu_neg"));
+    format!(
+        "asymmetric friction mu_pos = {}, mu_neg = {} is the same force law as Coulomb friction \
+         mu = {} with a constant force {} (an input offset, or whatever else adds a constant \
+         force: a wrong weight, a preload): the record cannot tell a one-sided contact from a \
+         symmetric one beside a constant force; a static test with a known added weight \
+         separates them",
+        sig(pos, 4),
+        sig(neg, 4),
+        sig(0.5 * (pos + neg), 4),
+        sig(0.5 * (neg - pos), 4)
+    )
+}
+
 /// What an experiment would need to separate two effects the data cannot tell apart.
 fn separating_experiment(a: Effect, b: Effect) -> &'static str {
     use Effect::*;
@@ -1349,6 +1367,9 @@ fn conclude(
                 });
             }
             causes.sort_by(|a, b| b.gain_share.total_cmp(&a.gain_share));
+            if let Some(c) = causes.iter().find(|c| c.effect == "asymmetric_friction") {
+                evidence.push(asymmetry_reading(c));
+            }
             extended = sel.held_out;
             extended_fit = Some(sel.fit.clone());
         }

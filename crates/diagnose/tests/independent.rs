@@ -28,36 +28,45 @@ fn nominal() -> NominalModel {
     .expect("valid nominal")
 }
 
+/// Whether a labelled effect is a constant shift of the position: an input offset (a constant
+/// force), a sensor offset without gain error, an error of gravity or of the rest length. The
+/// hopper's spring is always engaged and its dynamics are translation-invariant except for the
+/// equilibrium, so these are one observable on this protocol.
+fn is_shift(e: &EffectLabel) -> bool {
+    match e.name.as_str() {
+        "input_offset" => true,
+        "sensor_offset_gain" => e
+            .params
+            .get("gain")
+            .is_some_and(|g| (g - 1.0).abs() < 1e-12),
+        "parameter_error" => e.params.keys().all(|k| k == "g" || k == "x0"),
+        _ => false,
+    }
+}
+
 /// Names that are the same observable on this protocol as the labelled effect `e` of a record
 /// labelled `all`. A constant shift of the position is an input offset, a sensor offset, an
-/// error of the rest length or of gravity alike (the hopper's dynamics are translation-invariant
-/// except for the equilibrium). Beside friction, an input offset is exactly the asymmetry of an
-/// asymmetric friction (`mu_pos = mu - d`, `mu_neg = mu + d` is the same force law).
+/// error of the rest length or of gravity alike ([`is_shift`]). Coulomb friction `mu` beside a
+/// constant force `d` is exactly asymmetric friction (`mu_pos = mu - d`, `mu_neg = mu + d` is the
+/// same force law, sticking band included), so asymmetric friction names both the friction and
+/// the shift of such a record.
 fn equivalents(e: &EffectLabel, all: &[EffectLabel]) -> Vec<&'static str> {
-    let shift = ["input_offset", "sensor_offset_gain"];
+    let friction = all
+        .iter()
+        .any(|o| o.name == "asymmetric_friction" || o.name == "coulomb_friction");
+    if is_shift(e) {
+        let mut v = vec!["input_offset", "sensor_offset_gain"];
+        if friction {
+            v.push("asymmetric_friction");
+        }
+        return v;
+    }
     match e.name.as_str() {
-        "input_offset" => {
-            let mut v = shift.to_vec();
-            if all
-                .iter()
-                .any(|o| o.name == "asymmetric_friction" || o.name == "coulomb_friction")
-            {
-                v.push("asymmetric_friction");
-            }
-            v
-        }
-        "sensor_offset_gain"
-            if e.params
-                .get("gain")
-                .is_some_and(|g| (g - 1.0).abs() < 1e-12) =>
-        {
-            shift.to_vec()
-        }
+        "coulomb_friction" if all.iter().any(is_shift) => vec!["asymmetric_friction"],
         // The hopper is piecewise linear with its switch at a velocity of zero, so a reading
         // scaled by g is the position of a hopper with m, k and c scaled by 1 / g and a
         // constant force added: the same records, told apart only by the configured mass.
         "sensor_offset_gain" => vec!["parameter_error"],
-        "parameter_error" if e.params.keys().all(|k| k == "g" || k == "x0") => shift.to_vec(),
         _ => Vec::new(),
     }
 }
