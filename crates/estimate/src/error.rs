@@ -393,6 +393,43 @@ pub enum Error {
         /// Parameter value at which the difference was attempted.
         value: f64,
     },
+    /// An estimator needs a part of the experiment's layout that it lacks.
+    #[error("the {estimator} estimator needs {needs}; the experiment has none")]
+    MissingLayout {
+        /// The estimator's name.
+        estimator: &'static str,
+        /// What it needs.
+        needs: &'static str,
+    },
+    /// A chirp train's copy is shorter than one period.
+    #[error("each copy lasts {duration} s, shorter than one period of {period} s")]
+    CopyShorterThanPeriod {
+        /// A copy's length, s.
+        duration: f64,
+        /// The period, s.
+        period: f64,
+    },
+    /// A window's length is not a whole number of samples.
+    #[error(
+        "a window of {duration} s is not a whole number of samples of {dt} s; choose a sample \
+         interval that divides the period"
+    )]
+    WindowNotWholeSamples {
+        /// The window's length, s.
+        duration: f64,
+        /// Sample interval, s.
+        dt: f64,
+    },
+    /// A window runs past the sampled signal (or input and output differ in length).
+    #[error("the window [{start}, {end}) s runs past the signal, which ends at {signal_end} s")]
+    WindowOutsideSignal {
+        /// Window start, s.
+        start: f64,
+        /// Window end, s.
+        end: f64,
+        /// End of the signal, s.
+        signal_end: f64,
+    },
     /// The Jacobian of a fit is rank deficient: its parameters are not identified, so no
     /// covariance (and no uncertainty budget) exists.
     #[error(

@@ -175,6 +175,24 @@ impl HtfEstimate {
         })
     }
 
+    /// The rows whose output frequency lies in `band` (inclusive), per harmonic. Condition
+    /// numbers, smoothing weights and bias estimates are dropped: they belong to the full grid.
+    pub fn within_band(&self, band: (f64, f64)) -> Result<Self> {
+        let inside = |w: &f64| *w >= band.0 && *w <= band.1;
+        let mut omegas = Vec::with_capacity(self.harmonics.len());
+        let mut values = Vec::with_capacity(self.harmonics.len());
+        let mut stderr = Vec::with_capacity(self.harmonics.len());
+        for i in 0..self.harmonics.len() {
+            let keep: Vec<usize> = (0..self.omegas[i].len())
+                .filter(|&j| inside(&self.omegas[i][j]))
+                .collect();
+            omegas.push(keep.iter().map(|&j| self.omegas[i][j]).collect());
+            values.push(keep.iter().map(|&j| self.values[i][j]).collect());
+            stderr.push(keep.iter().map(|&j| self.stderr[i][j]).collect());
+        }
+        Self::new(self.method, self.harmonics.clone(), omegas, values, stderr)
+    }
+
     /// Attaches per-bin condition numbers; all harmonics must share one frequency grid of the
     /// same length.
     pub fn with_cond(mut self, cond: Vec<f64>) -> Result<Self> {

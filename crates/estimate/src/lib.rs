@@ -93,6 +93,7 @@
 mod banded;
 mod error;
 mod estimate;
+mod experiment;
 mod lines;
 mod lm;
 mod multi;
@@ -106,6 +107,7 @@ mod uncertainty;
 
 pub use error::{Error, Result};
 pub use estimate::{BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
+pub use experiment::{estimate_experiment, Estimator, Layout, LineWindows, Request, Sampled};
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
 pub use lm::{
     levenberg_marquardt, levenberg_marquardt_parallel, FdScheme, LmFit, LmOptions, LmStop,

@@ -46,6 +46,8 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod compare;
 mod htf_fit;
 
+pub use compare::{errors_against, HarmonicError};
 pub use htf_fit::{fit_to_htf, HtfFit, HtfFitSpec, IdentifyError, CLUSTER_POINTS};

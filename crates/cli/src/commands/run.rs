@@ -5,12 +5,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use htfid_estimate::{
-    contiguous_clusters, levenberg_marquardt, multi_experiment, periodic_lines,
-    periodic_lines_paired, siddiqi, uncertainty_budget, Alpha, BiasSource, FitBias, FitBudgetInput,
-    HtfEstimate, LineSpec, LmFit, LmOptions, Method, MultiOptions, Record, UncertaintyBudget,
+    contiguous_clusters, estimate_experiment, levenberg_marquardt, uncertainty_budget, Alpha,
+    BiasSource, FitBias, FitBudgetInput, HtfEstimate, Layout, LineSpec, LineWindows, LmFit,
+    LmOptions, Method, MultiOptions, Request, Sampled, UncertaintyBudget,
 };
 use htfid_excite::{alias_map, Polarity};
 use htfid_hybrid::simulate;
+use htfid_identify::errors_against;
 use htfid_ltp::linearise;
 use htfid_model::{Hopper, HopperParams};
 use htfid_orbit::ShootingOptions;
@@ -242,41 +243,6 @@ fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
         .collect())
 }
 
-/// Cuts `duration` seconds (a whole number of periods) out of the record, from the first sample
-/// at or after `t_a`. The estimators reference phases to absolute time, so a start between
-/// samples only shifts the window, never the phase.
-fn record(
-    settings: &Settings,
-    (t, u): (&[f64], &[f64]),
-    y: &[f64],
-    t_a: f64,
-    duration: f64,
-) -> Result<Record> {
-    let dt = 1.0 / settings.sample_rate;
-    let i0 = (t_a / dt - 1e-6).ceil().max(0.0) as usize;
-    let n = (duration / dt).round() as usize;
-    if (n as f64 * dt - duration).abs() > 1e-6 * dt {
-        bail!(
-            "a record of {duration} s is not a whole number of samples at \
-             simulation.sample_rate = {} Hz; choose a sample rate whose period divides the forcing period",
-            settings.sample_rate
-        );
-    }
-    if i0 + n > t.len() {
-        bail!(
-            "record [{t_a}, {}) s runs past the simulated {} s",
-            t_a + duration,
-            t.last().unwrap_or(&0.0)
-        );
-    }
-    Ok(Record::new(
-        u[i0..i0 + n].to_vec(),
-        y[i0..i0 + n].to_vec(),
-        dt,
-        i0 as f64 * dt,
-    )?)
-}
-
 /// One estimator's results: its estimate, its errors against the exact HTF, and its
 /// parametric fit with the uncertainty budget.
 struct Chain {
@@ -324,7 +290,8 @@ fn estimator_chain(
     })
 }
 
-/// Estimates the HTFs of output `y` driven by `u` (sampled at `t`) with `est`.
+/// Estimates the HTFs of output `y` driven by `u` (sampled at `t`) with `est`, reading the
+/// records the configured excitation laid out (`htfid_estimate::estimate_experiment`).
 pub(crate) fn estimate(
     settings: &Settings,
     (t, u): (&[f64], &[f64]),
@@ -332,85 +299,70 @@ pub(crate) fn estimate(
     y: &[f64],
     est: Estimator,
 ) -> Result<HtfEstimate> {
-    let tu = (t, u);
-    let period = settings.period;
-    let harmonics = &settings.estimation.harmonics;
-    let band = settings.estimation.band;
-    let t_start = settings.settle_time();
-    match est {
-        Estimator::Siddiqi => {
-            let end = *t.last().unwrap_or(&0.0);
-            let periods = ((end - t_start) / period + 1e-9).floor();
-            let rec = record(settings, tu, y, t_start, periods * period)?;
-            let alpha = match settings.estimation.alpha {
-                AlphaSetting::Fixed(a) => Alpha::Fixed(a),
-                AlphaSetting::Gcv => Alpha::Gcv,
-            };
-            siddiqi(&rec, period, harmonics, band, alpha).with_context(|| {
-                format!(
-                    "{}: Siddiqi's estimator (estimation.alpha = {})",
-                    settings.path.display(),
-                    match alpha {
-                        Alpha::Fixed(a) => a.to_string(),
-                        Alpha::Gcv => "\"gcv\"".to_string(),
-                    }
-                )
-            })
-        }
-        Estimator::Multi => {
-            let Excitation::ChirpTrain { duration, .. } = settings.excitation else {
-                bail!("the multi-experiment estimator needs a chirp train");
-            };
-            let periods = (duration / period).floor();
-            if periods < 1.0 {
-                bail!("excitation.duration ({duration} s) is shorter than one period");
-            }
-            let records = excitation
-                .segments
-                .iter()
-                .map(|s| record(settings, tu, y, s.start, periods * period))
-                .collect::<Result<Vec<_>>>()?;
-            Ok(multi_experiment(
-                &records,
-                period,
-                harmonics,
-                band,
-                &MultiOptions::default(),
-            )?)
-        }
-        Estimator::Lines => {
-            let design = excitation
-                .design
-                .as_ref()
-                .context("the line estimator needs a multisine design")?;
-            let tm = design.multisine_period();
-            let spec = LineSpec::new(tm, design.lines().iter().map(|l| l.bin as usize).collect())?;
-            let block = |p: Polarity| design.blocks().iter().find(|b| b.polarity == p);
-            let plus = block(Polarity::Positive).context("design has no positive block")?;
-            let rec_plus = record(
-                settings,
-                tu,
-                y,
-                plus.measure_start,
-                plus.end - plus.measure_start,
-            )?;
-            let mut e = match block(Polarity::Negative) {
-                Some(minus) => {
-                    let rec_minus = record(
-                        settings,
-                        tu,
-                        y,
-                        minus.measure_start,
-                        minus.end - minus.measure_start,
-                    )?;
-                    periodic_lines_paired(&rec_plus, &rec_minus, period, &spec, harmonics)?
-                }
-                None => periodic_lines(&rec_plus, period, &spec, harmonics)?,
-            };
-            e = keep_band(e, band)?;
-            Ok(e)
-        }
+    let mut layout = Layout {
+        excited_from: settings.settle_time(),
+        ..Layout::default()
+    };
+    if let Excitation::ChirpTrain { duration, .. } = settings.excitation {
+        layout.copies = Some((
+            excitation.segments.iter().map(|s| s.start).collect(),
+            duration,
+        ));
     }
+    if let Some(design) = &excitation.design {
+        let spec = LineSpec::new(
+            design.multisine_period(),
+            design.lines().iter().map(|l| l.bin as usize).collect(),
+        )?;
+        let block = |p: Polarity| {
+            design
+                .blocks()
+                .iter()
+                .find(|b| b.polarity == p)
+                .map(|b| (b.measure_start, b.end))
+        };
+        layout.lines = Some(LineWindows {
+            spec,
+            positive: block(Polarity::Positive).context("the design has no positive block")?,
+            negative: block(Polarity::Negative),
+        });
+    }
+    let (estimator, alpha_text) = match est {
+        Estimator::Siddiqi => match settings.estimation.alpha {
+            AlphaSetting::Fixed(a) => (
+                htfid_estimate::Estimator::Siddiqi(Alpha::Fixed(a)),
+                format!(", estimation.alpha = {a}"),
+            ),
+            AlphaSetting::Gcv => (
+                htfid_estimate::Estimator::Siddiqi(Alpha::Gcv),
+                ", estimation.alpha = \"gcv\"".to_string(),
+            ),
+        },
+        Estimator::Multi => (
+            htfid_estimate::Estimator::Multi(MultiOptions::default()),
+            String::new(),
+        ),
+        Estimator::Lines => (htfid_estimate::Estimator::Lines, String::new()),
+    };
+    let signal = Sampled {
+        u,
+        y,
+        dt: 1.0 / settings.sample_rate,
+        t_start: t.first().copied().unwrap_or(0.0),
+    };
+    let request = Request {
+        period: settings.period,
+        harmonics: &settings.estimation.harmonics,
+        band: settings.estimation.band,
+    };
+    estimate_experiment(&signal, &layout, &request, &estimator).with_context(|| {
+        format!(
+            "{}: the {} estimator (simulation.sample_rate = {} Hz{alpha_text})",
+            settings.path.display(),
+            est.name(),
+            settings.sample_rate
+        )
+    })
 }
 
 /// Writes an estimate CSV (`estimate_*.csv`): rows `omega,n,re,im,stderr`.
@@ -427,71 +379,18 @@ pub(crate) fn write_estimate_csv(
     Ok(())
 }
 
-/// Keeps the rows whose output frequency lies in the band (the line estimator also returns
-/// mirror images at other, possibly negative, frequencies).
-fn keep_band(e: HtfEstimate, band: (f64, f64)) -> Result<HtfEstimate> {
-    let harmonics = e.harmonics().to_vec();
-    let mut omegas = Vec::new();
-    let mut values = Vec::new();
-    let mut stderr = Vec::new();
-    for &n in &harmonics {
-        let rows: Vec<_> = e
-            .rows()
-            .filter(|r| r.n == n && r.omega >= band.0 && r.omega <= band.1)
-            .collect();
-        omegas.push(rows.iter().map(|r| r.omega).collect());
-        values.push(rows.iter().map(|r| r.value).collect());
-        stderr.push(rows.iter().map(|r| r.stderr).collect());
-    }
-    Ok(HtfEstimate::new(
-        e.method(),
-        harmonics,
-        omegas,
-        values,
-        stderr,
-    )?)
-}
-
-/// Per harmonic: median and max of `|G_hat_n - G_n| / max|G_n|` over the band.
+/// Per harmonic: median and max of `|G_hat_n - G_n| / max|G_n|` over the band
+/// (`htfid_identify::errors_against`), as `errors.<estimator>` of `summary.json`.
 pub(crate) fn harmonic_errors(
     settings: &Settings,
     exact: &dyn HarmonicTransferFunction,
     e: &HtfEstimate,
 ) -> Value {
-    let (lo, hi) = settings.estimation.band;
-    // A harmonic that vanishes by symmetry (|G_n| at round-off level) is judged against the
-    // largest harmonic instead of its own zero.
-    let overall = e
-        .rows()
-        .filter(|r| r.omega >= lo && r.omega <= hi)
-        .map(|r| exact.g(r.n, r.omega).norm())
-        .fold(0.0, f64::max);
     let mut out = serde_json::Map::new();
-    for &n in e.harmonics() {
-        let rows: Vec<_> = e
-            .rows()
-            .filter(|r| r.n == n && r.omega >= lo && r.omega <= hi)
-            .collect();
-        if rows.is_empty() {
-            continue;
-        }
-        let truth: Vec<Complex64> = rows.iter().map(|r| exact.g(n, r.omega)).collect();
-        let scale = truth
-            .iter()
-            .map(|g| g.norm())
-            .fold(0.0, f64::max)
-            .max(1e-6 * overall);
-        let mut rel: Vec<f64> = rows
-            .iter()
-            .zip(&truth)
-            .map(|(r, g)| (r.value - g).norm() / scale)
-            .collect();
-        rel.sort_by(f64::total_cmp);
-        let median = rel[rel.len() / 2];
-        let max = *rel.last().unwrap_or(&f64::NAN);
+    for h in errors_against(exact, e, settings.estimation.band) {
         out.insert(
-            n.to_string(),
-            json!({"median": median, "max": max, "max_abs_g": scale, "points": rel.len()}),
+            h.n.to_string(),
+            json!({"median": h.median, "max": h.max, "max_abs_g": h.max_abs_g, "points": h.points}),
         );
     }
     Value::Object(out)
