@@ -1,14 +1,15 @@
 //! Fitting named parameters to HTF estimates through the exact HTF of the model.
 
 use htfid_estimate::{
-    contiguous_clusters, levenberg_marquardt, uncertainty_budget, FitBias, FitBudgetInput,
-    HtfEstimate, LmOptions, UncertaintyBudget,
+    contiguous_clusters, levenberg_marquardt, uncertainty_budget, BiasSource, FitBias,
+    FitBudgetInput, HtfEstimate, LmOptions, UncertaintyBudget,
 };
 use htfid_hybrid::Options;
-use htfid_lang::{Mode, Model};
-use htfid_orbit::{LimitCycle, ShootingOptions};
+use htfid_orbit::{find_limit_cycle, LimitCycle, ShootingOptions};
 use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 use num_complex::Complex64;
+
+use crate::Parametric;
 use serde::Serialize;
 
 /// Errors of identification.
@@ -29,6 +30,9 @@ pub enum IdentifyError {
         /// Parameters fitted.
         parameters: usize,
     },
+    /// The model has no forcing period, so it has no limit cycle to linearise about.
+    #[error("the model has no forcing period; a fit needs its limit cycle")]
+    NoPeriod,
     /// The optimiser failed.
     #[error(transparent)]
     Fit(#[from] htfid_estimate::Error),
@@ -86,6 +90,28 @@ pub struct HtfFit {
     /// bias) and model-structure error, from clusters of [`CLUSTER_POINTS`] neighbouring
     /// frequencies of each output and harmonic; `None` when the Jacobian is rank deficient.
     pub uncertainty: Option<UncertaintyBudget>,
+    /// The estimates fitted, in residual order (two residuals, real and imaginary, each).
+    #[serde(skip)]
+    pub fitted: Vec<FitPoint>,
+    /// The weighted residuals at the fitted values.
+    #[serde(skip)]
+    pub residuals: Vec<f64>,
+    /// Their Jacobian with respect to the parameters, row by row.
+    #[serde(skip)]
+    pub jacobian: Vec<Vec<f64>>,
+}
+
+/// One estimate in a fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitPoint {
+    /// Output index.
+    pub output: usize,
+    /// Harmonic.
+    pub n: i32,
+    /// Output frequency, rad/s.
+    pub omega: f64,
+    /// Weight of its residual: one over its standard error (floored).
+    pub weight: f64,
 }
 
 /// Estimates per cluster of the structure term of [`HtfFit::uncertainty`].
@@ -98,19 +124,19 @@ pub const CLUSTER_POINTS: usize = 10;
 ///
 /// # Errors
 /// [`IdentifyError`].
-pub fn fit_to_htf(
-    model: &Model,
-    cycle: &LimitCycle<Mode>,
+pub fn fit_to_htf<S: Parametric>(
+    model: &S,
+    cycle: &LimitCycle<S::Mode>,
     estimates: &[(usize, &HtfEstimate)],
     spec: &HtfFitSpec,
     opts: &Options,
 ) -> Result<HtfFit, IdentifyError> {
-    let index: Vec<usize> = spec
+    let info: Vec<(f64, (f64, f64))> = spec
         .parameters
         .iter()
         .map(|n| {
             model
-                .parameter_index(n)
+                .parameter(n)
                 .ok_or_else(|| IdentifyError::UnknownParameter { name: n.clone() })
         })
         .collect::<Result<_, _>>()?;
@@ -144,13 +170,14 @@ pub fn fit_to_htf(
             }
         }
     }
-    if rows.len() < index.len() {
+    if rows.len() < info.len() {
         return Err(IdentifyError::TooFewPoints {
             points: rows.len(),
-            parameters: index.len(),
+            parameters: info.len(),
         });
     }
-    let p0: Vec<f64> = index.iter().map(|&i| model.values()[i]).collect();
+    let p0: Vec<f64> = info.iter().map(|&(v, _)| v).collect();
+    let period = model.forcing_period().ok_or(IdentifyError::NoPeriod)?;
     let shooting = ShootingOptions {
         settle_periods: 0,
         ..ShootingOptions::default()
@@ -158,10 +185,17 @@ pub fn fit_to_htf(
     let names: Vec<&str> = spec.parameters.iter().map(String::as_str).collect();
     let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
         let changes: Vec<(&str, f64)> = names.iter().copied().zip(p.iter().copied()).collect();
-        let trial = model.with_parameters(&changes).map_err(|e| e.to_string())?;
-        let cyc = trial
-            .limit_cycle_from(cycle.mode0, &cycle.state0, &shooting, opts)
-            .map_err(|e| e.to_string())?;
+        let trial = model.unforced_with(&changes)?;
+        let cyc = find_limit_cycle(
+            &trial,
+            cycle.mode0,
+            0.0,
+            &cycle.state0,
+            period,
+            &shooting,
+            opts,
+        )
+        .map_err(|e| e.to_string())?;
         let htf = LinearisedHtf::new(&trial, &cyc, opts).map_err(|e| e.to_string())?;
         let channels = (0..htf.n_outputs())
             .map(|o| htf.channel(o))
@@ -174,15 +208,9 @@ pub fn fit_to_htf(
         }
         Ok(())
     };
-    let params = model.parameters();
     let lm = LmOptions {
         scales: Some(p0.iter().map(|v| v.abs().max(1e-3)).collect()),
-        bounds: Some(
-            index
-                .iter()
-                .map(|&i| (params[i].min, params[i].max))
-                .collect(),
-        ),
+        bounds: Some(info.iter().map(|&(_, b)| b).collect()),
         ..LmOptions::default()
     };
     let fit = levenberg_marquardt(residuals, &p0, 2 * rows.len(), &lm)?;
@@ -192,13 +220,24 @@ pub fn fit_to_htf(
         stderr: fit
             .stderr
             .clone()
-            .unwrap_or_else(|| vec![f64::NAN; index.len()]),
+            .unwrap_or_else(|| vec![f64::NAN; info.len()]),
         values: fit.params,
         points: rows.len(),
         iterations: fit.iterations,
         cost: fit.cost,
         stop: format!("{:?}", fit.stop),
         uncertainty,
+        fitted: rows
+            .iter()
+            .map(|&(output, n, omega, _, weight)| FitPoint {
+                output,
+                n,
+                omega,
+                weight,
+            })
+            .collect(),
+        residuals: fit.residuals,
+        jacobian: fit.jacobian,
     })
 }
 
@@ -218,21 +257,74 @@ fn budget(
         .first()
         .copied()
         .filter(|s| sources.len() == estimates.len() && sources.iter().all(|t| t == s));
-    let residual_bias: Option<Vec<f64>> = source.map(|_| {
+    let bias: Option<Vec<Complex64>> = source.map(|_| {
         rows.iter()
-            .flat_map(|&(o, n, w, _, weight)| {
-                let b = estimates
+            .map(|&(o, n, w, _, _)| {
+                estimates
                     .iter()
                     .find(|(out, _)| *out == o)
                     .and_then(|(_, e)| e.bias_at(n, w))
-                    .unwrap_or_default();
-                [b.re * weight, b.im * weight]
+                    .unwrap_or_default()
             })
             .collect()
     });
-    let groups: Vec<i64> = rows
+    let points: Vec<(usize, i32, f64)> = rows.iter().map(|&(o, n, _, _, w)| (o, n, w)).collect();
+    assemble(
+        &points,
+        jacobian,
+        residuals,
+        source.zip(bias.as_deref()).map(|(s, b)| (s, b, None)),
+    )
+    .ok()
+}
+
+/// The error budget of `fit` with a bias of the estimates found elsewhere: `htf_bias` is the
+/// estimate's error at every fitted point (in [`HtfFit::fitted`] order) that the noise does not
+/// explain (for example what a `+u` / `-u` pairing leaves, from a noise-free re-run of the
+/// experiment), `parameter_bias` the error it makes in the fitted values, when known.
+///
+/// # Errors
+/// A rank-deficient Jacobian, or a bias of the wrong length.
+pub fn budget_with_bias(
+    fit: &HtfFit,
+    source: BiasSource,
+    htf_bias: &[Complex64],
+    parameter_bias: Option<&[f64]>,
+) -> Result<UncertaintyBudget, IdentifyError> {
+    let points: Vec<(usize, i32, f64)> = fit
+        .fitted
         .iter()
-        .map(|&(o, n, ..)| (o as i64) * 100_000 + i64::from(n))
+        .map(|p| (p.output, p.n, p.weight))
+        .collect();
+    Ok(assemble(
+        &points,
+        &fit.jacobian,
+        &fit.residuals,
+        Some((source, htf_bias, parameter_bias)),
+    )?)
+}
+
+/// A known bias: its source, its value per fitted point (unweighted) and, when known, the error
+/// it makes in the fitted values.
+type KnownBias<'a> = (BiasSource, &'a [Complex64], Option<&'a [f64]>);
+
+/// The budget from weighted residuals: `points` are `(output, n, weight)` in residual order,
+/// `bias` the known bias per point (unweighted) with its parameter error.
+fn assemble(
+    points: &[(usize, i32, f64)],
+    jacobian: &[Vec<f64>],
+    residuals: &[f64],
+    bias: Option<KnownBias<'_>>,
+) -> Result<UncertaintyBudget, htfid_estimate::Error> {
+    let weighted: Option<Vec<f64>> = bias.map(|(_, b, _)| {
+        b.iter()
+            .zip(points)
+            .flat_map(|(d, &(_, _, w))| [d.re * w, d.im * w])
+            .collect()
+    });
+    let groups: Vec<i64> = points
+        .iter()
+        .map(|&(o, n, _)| (o as i64) * 100_000 + i64::from(n))
         .collect();
     let clusters: Vec<usize> = contiguous_clusters(&groups, CLUSTER_POINTS)
         .into_iter()
@@ -245,14 +337,13 @@ fn budget(
         // carry half its variance.
         noise_variance: 0.5,
         clusters: &clusters,
-        bias: source
-            .zip(residual_bias.as_deref())
-            .map(|(source, b)| FitBias {
+        bias: bias
+            .zip(weighted.as_deref())
+            .map(|((source, _, parameter_bias), b)| FitBias {
                 source,
                 residual_bias: b,
-                parameter_bias: None,
+                parameter_bias,
             }),
         level: 0.95,
     })
-    .ok()
 }

@@ -1,16 +1,19 @@
 //! Parametric identification of a model from its estimated harmonic transfer functions.
 //!
-//! [`fit_to_htf`] fits any named parameters of an [`htfid_lang::Model`] to HTF estimates of
-//! its outputs ([`htfid_estimate::HtfEstimate`]) by Levenberg-Marquardt: every trial parameter
-//! set is recompiled, its limit cycle re-found by Newton shooting from the previous orbit, and
-//! its exact HTFs evaluated by [`htfid_theory::LinearisedHtf`] (closed form for a linearisation
-//! constant within each mode, the periodic response otherwise). Residuals are the complex
-//! differences weighted by the estimates' standard errors. [`HtfFitSpec`] says which
-//! parameters, harmonics, band and how many points per harmonic; [`HtfFit`] holds the values,
-//! their standard errors, the optimiser's account and the error budget
-//! ([`HtfFit::uncertainty`]): the noise-only standard error beside the estimates' known bias
-//! (the regularised estimators' smoothing bias) and model-structure error, which dominates,
-//! and an interval at 95 %.
+//! [`fit_to_htf`] fits any named parameters of a [`Parametric`] model (every
+//! [`htfid_lang::Model`], the built-in [`htfid_model::Hopper`], or a Rust user's own) to HTF
+//! estimates of its outputs ([`htfid_estimate::HtfEstimate`]) by Levenberg-Marquardt: every
+//! trial parameter set is rebuilt, its limit cycle re-found by Newton shooting from the
+//! previous orbit, and its exact HTFs evaluated by [`htfid_theory::LinearisedHtf`] (closed
+//! form for a linearisation constant within each mode, the periodic response otherwise).
+//! Residuals are the complex differences weighted by the estimates' standard errors.
+//! [`HtfFitSpec`] says which parameters, harmonics, band and how many points per harmonic;
+//! [`HtfFit`] holds the values, their standard errors, the optimiser's account and the error
+//! budget ([`HtfFit::uncertainty`]): the noise-only standard error beside the estimates' known
+//! bias (the regularised estimators' smoothing bias) and model-structure error, which
+//! dominates, and an interval at 95 %. [`budget_with_bias`] gives the budget for a bias found
+//! elsewhere (a noise-free re-run of the experiment); [`errors_against`] measures an estimate
+//! against a known HTF, harmonic by harmonic.
 //!
 //! ```
 //! use htfid_hybrid::Options;
@@ -48,6 +51,10 @@
 
 mod compare;
 mod htf_fit;
+mod parametric;
 
 pub use compare::{errors_against, HarmonicError};
-pub use htf_fit::{fit_to_htf, HtfFit, HtfFitSpec, IdentifyError, CLUSTER_POINTS};
+pub use htf_fit::{
+    budget_with_bias, fit_to_htf, FitPoint, HtfFit, HtfFitSpec, IdentifyError, CLUSTER_POINTS,
+};
+pub use parametric::Parametric;

@@ -330,6 +330,15 @@ impl htfid_ltp::InputOutput for Hopper {
         }
     }
 
+    /// The hopper's `A` is constant within each chart unless a term makes it depend on the
+    /// state there: a cubic spring, quadratic drag, a one-sided contact (no chart of its own),
+    /// or Coulomb friction (its sticking is a sliding mode). Flight damping, an actuator lag,
+    /// a shifted switching threshold and an input offset keep it constant.
+    fn is_piecewise_constant(&self) -> bool {
+        let e = &self.effects;
+        e.k3 == 0.0 && e.c2 == 0.0 && e.mu == 0.0 && e.hard_stop.is_none()
+    }
+
     /// One output, the position: `C = [1, 0]` (or `[1, 0, 0]`).
     fn output_gain(&self, _mode: HopperMode, _t: f64, _x: &[f64], c: &mut [f64]) {
         c.iter_mut().for_each(|v| *v = 0.0);

@@ -683,22 +683,10 @@ fn fit_model(
         settings.estimation.band,
     );
     let fit = fit_to_htf(model, cycle, estimates, &spec, &settings.integrator)?;
-    let mut out = serde_json::Map::new();
-    for (i, name) in fit.parameters.iter().enumerate() {
-        out.insert(name.clone(), json!(fit.values[i]));
-        out.insert(format!("{name}_stderr"), json!(fit.stderr[i]));
-    }
-    out.insert("harmonics".into(), json!(settings.estimation.fit_harmonics));
-    out.insert("points".into(), json!(fit.points));
-    out.insert("iterations".into(), json!(fit.iterations));
-    out.insert("cost".into(), json!(fit.cost));
-    out.insert("stop".into(), json!(fit.stop));
+    let mut out = crate::commands::run::fit_json(settings, &fit);
     if let Some(b) = &fit.uncertainty {
         let method = b.htf_bias_source.map(|_| "curvature");
-        out.insert(
-            "uncertainty".into(),
-            crate::commands::run::uncertainty_json(&fit.parameters, b, method),
-        );
+        out["uncertainty"] = crate::commands::run::uncertainty_json(&fit.parameters, b, method);
     }
-    Ok(Value::Object(out))
+    Ok(out)
 }

@@ -5,18 +5,17 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use htfid_estimate::{
-    contiguous_clusters, estimate_experiment, levenberg_marquardt, uncertainty_budget, Alpha,
-    BiasSource, FitBias, FitBudgetInput, HtfEstimate, Layout, LineSpec, LineWindows, LmFit,
-    LmOptions, Method, MultiOptions, Request, Sampled, UncertaintyBudget,
+    estimate_experiment, Alpha, BiasSource, HtfEstimate, Layout, LineSpec, LineWindows, Method,
+    MultiOptions, Request, Sampled, UncertaintyBudget,
 };
 use htfid_excite::{alias_map, Polarity};
 use htfid_hybrid::simulate;
-use htfid_identify::errors_against;
-use htfid_ltp::linearise;
-use htfid_model::{Hopper, HopperParams};
-use htfid_orbit::ShootingOptions;
+use htfid_identify::{
+    budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec, Parametric,
+};
+use htfid_model::Hopper;
 use htfid_plot::Style;
-use htfid_theory::{ExactHtf, HarmonicTransferFunction};
+use htfid_theory::HarmonicTransferFunction;
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
@@ -267,18 +266,18 @@ fn estimator_chain(
         })
         .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
     let errors = harmonic_errors(settings, exact, &e);
-    let outcome = stages
+    let fit = stages
         .run(&format!("fit ({})", est.name()), || {
             fit_parameters(settings, sim, &e)
         })
         .with_context(|| format!("parametric fit to the \"{}\" estimates failed", est.name()))?;
     let budget = stages.run(&format!("uncertainty ({})", est.name()), || {
-        fit_uncertainty(settings, est, &e, &outcome)
+        fit_uncertainty(settings, est, &e, &fit)
     });
-    let mut fit = outcome.json;
+    let mut json = fit_json(settings, &fit);
     // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run): the
     // reason is recorded instead.
-    fit["uncertainty"] = match budget {
+    json["uncertainty"] = match budget {
         Ok((b, method)) => uncertainty_json(&settings.estimation.fit, &b, method),
         Err(err) => json!({ "error": format!("{err:#}") }),
     };
@@ -286,7 +285,7 @@ fn estimator_chain(
         est,
         estimate: e,
         errors,
-        fit,
+        fit: json,
     })
 }
 
@@ -396,42 +395,18 @@ pub(crate) fn harmonic_errors(
     Value::Object(out)
 }
 
-/// A parametric fit: its JSON, the optimiser's account, and the points and weights it used.
-struct FitOutcome {
-    json: Value,
-    lm: LmFit,
-    /// `(n, omega)` of every point, in residual order (two residuals per point).
-    points: Vec<(i32, f64)>,
-    weights: Vec<f64>,
-}
-
-/// Estimates in a cluster of the structure term: neighbouring frequencies of one harmonic whose
-/// errors may be correlated (a smooth structure error is); 10 gives 8 or 9 clusters per
-/// harmonic of the designed experiment, enough for a variance.
-const CLUSTER_POINTS: usize = 10;
-
-/// Coverage level of the stated intervals.
-const COVERAGE_LEVEL: f64 = 0.95;
-
-/// The fit's error budget (`htfid_estimate::uncertainty_budget`): noise, the estimator's known
-/// bias, structure. The line estimators' distortion (what a `+u` / `-u` pairing leaves, or all
-/// of the nonlinear response without pairing) is the error the estimator makes on the same
-/// experiment simulated without noise on the fitted model (a parametric bootstrap); the
-/// regularised estimators carry their own estimate of their smoothing bias. Returns the budget
-/// and how the bias was found.
+/// The fit's error budget (`htfid_identify`): noise, the estimator's known bias, structure.
+/// The line estimators' distortion (what a `+u` / `-u` pairing leaves, or all of the nonlinear
+/// response without pairing) is the error the estimator makes on the same experiment simulated
+/// without noise on the fitted model (a parametric bootstrap); the regularised estimators carry
+/// their own estimate of their smoothing bias. Returns the budget and how the bias was found.
 fn fit_uncertainty(
     settings: &Settings,
     est: Estimator,
     e: &HtfEstimate,
-    fit: &FitOutcome,
+    fit: &HtfFit,
 ) -> Result<(UncertaintyBudget, Option<&'static str>)> {
-    let rows = |d: &[Complex64]| -> Vec<f64> {
-        d.iter()
-            .zip(&fit.weights)
-            .flat_map(|(d, w)| [d.re * w, d.im * w])
-            .collect()
-    };
-    let (bias, method) = match e.method() {
+    match e.method() {
         Method::PeriodicLinesPaired | Method::PeriodicLines => {
             let source = if e.method() == Method::PeriodicLinesPaired {
                 BiasSource::PairingDistortion
@@ -439,40 +414,18 @@ fn fit_uncertainty(
                 BiasSource::NonlinearDistortion
             };
             let (d, p_bias) = distortion_bootstrap(settings, est, fit)?;
-            (Some((source, rows(&d), Some(p_bias))), Some("bootstrap"))
+            let b = budget_with_bias(fit, source, &d, Some(&p_bias))?;
+            Ok((b, Some("bootstrap")))
         }
-        _ => match e.bias() {
-            Some((source, _)) => {
-                let d: Vec<Complex64> = fit
-                    .points
-                    .iter()
-                    .map(|&(n, w)| e.bias_at(n, w).unwrap_or_default())
-                    .collect();
-                (Some((source, rows(&d), None)), Some("curvature"))
-            }
-            None => (None, None),
-        },
-    };
-    let groups: Vec<i64> = fit.points.iter().map(|&(n, _)| i64::from(n)).collect();
-    let clusters: Vec<usize> = contiguous_clusters(&groups, CLUSTER_POINTS)
-        .into_iter()
-        .flat_map(|c| [c, c])
-        .collect();
-    let budget = uncertainty_budget(&FitBudgetInput {
-        jacobian: &fit.lm.jacobian,
-        residuals: &fit.lm.residuals,
-        // Weights are one over the complex standard error; real and imaginary parts each
-        // carry half its variance.
-        noise_variance: 0.5,
-        clusters: &clusters,
-        bias: bias.as_ref().map(|(source, b, p)| FitBias {
-            source: *source,
-            residual_bias: b,
-            parameter_bias: p.as_deref(),
-        }),
-        level: COVERAGE_LEVEL,
-    })?;
-    Ok((budget, method))
+        _ => {
+            let b = fit
+                .uncertainty
+                .clone()
+                .context("the fit's Jacobian is rank deficient: no error budget exists")?;
+            let method = b.htf_bias_source.map(|_| "curvature");
+            Ok((b, method))
+        }
+    }
 }
 
 /// The error the estimator and fit make without noise on the fitted model: the experiment is
@@ -482,15 +435,26 @@ fn fit_uncertainty(
 fn distortion_bootstrap(
     settings: &Settings,
     est: Estimator,
-    fit: &FitOutcome,
+    fit: &HtfFit,
 ) -> Result<(Vec<Complex64>, Vec<f64>)> {
-    let names = &settings.estimation.fit;
     let mut again = settings.clone();
     again.noise = None;
-    if let crate::settings::System::Hopper { params, .. } = &mut again.system {
-        for (name, v) in names.iter().zip(&fit.lm.params) {
-            set_param(params, name, *v);
-        }
+    if let crate::settings::System::Hopper {
+        params,
+        damper,
+        effects,
+    } = &mut again.system
+    {
+        let changes: Vec<(&str, f64)> = fit
+            .parameters
+            .iter()
+            .map(String::as_str)
+            .zip(fit.values.iter().copied())
+            .collect();
+        let fitted = Hopper::with_effects(*params, *damper, *effects)?
+            .unforced_with(&changes)
+            .map_err(anyhow::Error::msg)?;
+        *params = *fitted.params();
     }
     let mut quiet = Stages::new();
     let sim = simulate_experiment(&again, &mut quiet)?;
@@ -499,25 +463,24 @@ fn distortion_bootstrap(
     let e = estimate(&again, (&sim.t, &sim.u), &sim.excitation, &deviation, est)?;
     let refit = fit_parameters(&again, &sim, &e)?;
     let d = fit
-        .points
+        .fitted
         .iter()
-        .map(|&(n, w)| {
+        .map(|p| {
             let h = e
-                .harmonic(n)
+                .harmonic(p.n)
                 .context("the bootstrap estimate lacks a harmonic")?;
             let i = h
                 .omegas
                 .iter()
-                .position(|&o| (o - w).abs() <= 1e-9 * w.abs().max(1.0))
+                .position(|&o| (o - p.omega).abs() <= 1e-9 * p.omega.abs().max(1.0))
                 .context("the bootstrap estimate lacks a frequency")?;
-            Ok(h.values[i] - theory.exact.g(n, w))
+            Ok(h.values[i] - theory.exact.g(p.n, p.omega))
         })
         .collect::<Result<Vec<_>>>()?;
     let p_bias = refit
-        .lm
-        .params
+        .values
         .iter()
-        .zip(&fit.lm.params)
+        .zip(&fit.values)
         .map(|(a, b)| a - b)
         .collect();
     Ok((d, p_bias))
@@ -557,140 +520,42 @@ pub(crate) fn uncertainty_json(
     })
 }
 
-/// Levenberg-Marquardt fit of the configured parameters to the estimates, through the exact
-/// HTF of the model's linearisation about its own limit cycle.
-fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Result<FitOutcome> {
-    let names = &settings.estimation.fit;
-    let (lo, hi) = settings.estimation.band;
-    let rows: Vec<_> = e
-        .rows()
-        .filter(|r| {
-            settings.estimation.fit_harmonics.contains(&r.n) && r.omega >= lo && r.omega <= hi
-        })
-        .filter(|r| r.value.re.is_finite() && r.value.im.is_finite())
-        .collect();
-    // Dense single-record estimates (one per DFT bin) are thinned to at most
-    // FIT_POINTS_PER_HARMONIC per harmonic, evenly spread: neighbouring bins of a regularised
-    // estimate carry little independent information, and the fit's cost is linear in points.
-    let rows: Vec<_> = {
-        let mut kept = Vec::with_capacity(rows.len());
-        for &n in &settings.estimation.fit_harmonics {
-            let of_n: Vec<_> = rows.iter().filter(|r| r.n == n).copied().collect();
-            let stride = of_n.len().div_ceil(FIT_POINTS_PER_HARMONIC).max(1);
-            kept.extend(of_n.into_iter().step_by(stride));
-        }
-        kept
-    };
-    if rows.len() < names.len() {
-        bail!(
-            "only {} estimates in the band for the fitted harmonics",
-            rows.len()
-        );
-    }
-    // Weights: 1 / stderr, floored at 1e-6 of the largest estimate of the harmonic so that
-    // noise-free estimates do not get infinite weight.
-    let mut max_by_n = std::collections::HashMap::new();
-    for r in &rows {
-        let m = max_by_n.entry(r.n).or_insert(0.0f64);
-        *m = m.max(r.value.norm());
-    }
-    let weights: Vec<f64> = rows
-        .iter()
-        .map(|r| {
-            let floor = 1e-6 * max_by_n[&r.n];
-            let s = if r.stderr.is_finite() {
-                r.stderr.max(floor)
-            } else {
-                floor
-            };
-            1.0 / s
-        })
-        .collect();
+/// The configured parameters of the built-in hopper fitted to the estimates
+/// (`htfid_identify::fit_to_htf`), from its own limit cycle.
+fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Result<HtfFit> {
     let (nominal, damper, effects) = settings.hopper("run")?;
-    let p0: Vec<f64> = names.iter().map(|n| param(&nominal, n)).collect();
-    let x_start = sim.orbit.cycle.state0.clone();
-    let shooting = ShootingOptions {
-        settle_periods: 0,
-        ..ShootingOptions::default()
-    };
-    let opts = settings.integrator.clone();
-    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
-        let mut params = nominal;
-        for (name, v) in names.iter().zip(p) {
-            set_param(&mut params, name, *v);
-        }
-        let hopper = Hopper::with_effects(params, damper, effects).map_err(|e| e.to_string())?;
-        let orbit = hopper
-            .limit_cycle_from(&x_start, &shooting, &opts)
-            .map_err(|e| e.to_string())?;
-        let lin = linearise(&hopper, &orbit.cycle, 8, &opts).map_err(|e| e.to_string())?;
-        let exact = ExactHtf::new(&lin.piecewise).map_err(|e| e.to_string())?;
-        for (i, row) in rows.iter().enumerate() {
-            let d = (row.value - exact.g(row.n, row.omega)) * weights[i];
-            r[2 * i] = d.re;
-            r[2 * i + 1] = d.im;
-        }
-        Ok(())
-    };
-    let lm = LmOptions {
-        scales: Some(p0.iter().map(|v| v.abs().max(1e-3)).collect()),
-        bounds: Some(
-            names
-                .iter()
-                .map(|n| {
-                    if n == "c" {
-                        (0.0, f64::INFINITY)
-                    } else {
-                        (1e-12, f64::INFINITY)
-                    }
-                })
-                .collect(),
-        ),
-        ..LmOptions::default()
-    };
-    let fit = levenberg_marquardt(residuals, &p0, 2 * rows.len(), &lm)?;
+    let hopper = Hopper::with_effects(nominal, damper, effects)?;
+    let spec = HtfFitSpec::new(
+        settings.estimation.fit.clone(),
+        settings.estimation.fit_harmonics.clone(),
+        settings.estimation.band,
+    );
+    Ok(fit_to_htf(
+        &hopper,
+        &sim.orbit.cycle,
+        &[(0, e)],
+        &spec,
+        &settings.integrator,
+    )?)
+}
+
+/// `fit.<estimator>` of `summary.json` (docs/outputs.md), without its `uncertainty`.
+pub(crate) fn fit_json(settings: &Settings, fit: &HtfFit) -> Value {
     let mut out = serde_json::Map::new();
-    for (i, name) in names.iter().enumerate() {
-        out.insert(name.clone(), json!(fit.params[i]));
-        out.insert(
-            format!("{name}_stderr"),
-            json!(fit.stderr.as_ref().map_or(f64::NAN, |s| s[i])),
-        );
+    for (i, name) in fit.parameters.iter().enumerate() {
+        out.insert(name.clone(), json!(fit.values[i]));
+        out.insert(format!("{name}_stderr"), json!(fit.stderr[i]));
     }
     out.insert("harmonics".into(), json!(settings.estimation.fit_harmonics));
-    out.insert("points".into(), json!(rows.len()));
+    out.insert("points".into(), json!(fit.points));
     out.insert("iterations".into(), json!(fit.iterations));
     out.insert("cost".into(), json!(fit.cost));
-    out.insert("stop".into(), json!(format!("{:?}", fit.stop)));
-    Ok(FitOutcome {
-        json: Value::Object(out),
-        points: rows.iter().map(|r| (r.n, r.omega)).collect(),
-        weights,
-        lm: fit,
-    })
+    out.insert("stop".into(), json!(fit.stop));
+    Value::Object(out)
 }
 
 /// Markers drawn per harmonic and estimator, at most.
 const MAX_MARKERS: usize = 120;
-
-/// At most this many estimates per harmonic enter the parametric fit.
-const FIT_POINTS_PER_HARMONIC: usize = 200;
-
-fn param(p: &HopperParams, name: &str) -> f64 {
-    match name {
-        "k" => p.k,
-        "c" => p.c,
-        _ => p.m,
-    }
-}
-
-fn set_param(p: &mut HopperParams, name: &str, v: f64) {
-    match name {
-        "k" => p.k = v,
-        "c" => p.c = v,
-        _ => p.m = v,
-    }
-}
 
 /// Which harmonics the chirp train's phase shifts cannot tell apart, with their sizes.
 pub(crate) fn aliasing(

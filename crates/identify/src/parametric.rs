@@ -1,0 +1,79 @@
+//! What a parametric fit needs of a model: its named parameters, and the same model with other
+//! values and its input off, whose limit cycle the fit finds again at every trial.
+
+use htfid_lang::Model;
+use htfid_ltp::InputOutput;
+use htfid_model::{Hopper, HopperParams};
+
+/// A rhythmic model with named parameters: every model-language [`Model`] and the built-in
+/// [`Hopper`]. Rust users implement it (with [`InputOutput`]) to fit their own models with
+/// [`fit_to_htf`](crate::fit_to_htf).
+pub trait Parametric: InputOutput + Sized {
+    /// The value of parameter `name` and its bounds `(min, max)`, or `None` when the model has
+    /// no such parameter.
+    fn parameter(&self, name: &str) -> Option<(f64, (f64, f64))>;
+
+    /// The same model with the named parameters changed and its input off; an error names the
+    /// parameter or the value it refuses.
+    fn unforced_with(&self, changes: &[(&str, f64)]) -> Result<Self, String>;
+
+    /// The period of its forcing, s.
+    fn forcing_period(&self) -> Option<f64>;
+}
+
+impl Parametric for Model {
+    fn parameter(&self, name: &str) -> Option<(f64, (f64, f64))> {
+        let i = self.parameter_index(name)?;
+        let p = &self.parameters()[i];
+        Some((self.values()[i], (p.min, p.max)))
+    }
+
+    fn unforced_with(&self, changes: &[(&str, f64)]) -> Result<Self, String> {
+        self.with_parameters(changes)
+            .map(|m| m.with_input(None))
+            .map_err(|e| e.to_string())
+    }
+
+    fn forcing_period(&self) -> Option<f64> {
+        self.period()
+    }
+}
+
+/// The smallest mass and stiffness a fit may try: both must stay positive.
+const POSITIVE: f64 = 1e-12;
+
+/// The hopper's parameters by name: `m`, `k`, `c`, `g`, `x0`, `a` (forcing amplitude).
+fn hopper_slot<'a>(p: &'a mut HopperParams, name: &str) -> Option<(&'a mut f64, (f64, f64))> {
+    let inf = f64::INFINITY;
+    Some(match name {
+        "m" => (&mut p.m, (POSITIVE, inf)),
+        "k" => (&mut p.k, (POSITIVE, inf)),
+        "c" => (&mut p.c, (0.0, inf)),
+        "g" => (&mut p.g, (-inf, inf)),
+        "x0" => (&mut p.x0, (-inf, inf)),
+        "a" => (&mut p.forcing_amplitude, (-inf, inf)),
+        _ => return None,
+    })
+}
+
+impl Parametric for Hopper {
+    fn parameter(&self, name: &str) -> Option<(f64, (f64, f64))> {
+        let mut p = *self.params();
+        hopper_slot(&mut p, name).map(|(v, b)| (*v, b))
+    }
+
+    fn unforced_with(&self, changes: &[(&str, f64)]) -> Result<Self, String> {
+        let mut p = *self.params();
+        for &(name, v) in changes {
+            let (slot, _) = hopper_slot(&mut p, name).ok_or_else(|| {
+                format!("the hopper has no parameter {name}; parameters: m, k, c, g, x0, a")
+            })?;
+            *slot = v;
+        }
+        Hopper::with_effects(p, self.damper(), *self.effects()).map_err(|e| e.to_string())
+    }
+
+    fn forcing_period(&self) -> Option<f64> {
+        Some(self.params().period)
+    }
+}
