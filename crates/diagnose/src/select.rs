@@ -8,7 +8,8 @@
 //!   is the largest factor by which the residuals' correlation inflates the variance of an
 //!   added parameter (Newey-West against classical; 1 for white residuals), so a correlated
 //!   residual cannot fake significance;
-//! - a held-out improvement of at least `min_gain` over the model of the round before.
+//! - a held-out improvement of at least `min_gain` over the model of the round before, as a
+//!   share of the error above the noise floor (see [`held_out_gain`]).
 //!
 //! After the first round, the candidates that passed it are tried again, and so are a switching
 //! threshold or a contact whose fit alone left its parameters within one standard error of
@@ -172,10 +173,31 @@ fn added_slots(effect: Effect, current: &[Slot]) -> Vec<Slot> {
         .collect()
 }
 
+/// The held-out gain of a model over the one before it: the share of the error above the
+/// noise floor `s` that it removes, in RMS terms,
+/// `1 - sqrt(after^2 - s^2) / sqrt(before^2 - s^2)` (without a floor, `1 - after / before`).
+/// Near the floor the plain ratio of RMS errors cannot show an effect whose part of the error
+/// is a fraction of the noise, however clearly the data demand it; the excess can. A model
+/// before that is at or below the floor leaves nothing to gain.
+pub(crate) fn held_out_gain(after: f64, before: f64, noise: Option<f64>) -> f64 {
+    match noise {
+        Some(s) if s > 0.0 => {
+            let excess_before = before * before - s * s;
+            if excess_before <= 0.0 {
+                return 0.0;
+            }
+            let excess_after = (after * after - s * s).max(0.0);
+            1.0 - (excess_after / excess_before).sqrt()
+        }
+        _ => 1.0 - after / before,
+    }
+}
+
 fn judge(
     ctx: &Context<'_>,
     before: &FitResult,
     before_rmse: f64,
+    noise: Option<f64>,
     outcome: Outcome,
     opts: &DiagnoseOptions,
 ) -> Judged {
@@ -188,7 +210,7 @@ fn judge(
         };
     };
     let (lr, critical) = nested_test(before, fit, ctx.n_fit(), opts.alpha);
-    let gain = 1.0 - outcome.val_rmse / before_rmse;
+    let gain = held_out_gain(outcome.val_rmse, before_rmse, noise);
     let mut reasons = Vec::new();
     if lr.is_nan() || lr < critical {
         reasons.push(format!(
@@ -357,7 +379,7 @@ pub(crate) fn select(
             .sum::<usize>();
         let mut judged: Vec<Judged> = outcomes
             .into_iter()
-            .map(|o| judge(ctx, &current, current_score.rmse, o, opts))
+            .map(|o| judge(ctx, &current, current_score.rmse, noise, o, opts))
             .collect();
         judged.sort_by(
             |a, b| match (a.outcome.fit.is_some(), b.outcome.fit.is_some()) {
@@ -487,7 +509,7 @@ pub(crate) fn select(
                 else {
                     continue;
                 };
-                let gain = 1.0 - current_score.rmse / reduced_score.rmse;
+                let gain = held_out_gain(current_score.rmse, reduced_score.rmse, noise);
                 if lr < crit || gain < opts.min_gain {
                     evidence.push(format!(
                         "simplification: {} replaced by {}, which explains the data as well \
@@ -522,7 +544,9 @@ pub(crate) fn select(
             let reduced_score = evaluate(ctx, &reduced.point, &reduced.stepping)
                 .map(|ev| ev.score)
                 .ok();
-            let gain = reduced_score.map_or(f64::NAN, |s| 1.0 - current_score.rmse / s.rmse);
+            let gain = reduced_score.map_or(f64::NAN, |s| {
+                held_out_gain(current_score.rmse, s.rmse, noise)
+            });
             if lr < crit || gain.is_nan() || gain < opts.min_gain {
                 evidence.push(format!(
                     "backward pass: {} dropped (without it the likelihood ratio is {lr:.1}, \
