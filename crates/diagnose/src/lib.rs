@@ -77,7 +77,11 @@
 //!   the residuals' correlation inflates an added parameter's variance (Newey-West against
 //!   classical). The effect is tested as a whole: a weakly determined parameter of it (a
 //!   contact stiffness) does not veto an effect the data demand;
-//! - `1 - rmse_after / rmse_before >= min_gain` (0.05) on the held-out data;
+//! - `1 - sqrt(rmse_after^2 - sigma^2) / sqrt(rmse_before^2 - sigma^2) >= min_gain` (0.05) on
+//!   the held-out data: the share of the error above the noise floor that it removes (the
+//!   plain `1 - rmse_after / rmse_before` far above the floor; near it, where an effect's part
+//!   of the error is a fraction of the noise, the plain ratio could not show what the data
+//!   demand). The same gain judges the simplification and the backward pass;
 //! - every added parameter is determined (a finite standard error), and the effect acts where
 //!   the data are: a contact position inside the measured positions, a switching threshold
 //!   inside the measured velocities (beyond them it only mimics a change of the nominal

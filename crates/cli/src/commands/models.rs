@@ -5,12 +5,13 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use htfid_estimate::HtfEstimate;
+use htfid_estimate::{BiasSource, HtfEstimate, Method};
 use htfid_hybrid::{simulate, EventKind, HybridSystem};
-use htfid_identify::{fit_to_htf, HtfFitSpec};
+use htfid_identify::{budget_with_bias, fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{saltation, LimitCycle, ShootingOptions};
-use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf};
+use htfid_theory::{HarmonicTransferFunction, HtfChannel, HtfGrid, LinearisedHtf};
+use num_complex::Complex64;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
@@ -660,7 +661,7 @@ fn estimate_and_fit(
             .collect();
         let fit = stages
             .run(&format!("fit ({})", est.name()), || {
-                fit_model(settings, model, cycle, &of_est)
+                fit_model(settings, model, cycle, est, &of_est)
             })
             .with_context(|| {
                 format!("parametric fit to the \"{}\" estimates failed", est.name())
@@ -670,11 +671,16 @@ fn estimate_and_fit(
     Ok((estimates, errors, fits))
 }
 
-/// The configured parameters fitted to the estimates of every output (`htfid-identify`).
+/// The configured parameters fitted to the estimates of every output (`htfid-identify`), with
+/// the fit's error budget. A line estimator's distortion (what a `+u` / `-u` pairing leaves,
+/// or all of the nonlinear response without pairing) comes from a parametric bootstrap: the
+/// experiment simulated again on the fitted model without noise, estimated and fitted the
+/// same way; the regularised estimators carry their own smoothing bias.
 fn fit_model(
     settings: &Settings,
     model: &Model,
     cycle: &LimitCycle<Mode>,
+    est: Estimator,
     estimates: &[(usize, &HtfEstimate)],
 ) -> Result<Value> {
     let spec = HtfFitSpec::new(
@@ -684,9 +690,89 @@ fn fit_model(
     );
     let fit = fit_to_htf(model, cycle, estimates, &spec, &settings.integrator)?;
     let mut out = crate::commands::run::fit_json(settings, &fit);
-    if let Some(b) = &fit.uncertainty {
-        let method = b.htf_bias_source.map(|_| "curvature");
-        out["uncertainty"] = crate::commands::run::uncertainty_json(&fit.parameters, b, method);
-    }
+    let lines = estimates.iter().find_map(|(_, e)| match e.method() {
+        Method::PeriodicLinesPaired => Some(BiasSource::PairingDistortion),
+        Method::PeriodicLines => Some(BiasSource::NonlinearDistortion),
+        _ => None,
+    });
+    let budget = match lines {
+        Some(source) => bootstrap(settings, model, cycle, est, &spec, &fit)
+            .and_then(|(d, p)| Ok(budget_with_bias(&fit, source, &d, Some(&p))?))
+            .map(|b| (b, Some("bootstrap"))),
+        None => fit
+            .uncertainty
+            .clone()
+            .context("the fit's Jacobian is rank deficient: no error budget exists")
+            .map(|b| {
+                let method = b.htf_bias_source.map(|_| "curvature");
+                (b, method)
+            }),
+    };
+    // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run): the
+    // reason is recorded instead.
+    out["uncertainty"] = match budget {
+        Ok((b, method)) => crate::commands::run::uncertainty_json(&fit.parameters, &b, method),
+        Err(err) => json!({ "error": format!("{err:#}") }),
+    };
     Ok(out)
+}
+
+/// The error the estimator and fit make without noise on the fitted model: the HTF error at
+/// every fitted point (estimate minus the fitted model's exact HTF) and the parameter error
+/// (refit minus fitted values).
+fn bootstrap(
+    settings: &Settings,
+    model: &Model,
+    cycle: &LimitCycle<Mode>,
+    est: Estimator,
+    spec: &HtfFitSpec,
+    fit: &HtfFit,
+) -> Result<(Vec<Complex64>, Vec<f64>)> {
+    let mut again = settings.clone();
+    again.noise = None;
+    let changes: Vec<(&str, f64)> = fit
+        .parameters
+        .iter()
+        .map(String::as_str)
+        .zip(fit.values.iter().copied())
+        .collect();
+    let fitted = model.with_parameters(&changes)?;
+    let shooting = ShootingOptions {
+        settle_periods: 0,
+        ..ShootingOptions::default()
+    };
+    let orbit =
+        fitted.limit_cycle_from(cycle.mode0, &cycle.state0, &shooting, &again.integrator)?;
+    let mut quiet = Stages::silent();
+    let rec = simulate_record(&again, &fitted, &orbit, &mut quiet)?;
+    let deviation = orbit_deviation(&again, &fitted, &orbit, &rec)?;
+    let estimates = deviation
+        .iter()
+        .map(|y| estimate(&again, (&rec.t, &rec.u), &rec.excitation, y, est))
+        .collect::<Result<Vec<_>>>()?;
+    let of_outputs: Vec<(usize, &HtfEstimate)> = estimates.iter().enumerate().collect();
+    let refit = fit_to_htf(&fitted, &orbit, &of_outputs, spec, &again.integrator)?;
+    let htf = LinearisedHtf::new(&fitted, &orbit, &again.integrator)?;
+    let d = fit
+        .fitted
+        .iter()
+        .map(|p| {
+            let h = estimates[p.output]
+                .harmonic(p.n)
+                .context("the bootstrap estimate lacks a harmonic")?;
+            let i = h
+                .omegas
+                .iter()
+                .position(|&o| (o - p.omega).abs() <= 1e-9 * p.omega.abs().max(1.0))
+                .context("the bootstrap estimate lacks a frequency")?;
+            Ok(h.values[i] - htf.channel(p.output)?.g(p.n, p.omega))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let p_bias = refit
+        .values
+        .iter()
+        .zip(&fit.values)
+        .map(|(a, b)| a - b)
+        .collect();
+    Ok((d, p_bias))
 }
