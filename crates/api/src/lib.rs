@@ -92,13 +92,11 @@
 //! # Ok::<(), htfid_api::Error>(())
 //! ```
 
-use std::sync::Arc;
-
 use htfid_estimate::{siddiqi, split_periodic, Record};
-use htfid_ltp::InputOutput;
 use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 
 pub use htfid_estimate::{Alpha, HtfEstimate, HtfRow};
+pub use htfid_experiment::{Input, Rhythmic};
 pub use htfid_hybrid::Options as IntegratorOptions;
 pub use htfid_lang::Model;
 pub use htfid_model::{Effects, Hopper, HopperParams};
@@ -126,62 +124,21 @@ pub enum Error {
     /// The estimation.
     #[error(transparent)]
     Estimate(#[from] htfid_estimate::Error),
+    /// Any other step of an experiment (`htfid-experiment`).
+    #[error(transparent)]
+    Experiment(htfid_experiment::ExperimentError),
 }
 
-/// A hybrid system driven onto a limit cycle by a periodic forcing: the built-in [`Hopper`]
-/// and every [`Model`] with a forcing period.
-pub trait Rhythmic: InputOutput + Sized {
-    /// The limit cycle with the input off.
-    ///
-    /// # Errors
-    /// When no stable periodic orbit is found (see the implementing crate).
-    fn limit_cycle(
-        &self,
-        shooting: &ShootingOptions,
-        integrator: &IntegratorOptions,
-    ) -> Result<LimitCycle<Self::Mode>, Error>;
-
-    /// The same system driven by `input` (added to its forcing), or undriven with `None`.
-    fn with_input(&self, input: Option<Input>) -> Self;
-
-    /// The outputs at `(mode, t, x)` with input `u`, into `y` (length [`InputOutput::num_outputs`]).
-    fn outputs(&self, mode: Self::Mode, t: f64, x: &[f64], u: f64, y: &mut [f64]);
-}
-
-impl Rhythmic for Hopper {
-    fn limit_cycle(
-        &self,
-        shooting: &ShootingOptions,
-        integrator: &IntegratorOptions,
-    ) -> Result<LimitCycle<Self::Mode>, Error> {
-        Ok(Hopper::limit_cycle(self, shooting, integrator)?.cycle)
-    }
-
-    fn with_input(&self, input: Option<Input>) -> Self {
-        Hopper::with_input(self, input)
-    }
-
-    /// The hopper's one output is the position `x` (m).
-    fn outputs(&self, _mode: Self::Mode, _t: f64, x: &[f64], _u: f64, y: &mut [f64]) {
-        y[0] = x[0];
-    }
-}
-
-impl Rhythmic for Model {
-    fn limit_cycle(
-        &self,
-        shooting: &ShootingOptions,
-        integrator: &IntegratorOptions,
-    ) -> Result<LimitCycle<Self::Mode>, Error> {
-        Ok(Model::limit_cycle(self, shooting, integrator)?)
-    }
-
-    fn with_input(&self, input: Option<Input>) -> Self {
-        Model::with_input(self, input)
-    }
-
-    fn outputs(&self, mode: Self::Mode, t: f64, x: &[f64], u: f64, y: &mut [f64]) {
-        self.eval_outputs(mode, t, x, u, y);
+impl From<htfid_experiment::ExperimentError> for Error {
+    fn from(e: htfid_experiment::ExperimentError) -> Self {
+        use htfid_experiment::ExperimentError as X;
+        match e {
+            X::Hopper(e) => Error::Hopper(e),
+            X::Model(e) => Error::Model(e),
+            X::Theory(e) => Error::Theory(e),
+            X::Simulation(e) => Error::Simulation(e),
+            other => Error::Experiment(other),
+        }
     }
 }
 
@@ -290,28 +247,14 @@ pub fn simulate<S: Rhythmic>(
     input: Input,
     times: &[f64],
 ) -> Result<Vec<Vec<f64>>, Error> {
-    let cycle = htf.limit_cycle();
-    let system = htf.system.with_input(Some(input.clone()));
-    let t_end = times.last().copied().unwrap_or(cycle.t0).max(cycle.t0);
-    let traj = htfid_hybrid::simulate(
-        &system,
-        cycle.mode0,
-        cycle.t0,
-        &cycle.state0,
-        t_end,
+    Ok(htfid_experiment::drive(
+        htf.system,
+        htf.limit_cycle(),
+        Some(input),
         times,
         htf.integrator(),
-    )?;
-    let p = system.num_outputs();
-    let mut y = vec![Vec::with_capacity(times.len()); p];
-    let mut row = vec![0.0; p];
-    for (i, &t) in traj.times.iter().enumerate() {
-        system.outputs(traj.modes[i], t, traj.state(i), input(t), &mut row);
-        for (o, v) in row.iter().enumerate() {
-            y[o].push(*v);
-        }
-    }
-    Ok(y)
+    )?
+    .outputs)
 }
 
 /// Options of [`estimate`].
@@ -369,6 +312,3 @@ pub fn estimate(
         options.alpha,
     )?)
 }
-
-/// A time-varying input `u(t)`, as [`Hopper::with_input`] and [`Model::with_input`] take it.
-pub type Input = Arc<dyn Fn(f64) -> f64 + Send + Sync>;

@@ -429,6 +429,22 @@ pub fn integration_failed(
     )
 }
 
+/// As [`integration_failed`] for a step of `htfid-experiment`: a failed integration gets its
+/// hint, anything else its own message.
+pub fn experiment_failed(
+    settings: &Settings,
+    what: Simulated,
+    e: htfid_experiment::ExperimentError,
+) -> anyhow::Error {
+    match e {
+        htfid_experiment::ExperimentError::Simulation(h) => integration_failed(settings, what, h),
+        other => anyhow::anyhow!(
+            "{}: simulation of {what} failed: {other}",
+            settings.path.display()
+        ),
+    }
+}
+
 /// Refuses measured data whose file alone would need more memory than `--max-memory` to read:
 /// about twice the file's size (the text, then the parsed columns). A missing file is left to
 /// the reader, which names it.

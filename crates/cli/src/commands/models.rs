@@ -6,14 +6,13 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use htfid_estimate::{BiasSource, HtfEstimate, Method};
+use htfid_experiment::{add_noise, distortion_bootstrap, drive, Driven};
 use htfid_hybrid::{simulate, EventKind, HybridSystem};
 use htfid_identify::{budget_with_bias, fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{saltation, LimitCycle, ShootingOptions};
-use htfid_theory::{HarmonicTransferFunction, HtfChannel, HtfGrid, LinearisedHtf};
+use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf};
 use num_complex::Complex64;
-use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
 use crate::commands::run::{aliasing, estimate, harmonic_errors, run_plots, write_estimate_csv};
@@ -150,39 +149,30 @@ fn simulate_record(
     stages: &mut Stages,
 ) -> Result<ModelRecord> {
     let excitation = signals::build(settings)?;
-    let (end, grid) = settings.record_grid(excitation.end);
+    let (_, grid) = settings.record_grid(excitation.end);
     let n = grid.len();
-    let driven = model.with_input(excitation.input_fn());
-    let traj = stages
+    let Driven {
+        trajectory: traj,
+        mut outputs,
+    } = stages
         .run("simulate", || {
-            simulate(
-                &driven,
-                cycle.mode0,
-                0.0,
-                &cycle.state0,
-                end,
+            drive(
+                model,
+                cycle,
+                excitation.input_fn(),
                 &grid,
                 &settings.integrator,
             )
         })
         .map_err(|e| {
-            crate::limits::integration_failed(settings, crate::limits::Simulated::Experiment, e)
+            crate::limits::experiment_failed(settings, crate::limits::Simulated::Experiment, e)
         })?;
     let u: Vec<f64> = match &excitation.signal {
         Some(s) => s.sample(&grid),
         None => vec![0.0; n],
     };
-    let mut outputs = outputs_along(model, &traj, &u);
     if let Some(noise) = settings.noise {
-        if noise.output_std > 0.0 {
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(noise.seed);
-            let normal = Normal::new(0.0, noise.output_std).context("noise.output_std")?;
-            for column in &mut outputs {
-                for v in column.iter_mut() {
-                    *v += normal.sample(&mut rng);
-                }
-            }
-        }
+        add_noise(&mut outputs, noise.output_std, noise.seed).context("noise.output_std")?;
     }
     let states: Vec<Vec<f64>> = (0..model.dim())
         .map(|j| (0..n).map(|i| traj.state(i)[j]).collect())
@@ -197,21 +187,6 @@ fn simulate_record(
         states,
         excitation,
     })
-}
-
-/// Every output of `model` along a trajectory, with input values `u` at its grid times.
-fn outputs_along(model: &Model, traj: &htfid_hybrid::Trajectory<Mode>, u: &[f64]) -> Vec<Vec<f64>> {
-    let n = traj.times.len();
-    let p = model.outputs().len();
-    let mut outputs = vec![vec![0.0; n]; p];
-    let mut y = vec![0.0; p];
-    for i in 0..n {
-        model.eval_outputs(traj.modes[i], traj.times[i], traj.state(i), u[i], &mut y);
-        for (column, v) in outputs.iter_mut().zip(&y) {
-            column[i] = *v;
-        }
-    }
-    outputs
 }
 
 fn state_columns(model: &Model) -> Vec<String> {
@@ -574,44 +549,16 @@ fn suffix(outputs: &[String], o: usize) -> String {
     }
 }
 
-/// What the estimators see: each output minus its value on the unexcited orbit.
+/// What the estimators see: each output minus its value on the unexcited orbit
+/// (`htfid_experiment::orbit_deviation`).
 fn orbit_deviation(
     settings: &Settings,
     model: &Model,
     cycle: &LimitCycle<Mode>,
     rec: &ModelRecord,
 ) -> Result<Vec<Vec<f64>>> {
-    // When the sample grid repeats every period, one period of the orbit is tiled.
-    let per_period = settings.sample_rate * settings.period;
-    let m = per_period.round() as usize;
-    let tiled = (per_period - per_period.round()).abs() < 1e-9 && m >= 1 && rec.t.len() >= m;
-    let (grid, end) = if tiled {
-        (&rec.t[..m], settings.period)
-    } else {
-        (&rec.t[..], *rec.t.last().unwrap_or(&0.0))
-    };
-    let free = simulate(
-        model,
-        cycle.mode0,
-        0.0,
-        &cycle.state0,
-        end,
-        grid,
-        &settings.integrator,
-    )
-    .map_err(|e| crate::limits::integration_failed(settings, crate::limits::Simulated::Orbit, e))?;
-    let one = outputs_along(model, &free, &vec![0.0; grid.len()]);
-    Ok(rec
-        .outputs
-        .iter()
-        .zip(&one)
-        .map(|(y, y0)| {
-            y.iter()
-                .enumerate()
-                .map(|(i, v)| v - y0[i % grid.len()])
-                .collect()
-        })
-        .collect())
+    htfid_experiment::orbit_deviation(model, cycle, &rec.t, &rec.outputs, &settings.integrator)
+        .map_err(|e| crate::limits::experiment_failed(settings, crate::limits::Simulated::Orbit, e))
 }
 
 type Estimates = Vec<Vec<(Estimator, HtfEstimate)>>;
@@ -683,11 +630,7 @@ fn fit_model(
     est: Estimator,
     estimates: &[(usize, &HtfEstimate)],
 ) -> Result<Value> {
-    let spec = HtfFitSpec::new(
-        settings.estimation.fit.clone(),
-        settings.estimation.fit_harmonics.clone(),
-        settings.estimation.band,
-    );
+    let spec = crate::commands::run::fit_spec(settings);
     let fit = fit_to_htf(model, cycle, estimates, &spec, &settings.integrator)?;
     let mut out = crate::commands::run::fit_json(settings, &fit);
     let lines = estimates.iter().find_map(|(_, e)| match e.method() {
@@ -717,9 +660,10 @@ fn fit_model(
     Ok(out)
 }
 
-/// The error the estimator and fit make without noise on the fitted model: the HTF error at
-/// every fitted point (estimate minus the fitted model's exact HTF) and the parameter error
-/// (refit minus fitted values).
+/// The error the estimator and fit make without noise on the fitted model
+/// (`htfid_experiment::distortion_bootstrap`): the experiment simulated again on it without
+/// noise, estimated per output the same way. Returns the HTF error at every fitted point and
+/// the parameter error.
 fn bootstrap(
     settings: &Settings,
     model: &Model,
@@ -730,49 +674,20 @@ fn bootstrap(
 ) -> Result<(Vec<Complex64>, Vec<f64>)> {
     let mut again = settings.clone();
     again.noise = None;
-    let changes: Vec<(&str, f64)> = fit
-        .parameters
-        .iter()
-        .map(String::as_str)
-        .zip(fit.values.iter().copied())
-        .collect();
-    let fitted = model.with_parameters(&changes)?;
-    let shooting = ShootingOptions {
-        settle_periods: 0,
-        ..ShootingOptions::default()
-    };
-    let orbit =
-        fitted.limit_cycle_from(cycle.mode0, &cycle.state0, &shooting, &again.integrator)?;
-    let mut quiet = Stages::silent();
-    let rec = simulate_record(&again, &fitted, &orbit, &mut quiet)?;
-    let deviation = orbit_deviation(&again, &fitted, &orbit, &rec)?;
-    let estimates = deviation
-        .iter()
-        .map(|y| estimate(&again, (&rec.t, &rec.u), &rec.excitation, y, est))
-        .collect::<Result<Vec<_>>>()?;
-    let of_outputs: Vec<(usize, &HtfEstimate)> = estimates.iter().enumerate().collect();
-    let refit = fit_to_htf(&fitted, &orbit, &of_outputs, spec, &again.integrator)?;
-    let htf = LinearisedHtf::new(&fitted, &orbit, &again.integrator)?;
-    let d = fit
-        .fitted
-        .iter()
-        .map(|p| {
-            let h = estimates[p.output]
-                .harmonic(p.n)
-                .context("the bootstrap estimate lacks a harmonic")?;
-            let i = h
-                .omegas
+    let b = distortion_bootstrap(
+        model,
+        cycle,
+        fit,
+        spec,
+        &again.integrator,
+        |fitted: &Model, orbit: &LimitCycle<Mode>| -> Result<Vec<HtfEstimate>> {
+            let mut quiet = Stages::silent();
+            let rec = simulate_record(&again, fitted, orbit, &mut quiet)?;
+            orbit_deviation(&again, fitted, orbit, &rec)?
                 .iter()
-                .position(|&o| (o - p.omega).abs() <= 1e-9 * p.omega.abs().max(1.0))
-                .context("the bootstrap estimate lacks a frequency")?;
-            Ok(h.values[i] - htf.channel(p.output)?.g(p.n, p.omega))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let p_bias = refit
-        .values
-        .iter()
-        .zip(&fit.values)
-        .map(|(a, b)| a - b)
-        .collect();
-    Ok((d, p_bias))
+                .map(|y| estimate(&again, (&rec.t, &rec.u), &rec.excitation, y, est))
+                .collect()
+        },
+    )?;
+    Ok((b.htf_bias, b.parameter_bias))
 }

@@ -9,10 +9,7 @@ use htfid_estimate::{
     MultiOptions, Request, Sampled, UncertaintyBudget,
 };
 use htfid_excite::{alias_map, Polarity};
-use htfid_hybrid::simulate;
-use htfid_identify::{
-    budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec, Parametric,
-};
+use htfid_identify::{budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_model::Hopper;
 use htfid_plot::Style;
 use htfid_theory::HarmonicTransferFunction;
@@ -194,52 +191,17 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
 }
 
 /// The deviation of the measured position from the limit cycle at every sample (what the
-/// estimators see).
+/// estimators see; `htfid_experiment::orbit_deviation`).
 fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
-    // When the sample grid repeats every period, one period of the orbit is tiled.
-    let period = settings.period;
-    let per_period = settings.sample_rate * period;
-    if (per_period - per_period.round()).abs() < 1e-9 && per_period >= 1.0 {
-        let m = per_period.round() as usize;
-        let phase_grid: Vec<f64> = sim.t.iter().take(m).copied().collect();
-        if phase_grid.len() == m && phase_grid[0].abs() < 1e-12 {
-            let one = simulate(
-                &sim.hopper.with_input(None),
-                sim.orbit.cycle.mode0,
-                0.0,
-                &sim.orbit.cycle.state0,
-                period,
-                &phase_grid,
-                &settings.integrator,
-            )
-            .map_err(|e| {
-                crate::limits::integration_failed(settings, crate::limits::Simulated::Orbit, e)
-            })?;
-            return Ok(sim
-                .x
-                .iter()
-                .enumerate()
-                .map(|(i, x)| x - one.state(i % m)[0])
-                .collect());
-        }
-    }
-    let end = *sim.t.last().unwrap_or(&0.0);
-    let free = simulate(
+    let mut d = htfid_experiment::orbit_deviation(
         &sim.hopper,
-        sim.orbit.cycle.mode0,
-        0.0,
-        &sim.orbit.cycle.state0,
-        end,
+        &sim.orbit.cycle,
         &sim.t,
+        std::slice::from_ref(&sim.x),
         &settings.integrator,
     )
-    .map_err(|e| crate::limits::integration_failed(settings, crate::limits::Simulated::Orbit, e))?;
-    Ok(sim
-        .x
-        .iter()
-        .enumerate()
-        .map(|(i, x)| x - free.state(i)[0])
-        .collect())
+    .map_err(|e| crate::limits::experiment_failed(settings, crate::limits::Simulated::Orbit, e))?;
+    Ok(d.swap_remove(0))
 }
 
 /// One estimator's results: its estimate, its errors against the exact HTF, and its
@@ -272,7 +234,7 @@ fn estimator_chain(
         })
         .with_context(|| format!("parametric fit to the \"{}\" estimates failed", est.name()))?;
     let budget = stages.run(&format!("uncertainty ({})", est.name()), || {
-        fit_uncertainty(settings, est, &e, &fit)
+        fit_uncertainty(settings, est, sim, &e, &fit)
     });
     let mut json = fit_json(settings, &fit);
     // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run): the
@@ -403,6 +365,7 @@ pub(crate) fn harmonic_errors(
 fn fit_uncertainty(
     settings: &Settings,
     est: Estimator,
+    sim: &Simulated,
     e: &HtfEstimate,
     fit: &HtfFit,
 ) -> Result<(UncertaintyBudget, Option<&'static str>)> {
@@ -413,7 +376,7 @@ fn fit_uncertainty(
             } else {
                 BiasSource::NonlinearDistortion
             };
-            let (d, p_bias) = distortion_bootstrap(settings, est, fit)?;
+            let (d, p_bias) = distortion_bootstrap(settings, est, sim, fit)?;
             let b = budget_with_bias(fit, source, &d, Some(&p_bias))?;
             Ok((b, Some("bootstrap")))
         }
@@ -428,62 +391,41 @@ fn fit_uncertainty(
     }
 }
 
-/// The error the estimator and fit make without noise on the fitted model: the experiment is
-/// simulated again at the fitted parameters with the noise left out, estimated and fitted the
-/// same way. Returns the HTF error at every fitted point (estimate minus the fitted model's
-/// exact HTF) and the parameter error (refit minus fitted values).
+/// The error the estimator and fit make without noise on the fitted model
+/// (`htfid_experiment::distortion_bootstrap`): the experiment simulated again at the fitted
+/// parameters with the noise left out, estimated and fitted the same way. Returns the HTF
+/// error at every fitted point and the parameter error.
 fn distortion_bootstrap(
     settings: &Settings,
     est: Estimator,
+    sim: &Simulated,
     fit: &HtfFit,
 ) -> Result<(Vec<Complex64>, Vec<f64>)> {
     let mut again = settings.clone();
     again.noise = None;
-    if let crate::settings::System::Hopper {
-        params,
-        damper,
-        effects,
-    } = &mut again.system
-    {
-        let changes: Vec<(&str, f64)> = fit
-            .parameters
-            .iter()
-            .map(String::as_str)
-            .zip(fit.values.iter().copied())
-            .collect();
-        let fitted = Hopper::with_effects(*params, *damper, *effects)?
-            .unforced_with(&changes)
-            .map_err(anyhow::Error::msg)?;
-        *params = *fitted.params();
-    }
-    let mut quiet = Stages::new();
-    let sim = simulate_experiment(&again, &mut quiet)?;
-    let deviation = orbit_deviation(&again, &sim)?;
-    let theory = theory::from_orbit(&again, sim.hopper.clone(), sim.orbit.clone(), &mut quiet)?;
-    let e = estimate(&again, (&sim.t, &sim.u), &sim.excitation, &deviation, est)?;
-    let refit = fit_parameters(&again, &sim, &e)?;
-    let d = fit
-        .fitted
-        .iter()
-        .map(|p| {
-            let h = e
-                .harmonic(p.n)
-                .context("the bootstrap estimate lacks a harmonic")?;
-            let i = h
-                .omegas
-                .iter()
-                .position(|&o| (o - p.omega).abs() <= 1e-9 * p.omega.abs().max(1.0))
-                .context("the bootstrap estimate lacks a frequency")?;
-            Ok(h.values[i] - theory.exact.g(p.n, p.omega))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let p_bias = refit
-        .values
-        .iter()
-        .zip(&fit.values)
-        .map(|(a, b)| a - b)
-        .collect();
-    Ok((d, p_bias))
+    let b = htfid_experiment::distortion_bootstrap(
+        &sim.hopper,
+        &sim.orbit.cycle,
+        fit,
+        &fit_spec(settings),
+        &again.integrator,
+        // The experiment as configured, on the fitted hopper (its orbit found as `run` finds
+        // it).
+        |fitted: &Hopper, _orbit| -> Result<Vec<HtfEstimate>> {
+            let mut at_fit = again.clone();
+            at_fit.system = crate::settings::System::Hopper {
+                params: *fitted.params(),
+                damper: fitted.damper(),
+                effects: *fitted.effects(),
+            };
+            let mut quiet = Stages::silent();
+            let sim = simulate_experiment(&at_fit, &mut quiet)?;
+            let deviation = orbit_deviation(&at_fit, &sim)?;
+            let e = estimate(&at_fit, (&sim.t, &sim.u), &sim.excitation, &deviation, est)?;
+            Ok(vec![e])
+        },
+    )?;
+    Ok((b.htf_bias, b.parameter_bias))
 }
 
 /// `fit.<estimator>.uncertainty` of `summary.json` (docs/outputs.md).
@@ -525,18 +467,22 @@ pub(crate) fn uncertainty_json(
 fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Result<HtfFit> {
     let (nominal, damper, effects) = settings.hopper("run")?;
     let hopper = Hopper::with_effects(nominal, damper, effects)?;
-    let spec = HtfFitSpec::new(
-        settings.estimation.fit.clone(),
-        settings.estimation.fit_harmonics.clone(),
-        settings.estimation.band,
-    );
     Ok(fit_to_htf(
         &hopper,
         &sim.orbit.cycle,
         &[(0, e)],
-        &spec,
+        &fit_spec(settings),
         &settings.integrator,
     )?)
+}
+
+/// The configured parametric fit: parameters, harmonics and band.
+pub(crate) fn fit_spec(settings: &Settings) -> HtfFitSpec {
+    HtfFitSpec::new(
+        settings.estimation.fit.clone(),
+        settings.estimation.fit_harmonics.clone(),
+        settings.estimation.band,
+    )
 }
 
 /// `fit.<estimator>` of `summary.json` (docs/outputs.md), without its `uncertainty`.

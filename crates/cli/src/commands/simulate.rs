@@ -4,11 +4,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use htfid_data::OutputDir;
-use htfid_hybrid::{simulate, SlidingInterval, Stats};
+use htfid_experiment::{add_noise, drive, Driven};
+use htfid_hybrid::{SlidingInterval, Stats};
 use htfid_model::{Hopper, HopperMode, HopperOrbit};
 use htfid_orbit::ShootingOptions;
-use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
 use serde_json::{json, Value};
 
 use crate::output::{json_text, open, resolve_dir};
@@ -86,23 +85,20 @@ pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hop
 pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
     let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
     let excitation = signals::build(settings)?;
-    let (end, grid) = settings.record_grid(excitation.end);
+    let (_, grid) = settings.record_grid(excitation.end);
     let n = grid.len();
-    let driven = hopper.with_input(excitation.input_fn());
-    let traj = stages
+    let driven = stages
         .run("simulate", || {
-            simulate(
-                &driven,
-                orbit.cycle.mode0,
-                0.0,
-                &orbit.cycle.state0,
-                end,
+            drive(
+                &hopper,
+                &orbit.cycle,
+                excitation.input_fn(),
                 &grid,
                 &settings.integrator,
             )
         })
         .map_err(|e| {
-            crate::limits::integration_failed(settings, crate::limits::Simulated::Experiment, e)
+            crate::limits::experiment_failed(settings, crate::limits::Simulated::Experiment, e)
         })?;
     let u: Vec<f64> = match &excitation.signal {
         Some(s) => s.sample(&grid),
@@ -113,17 +109,15 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
         .zip(&u)
         .map(|(&t, &u)| hopper.forcing(t) + u)
         .collect();
-    let mut x: Vec<f64> = (0..n).map(|i| traj.state(i)[0]).collect();
+    let Driven {
+        trajectory: traj,
+        mut outputs,
+    } = driven;
     // Measurement noise on the recorded position (seeded), as configured.
     if let Some(noise) = settings.noise {
-        if noise.output_std > 0.0 {
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(noise.seed);
-            let normal = Normal::new(0.0, noise.output_std).context("noise.output_std")?;
-            for v in &mut x {
-                *v += normal.sample(&mut rng);
-            }
-        }
+        add_noise(&mut outputs, noise.output_std, noise.seed).context("noise.output_std")?;
     }
+    let x = outputs.swap_remove(0);
     let xd = (0..n).map(|i| traj.state(i)[1]).collect();
     let switches = traj.switches().count();
     let sliding = traj.sliding.clone();
