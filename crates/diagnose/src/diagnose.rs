@@ -1414,17 +1414,19 @@ fn conclude(
             ));
         } else if !sel.rivals.is_empty() {
             cause = "ambiguous".to_string();
-            let first = sel.chosen[0].effect;
-            alternatives.push(first.name().to_string());
-            for r in &sel.rivals {
-                alternatives.push(r.name().to_string());
+            for &(chosen, r) in &sel.rivals {
+                for e in [chosen, r] {
+                    if !alternatives.iter().any(|a| a == e.name()) {
+                        alternatives.push(e.name().to_string());
+                    }
+                }
                 evidence.push(format!(
                     "{} and {} explain the data equally well (fit BIC within {}); to separate \
                      them: {}",
-                    first.name(),
+                    chosen.name(),
                     r.name(),
                     opts.bic_margin,
-                    separating_experiment(first, *r)
+                    separating_experiment(chosen, r)
                 ));
             }
         } else {

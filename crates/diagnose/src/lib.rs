@@ -99,9 +99,14 @@
 //! - with effects selected: `unexplained` when they leave clear structure (`rmse_f >
 //!   unexplained_ratio * sigma` (5) and they remove less than `min_explained` (99.9 %) of the
 //!   nominal's excess mean-square error, `(rmse_0^2 - rmse_f^2) / (rmse_0^2 - sigma^2)`);
-//!   else `ambiguous` when a first-round rival (a non-nested candidate whose fit BIC lies within
-//!   `bic_margin` (10) of the winner's) was not added as well (`alternatives` names them, the
-//!   evidence says which experiment would separate them); else the strongest selected effect
+//!   else `ambiguous` when a selected effect has a rival that was not added as well: a
+//!   first-round candidate, not nested in the winner, whose fit BIC lies within `bic_margin`
+//!   (10) of the winner's, or a look-alike (a lag on the other side or a delay for a lag or a
+//!   delay; a reading offset for a force offset and back) that, refitted in its place beside
+//!   every other selected effect, lands within the margin (`alternatives` names them, the
+//!   evidence says which experiment would separate them). A look-alike that fits better by
+//!   more than the margin, and no worse held out, takes the effect's place. Else the strongest
+//!   selected effect
 //!   (a refit of the configured parameters beside it stays in `causes` only);
 //! - with none: `parameter_error` when the refit of the configured free parameters moved one by
 //!   more than `significance_sigma` (5) standard errors and predicts at least `min_gain` better,

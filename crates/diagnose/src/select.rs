@@ -56,8 +56,8 @@ pub(crate) struct Selection {
     pub held_out: Score,
     /// First-round candidates, judged against the nominal fit (best held-out error first).
     pub first_round: Vec<Judged>,
-    /// First-round rivals of the first chosen effect that the data cannot separate from it.
-    pub rivals: Vec<Effect>,
+    /// Pairs of a chosen effect and a rival that the data cannot separate from it.
+    pub rivals: Vec<(Effect, Effect)>,
     pub evidence: Vec<String>,
     pub evaluations: usize,
 }
@@ -147,6 +147,21 @@ pub(crate) fn nested_test(small: &FitResult, big: &FitResult, n: usize, alpha: f
         0.0
     };
     (lr, chi2_quantile(added.len(), alpha))
+}
+
+/// Effects that act alike on this kind of record: a lag on the input or the output side and a
+/// delay agree to first order in frequency; a constant force and a constant shift of the
+/// reading move the equilibrium alike.
+fn look_alikes(e: Effect) -> &'static [Effect] {
+    use Effect::*;
+    match e {
+        ActuatorLag => &[SensorLag, InputDelay],
+        SensorLag => &[ActuatorLag, InputDelay],
+        InputDelay => &[ActuatorLag, SensorLag],
+        InputOffset => &[SensorOffsetGain],
+        SensorOffsetGain => &[InputOffset],
+        _ => &[],
+    }
 }
 
 /// The parameters that only the `k`-th chosen effect brings.
@@ -335,7 +350,7 @@ pub(crate) fn select(
     let mut current_score = nominal_score;
     let mut chosen: Vec<Effect> = Vec::new();
     let mut first_round: Vec<Judged> = Vec::new();
-    let mut rivals: Vec<Effect> = Vec::new();
+    let mut rivals: Vec<(Effect, Effect)> = Vec::new();
     let mut evidence = Vec::new();
     let mut evaluations = 0;
     let mut retried: Vec<Effect> = Vec::new();
@@ -452,7 +467,7 @@ pub(crate) fn select(
                 let nested = i_added.iter().all(|s| w_added.contains(s))
                     || w_added.iter().all(|s| i_added.contains(s));
                 if !nested && f.bic - winner_bic < opts.bic_margin {
-                    rivals.push(judged[i].outcome.effect);
+                    rivals.push((judged[w].outcome.effect, judged[i].outcome.effect));
                 }
             }
         }
@@ -472,7 +487,7 @@ pub(crate) fn select(
         if round == 0 {
             first_round = judged;
         } else {
-            rivals.retain(|r| *r != effect);
+            rivals.retain(|(_, r)| *r != effect);
         }
     }
 
@@ -529,6 +544,52 @@ pub(crate) fn select(
         break;
     }
 
+    // Look-alikes: an effect with a known look-alike (a lag on either side, a delay; a force
+    // or a reading offset) is refitted with the look-alike in its place, beside everything
+    // else chosen. A clearly better look-alike takes its place; one within the BIC margin is
+    // its rival. The first round compares them beside the nominal model only, where the
+    // effects still missing can favour the wrong one.
+    for k in 0..chosen.len() {
+        let e = chosen[k];
+        for &r in look_alikes(e) {
+            if chosen.contains(&r) || !opts.candidates.contains(&r) {
+                continue;
+            }
+            let own = own_slots(&chosen, k, &nominal.slots);
+            let Some(reduced) = refit_without(ctx, &current, &own, absent) else {
+                continue;
+            };
+            evaluations += reduced.evaluations;
+            let o = run_candidate(ctx, screening, &reduced, &reduced.slots, r);
+            let Some(f) = o.fit.as_ref() else {
+                continue;
+            };
+            evaluations += f.evaluations;
+            let d = f.bic - current.bic;
+            if d < -opts.bic_margin && o.val_rmse <= current_score.rmse {
+                evidence.push(format!(
+                    "look-alike: {} in place of {} fits better beside the other effects (fit BIC \
+                     lower by {:.1}, held-out RMSE {} against {})",
+                    r.name(),
+                    e.name(),
+                    -d,
+                    sig(o.val_rmse, 4),
+                    sig(current_score.rmse, 4)
+                ));
+                rivals.retain(|(a, b)| *a != e && *b != e);
+                chosen[k] = r;
+                current = f.clone();
+                current_score = Score {
+                    rmse: o.val_rmse,
+                    nrmse: o.val_nrmse,
+                };
+                break;
+            } else if d < opts.bic_margin && !rivals.contains(&(e, r)) {
+                rivals.push((e, r));
+            }
+        }
+    }
+
     // Backward pass, and each effect's share from the fit without it.
     let mut without: Vec<f64> = Vec::new();
     'backward: while chosen.len() >= 2 {
@@ -565,6 +626,8 @@ pub(crate) fn select(
         }
         break;
     }
+    // A rival of an effect the backward pass dropped is no rival of the answer.
+    rivals.retain(|(c, _)| chosen.contains(c));
     let full = current_score.rmse.powi(2);
     let rises: Vec<f64> = if chosen.len() == 1 {
         vec![(nominal_score.rmse.powi(2) - full).max(0.0)]

@@ -350,9 +350,20 @@ fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -
         jac_current = true;
         iterations += 1;
         let rv = DVector::from_column_slice(&r);
-        let g = jac.tr_mul(&rv);
+        let mut g = jac.tr_mul(&rv);
         let rnorm = cost.sqrt();
+        // Parameters held by their bound: on it, with the descent direction `-g` pointing out
+        // of the box. They take no part in the step or in the gradient test (the projected
+        // gradient), so a fit that ends on a bound converges as one inside the box does
+        // instead of spending its iterations on steps the box clips away.
+        let held: Vec<bool> = (0..np)
+            .map(|j| {
+                let (lo, hi) = bounds[j];
+                (x[j] <= lo && g[j] > 0.0) || (x[j] >= hi && g[j] < 0.0)
+            })
+            .collect();
         let cosine = (0..np)
+            .filter(|&j| !held[j])
             .map(|j| {
                 let cn = jac.column(j).norm();
                 if cn > 0.0 && rnorm > 0.0 {
@@ -366,7 +377,14 @@ fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -
             stop = LmStop::GradientTolerance;
             break;
         }
-        let a = jac.tr_mul(&jac);
+        let mut a = jac.tr_mul(&jac);
+        for j in (0..np).filter(|&j| held[j]) {
+            for i in 0..np {
+                a[(i, j)] = 0.0;
+                a[(j, i)] = 0.0;
+            }
+            g[j] = 0.0;
+        }
         let dmax = (0..np).map(|j| a[(j, j)]).fold(0.0, f64::max);
         // A parameter with no influence still needs some damping to keep the system regular.
         let diag: Vec<f64> = (0..np)

@@ -209,6 +209,34 @@ fn bounds_hold_and_invalid_options_are_rejected() {
     ));
 }
 
+/// A minimum on the box's edge: `(p0 + 1)^2 + (p1 - 2)^2 + (p0 + 1)(p1 - 2)` with `p0 >= 0`
+/// has its constrained minimum where `d/dp1 = 0` at `p0 = 0`: `p1 = 2 - 1/2`. The parameter
+/// held by its bound leaves the step and the gradient test, so the fit lands on the exact
+/// constrained minimum (a Newton step of the remaining quadratic) and stops within a few
+/// Jacobians, where clipping every step would crawl.
+#[test]
+fn a_minimum_on_a_bound_converges_on_the_projected_gradient() {
+    let f = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        // r^T r = (p0 + 1)^2 + (p1 - 2)^2 + (p0 + 1)(p1 - 2), written as a sum of squares.
+        let (a, b) = (p[0] + 1.0, p[1] - 2.0);
+        r[0] = a + 0.5 * b;
+        r[1] = 0.75f64.sqrt() * b;
+        Ok(())
+    };
+    let opts = LmOptions {
+        bounds: Some(vec![(0.0, 10.0), (-10.0, 10.0)]),
+        ..LmOptions::default()
+    };
+    let fit = levenberg_marquardt(f, &[3.0, 0.0], 2, &opts).unwrap();
+    assert!(fit.params[0].abs() < 1e-12, "{:?}", fit.params);
+    assert!((fit.params[1] - 1.5).abs() < 1e-9, "{:?}", fit.params);
+    assert!(
+        matches!(fit.stop, LmStop::GradientTolerance | LmStop::CostTolerance),
+        "{fit:?}"
+    );
+    assert!(fit.iterations <= 8, "{} Jacobians", fit.iterations);
+}
+
 #[test]
 fn parallel_jacobians_give_the_same_iterates() {
     // Both schemes, a bound the fit runs into, and a residual that fails at some trial points:
