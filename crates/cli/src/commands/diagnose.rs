@@ -131,7 +131,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         json["test"] = Value::Array(tests.clone());
     }
     let check = validate(&settings, &record, &report);
-    json["validation"] = crate::validation::json(&check, &ext_label(&report));
+    json["validation"] = crate::validation::json(&check, &validation_key(&report));
     let ev = evidence::compute(&settings, &record, &report, opts.interpolation)?;
     let (bins, waterfall) = evidence::json(&ev, &settings);
     json["residual_bins"] = bins;
@@ -196,8 +196,29 @@ fn htf_unit(s: &DiagnoseSettings) -> Option<&'static str> {
 }
 
 /// The extended model's name in legends.
-fn ext_label(report: &DiagnosisReport) -> String {
+/// The extended model's key in `validation.fit_percent` (`docs/outputs.md`): by the cause.
+fn validation_key(report: &DiagnosisReport) -> String {
     format!("extended ({})", report.diagnosis.cause)
+}
+
+/// The extended model in figures: by the effects it adds.
+fn ext_label(report: &DiagnosisReport) -> String {
+    let added = added_effects(&report.diagnosis);
+    if added.is_empty() {
+        "extended (nothing added)".to_string()
+    } else {
+        format!("extended ({})", added.join(" + "))
+    }
+}
+
+/// The effects the extended model adds to the nominal one, strongest first (a refit of the
+/// configured parameters is no added effect).
+fn added_effects(d: &htfid_diagnose::Diagnosis) -> Vec<&str> {
+    d.causes
+        .iter()
+        .map(|c| c.effect.as_str())
+        .filter(|e| *e != "parameter_error")
+        .collect()
 }
 
 /// Held-out samples after each range's burn-in, in order.
@@ -568,7 +589,7 @@ fn htf_figure(
     let nominal = theory(&report.nominal_model)?;
     let extended = theory(&report.extended_model)?;
     let omegas = crate::settings::log_grid(1.0, 40.0, 400);
-    let ext_label = format!("extended ({}), theory", report.diagnosis.cause);
+    let ext_label = format!("{}, theory", ext_label(report));
     type Data = (i32, Vec<f64>, Vec<Complex64>, Vec<f64>);
     let data: Vec<Data> = HTF_HARMONICS
         .iter()
@@ -661,8 +682,7 @@ fn draw(
     report: &DiagnosisReport,
 ) -> Result<Figures> {
     let (t, r0, r1) = residuals(record, report);
-    let cause = report.diagnosis.cause.clone();
-    let ext_label = format!("extended ({cause})");
+    let ext_label = ext_label(report);
     let same = report.extended_model == report.nominal_model;
     // The whole held-out record as an RMS per block (a full-rate trace is a solid band), then a
     // window of a few periods that a person can read.
@@ -1072,17 +1092,19 @@ fn report_md(
         );
     }
     let _ = writeln!(m, "\n## 3. The extended model\n");
-    if d.cause == "none" || d.cause == "unexplained" {
+    let added = added_effects(d);
+    if added.is_empty() {
         let _ = writeln!(
             m,
             "No effect is added; the extended model is the refitted nominal model: {}.\n",
             fmt_params(s, &d.parameters, &d.stderr)
         );
     } else {
+        let names: Vec<String> = added.iter().map(|e| format!("`{e}`")).collect();
         let _ = writeln!(
             m,
-            "The nominal model plus `{}`: {}.\n",
-            d.cause,
+            "The nominal model plus {}: {}.\n",
+            names.join(" and "),
             fmt_params(s, &d.parameters, &d.stderr)
         );
     }
