@@ -534,9 +534,9 @@ fn htf_figure(
     record: &Record,
     report: &DiagnosisReport,
 ) -> Result<Vec<evidence::HarmonicDifference>> {
-    use htfid_estimate::{siddiqi, Alpha, Record as EstRecord};
+    use htfid_estimate::{siddiqi, split_periodic, Alpha, Record as EstRecord};
     use htfid_plot::Style;
-    use htfid_theory::HarmonicTransferFunction;
+    use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
     let period = s.params.period;
     let dt = record.dt();
     let per = period / dt;
@@ -562,32 +562,37 @@ fn htf_figure(
     let periods = (record.len() - start) / per;
     anyhow::ensure!(periods >= 10, "fewer than 10 excited periods");
     let end = start + periods * per;
-    // The measured orbit: the position averaged at each phase over the whole record.
-    let mut orbit = vec![(0.0, 0usize); per];
-    for i in 0..record.len() {
-        let k = ((record.t()[i].rem_euclid(period) / dt).round() as usize) % per;
-        orbit[k].0 += record.x()[i];
-        orbit[k].1 += 1;
-    }
-    let y: Vec<f64> = (start..end)
-        .map(|i| {
-            let k = ((record.t()[i].rem_euclid(period) / dt).round() as usize) % per;
-            record.x()[i] - orbit[k].0 / orbit[k].1 as f64
-        })
-        .collect();
-    let rec = EstRecord::new(u[start..end].to_vec(), y, dt, record.t()[start])?;
+    // The measured orbit is the period average of the excited window (`split_periodic`); the
+    // estimator sees the deviations from it.
+    let t_start = record.t()[start];
+    let x_split = split_periodic(&record.x()[start..end], dt, t_start, period, 10)?;
+    let u_split = split_periodic(&u[start..end], dt, t_start, period, 5)?;
+    let rec = EstRecord::new(u_split.deviation, x_split.deviation, dt, t_start)?;
     let est = siddiqi(&rec, period, &HTF_HARMONICS, (1.0, 40.0), Alpha::Fixed(1.0))?;
-    let theory = |m: &htfid_diagnose::FittedModel| -> Result<htfid_theory::ExactHtf> {
+    // Each model's HTFs about its own limit cycle (`LinearisedHtf`: closed form where the
+    // linearisation is constant per chart, the periodic response otherwise).
+    let model = |m: &htfid_diagnose::FittedModel| -> Result<htfid_model::Hopper> {
         let mut params = m.params;
         params.forcing_amplitude = s.params.forcing_amplitude;
         params.period = period;
-        let hopper = htfid_model::Hopper::with_effects(params, m.damper, m.effects)?;
-        let orbit = hopper.limit_cycle(&Default::default(), &Default::default())?;
-        let lin = htfid_ltp::linearise(&hopper, &orbit.cycle, 16, &Default::default())?;
-        Ok(htfid_theory::ExactHtf::new(&lin.piecewise)?)
+        Ok(htfid_model::Hopper::with_effects(
+            params, m.damper, m.effects,
+        )?)
     };
-    let nominal = theory(&report.nominal_model)?;
-    let extended = theory(&report.extended_model)?;
+    let opts = htfid_hybrid::Options::default();
+    let (h0, h1) = (
+        model(&report.nominal_model)?,
+        model(&report.extended_model)?,
+    );
+    let (c0, c1) = (
+        h0.limit_cycle(&Default::default(), &opts)?,
+        h1.limit_cycle(&Default::default(), &opts)?,
+    );
+    let (l0, l1) = (
+        LinearisedHtf::new(&h0, &c0.cycle, &opts)?,
+        LinearisedHtf::new(&h1, &c1.cycle, &opts)?,
+    );
+    let (nominal, extended) = (l0.channel(0)?, l1.channel(0)?);
     let omegas = crate::settings::log_grid(1.0, 40.0, 400);
     let ext_label = format!("{}, theory", ext_label(report));
     type Data = (i32, Vec<f64>, Vec<Complex64>, Vec<f64>);
