@@ -590,6 +590,63 @@ pub(crate) fn select(
         }
     }
 
+    // A mass error's look-alike: a refitted mass changes the weight `m g`, a constant force,
+    // as well as the inertia. When the inertia change is below the data's resolution, a
+    // constant force with the configured mass explains the record as well; the two are then
+    // rivals (`parameter_error` and `input_offset`).
+    if let Some(k) = chosen.iter().position(|&e| e == Effect::ParameterError) {
+        let own = own_slots(&chosen, k, &nominal.slots);
+        if own.contains(&Slot::M)
+            && opts.candidates.contains(&Effect::InputOffset)
+            && !chosen.contains(&Effect::InputOffset)
+            && !current.slots.contains(&Slot::InputOffset)
+        {
+            let mut start = current.point;
+            start.set(Slot::M, absent.get(Slot::M));
+            let slots: Vec<Slot> = current
+                .slots
+                .iter()
+                .copied()
+                .filter(|&s| s != Slot::M)
+                .chain([Slot::InputOffset])
+                .collect();
+            if let Ok(f) = ctx.fit(&start, &slots) {
+                evaluations += f.evaluations;
+                let held_out = evaluate(ctx, &f.point, &f.stepping).map(|ev| ev.score);
+                let d = f.bic - current.bic;
+                let force = sig(f.point.get(Slot::InputOffset), 4);
+                match held_out {
+                    // Clearly better, and no worse held out: the mass is as configured and a
+                    // constant force acts; `parameter_error` keeps the other parameters.
+                    Ok(score) if d < -opts.bic_margin && score.rmse <= current_score.rmse => {
+                        evidence.push(format!(
+                            "look-alike: a constant force of {force} with the configured mass \
+                             fits better than the refitted mass (fit BIC lower by {:.1}, held-out \
+                             RMSE {} against {}): the mass is kept as configured",
+                            -d,
+                            sig(score.rmse, 4),
+                            sig(current_score.rmse, 4)
+                        ));
+                        chosen.push(Effect::InputOffset);
+                        current = f;
+                        current_score = score;
+                    }
+                    Ok(score)
+                        if d < opts.bic_margin
+                            && score.rmse <= current_score.rmse * (1.0 + opts.min_gain) =>
+                    {
+                        evidence.push(format!(
+                            "look-alike: a constant force of {force} with the configured mass \
+                             explains the data as well as the refitted mass (fit BIC {d:+.1})"
+                        ));
+                        rivals.push((Effect::ParameterError, Effect::InputOffset));
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+
     // Backward pass, and each effect's share from the fit without it.
     let mut without: Vec<f64> = Vec::new();
     'backward: while chosen.len() >= 2 {
