@@ -332,7 +332,7 @@ fn group(s: &Scenario) -> &'static str {
 const FLOORS: [(&str, f64); 6] = [
     ("clean", 0.9),
     ("single effect", 0.9),
-    ("compound", 0.45),
+    ("compound", 0.7),
     ("out of library", 0.8),
     ("mixed", 0.0),
     ("parameters within 10 %", 0.9),
