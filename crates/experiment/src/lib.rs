@@ -61,6 +61,9 @@ pub enum ExperimentError {
     /// A model-language model's parameters or its limit cycle.
     #[error(transparent)]
     Model(#[from] htfid_lang::ModelError),
+    /// A limit cycle found with `htfid-orbit` directly (a model of a Rust user's own).
+    #[error(transparent)]
+    Orbit(#[from] htfid_orbit::OrbitError),
     /// A simulation.
     #[error(transparent)]
     Simulation(#[from] HybridError),
