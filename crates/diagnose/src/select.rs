@@ -551,15 +551,21 @@ pub(crate) fn select(
     // effects still missing can favour the wrong one.
     for k in 0..chosen.len() {
         let e = chosen[k];
-        for &r in look_alikes(e) {
-            if chosen.contains(&r) || !opts.candidates.contains(&r) {
-                continue;
-            }
-            let own = own_slots(&chosen, k, &nominal.slots);
-            let Some(reduced) = refit_without(ctx, &current, &own, absent) else {
-                continue;
-            };
-            evaluations += reduced.evaluations;
+        let tried: Vec<Effect> = look_alikes(e)
+            .iter()
+            .copied()
+            .filter(|r| !chosen.contains(r) && opts.candidates.contains(r))
+            .collect();
+        if tried.is_empty() {
+            continue;
+        }
+        // The model without the effect, once for all its look-alikes.
+        let own = own_slots(&chosen, k, &nominal.slots);
+        let Some(reduced) = refit_without(ctx, &current, &own, absent) else {
+            continue;
+        };
+        evaluations += reduced.evaluations;
+        for r in tried {
             let o = run_candidate(ctx, screening, &reduced, &reduced.slots, r);
             let Some(f) = o.fit.as_ref() else {
                 continue;

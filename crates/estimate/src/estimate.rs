@@ -43,6 +43,20 @@ impl Method {
     }
 }
 
+impl Method {
+    /// The bias a noise-free re-run of the experiment measures for this estimator: the
+    /// nonlinear distortion of a line estimator (only its odd orders when `+u` / `-u` pairs
+    /// cancel the even ones); `None` for the estimators that carry their own bias estimate
+    /// ([`HtfEstimate::bias`]).
+    pub fn distortion(&self) -> Option<BiasSource> {
+        match self {
+            Self::PeriodicLinesPaired => Some(BiasSource::PairingDistortion),
+            Self::PeriodicLines => Some(BiasSource::NonlinearDistortion),
+            _ => None,
+        }
+    }
+}
+
 impl fmt::Display for Method {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.as_str())

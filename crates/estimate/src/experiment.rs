@@ -182,16 +182,21 @@ fn window(signal: &Sampled<'_>, start: f64, duration: f64) -> Result<Record> {
 mod tests {
     use super::*;
 
+    /// `u = y = samples` at `dt` from `t_start`.
+    fn signal(samples: &[f64], dt: f64, t_start: f64) -> Sampled<'_> {
+        Sampled {
+            u: samples,
+            y: samples,
+            dt,
+            t_start,
+        }
+    }
+
     /// A window's start snaps to the first sample at or after it and keeps absolute time.
     #[test]
     fn a_window_starts_at_the_first_sample_at_or_after_its_start() {
         let u: Vec<f64> = (0..100).map(f64::from).collect();
-        let s = Sampled {
-            u: &u,
-            y: &u,
-            dt: 0.1,
-            t_start: 1.0,
-        };
+        let s = signal(&u, 0.1, 1.0);
         let r = window(&s, 2.05, 1.0).unwrap();
         assert_eq!(r.len(), 10);
         assert!((r.u()[0] - 11.0).abs() < 1e-12, "{}", r.u()[0]);
@@ -201,12 +206,7 @@ mod tests {
     #[test]
     fn a_window_past_the_end_or_between_samples_is_refused() {
         let u = vec![0.0; 100];
-        let s = Sampled {
-            u: &u,
-            y: &u,
-            dt: 0.1,
-            t_start: 0.0,
-        };
+        let s = signal(&u, 0.1, 0.0);
         assert!(matches!(
             window(&s, 5.0, 6.0),
             Err(Error::WindowOutsideSignal { .. })
@@ -220,12 +220,7 @@ mod tests {
     #[test]
     fn an_estimator_without_its_layout_says_what_it_needs() {
         let u = vec![0.0; 100];
-        let s = Sampled {
-            u: &u,
-            y: &u,
-            dt: 0.1,
-            t_start: 0.0,
-        };
+        let s = signal(&u, 0.1, 0.0);
         let request = Request {
             period: 1.0,
             harmonics: &[0],

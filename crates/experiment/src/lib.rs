@@ -334,6 +334,10 @@ where
     let refit =
         fit_to_htf(&fitted, &orbit, &of_outputs, spec, opts).map_err(ExperimentError::from)?;
     let htf = LinearisedHtf::new(&fitted, &orbit, opts).map_err(ExperimentError::from)?;
+    let channels = (0..htf.n_outputs())
+        .map(|o| htf.channel(o))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(ExperimentError::from)?;
     let mut htf_bias = Vec::with_capacity(fit.fitted.len());
     for p in &fit.fitted {
         let missing = || ExperimentError::MissingEstimate {
@@ -350,7 +354,7 @@ where
             .iter()
             .position(|&o| (o - p.omega).abs() <= 1e-9 * p.omega.abs().max(1.0))
             .ok_or_else(missing)?;
-        let channel = htf.channel(p.output).map_err(ExperimentError::from)?;
+        let channel = channels.get(p.output).ok_or_else(missing)?;
         htf_bias.push(h.values[i] - channel.g(p.n, p.omega));
     }
     let parameter_bias = refit

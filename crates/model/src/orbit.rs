@@ -17,6 +17,56 @@ pub struct HopperOrbit {
 }
 
 impl HopperOrbit {
+    /// The hopper's orbit data of a limit cycle found by `htfid-orbit` (for example by a fit
+    /// that changed the hopper's parameters): the damper's switching phases and duty cycle.
+    ///
+    /// # Errors
+    /// [`ModelError::UnexpectedSwitching`] when the orbit does not switch exactly twice per
+    /// period (or never).
+    pub fn from_cycle(cycle: LimitCycle<HopperMode>) -> Result<Self, ModelError> {
+        let period = cycle.period;
+        let transitions = || {
+            cycle.events.iter().filter(|e| {
+                e.kind == EventKind::Transition || (e.kind == EventKind::SlideEnd && e.to != e.from)
+            })
+        };
+        let ons: Vec<f64> = transitions()
+            .filter(|e| e.to == HopperMode::Damped)
+            .map(|e| e.time.rem_euclid(period))
+            .collect();
+        let offs: Vec<f64> = transitions()
+            .filter(|e| e.to == HopperMode::Free)
+            .map(|e| e.time.rem_euclid(period))
+            .collect();
+        let (t_on, t_off, duty) = match (ons.as_slice(), offs.as_slice()) {
+            ([on], [off]) => (*on, *off, (off - on).rem_euclid(period) / period),
+            ([], []) => {
+                // One chart only (damper always on): the damper is on all the time.
+                (
+                    0.0,
+                    0.0,
+                    if cycle.mode0 == HopperMode::Damped {
+                        1.0
+                    } else {
+                        0.0
+                    },
+                )
+            }
+            _ => {
+                return Err(ModelError::UnexpectedSwitching {
+                    on: ons.len(),
+                    off: offs.len(),
+                })
+            }
+        };
+        Ok(HopperOrbit {
+            cycle,
+            t_on,
+            t_off,
+            duty,
+        })
+    }
+
     /// The intervals of the period (times from the phase origin, s) during which the mass
     /// sticks: it slides along `x' = v_th` (with `v_th = 0`, `x' = 0` held by Coulomb
     /// friction). Empty when it never sticks.
@@ -69,46 +119,7 @@ impl Hopper {
         let mode0 = unforced.mode_of(x0[1]);
         let period = self.params().period;
         let cycle = find_limit_cycle(&unforced, mode0, 0.0, x0, period, shooting, opts)?;
-        let transitions = || {
-            cycle.events.iter().filter(|e| {
-                e.kind == EventKind::Transition || (e.kind == EventKind::SlideEnd && e.to != e.from)
-            })
-        };
-        let ons: Vec<f64> = transitions()
-            .filter(|e| e.to == HopperMode::Damped)
-            .map(|e| e.time.rem_euclid(period))
-            .collect();
-        let offs: Vec<f64> = transitions()
-            .filter(|e| e.to == HopperMode::Free)
-            .map(|e| e.time.rem_euclid(period))
-            .collect();
-        let (t_on, t_off, duty) = match (ons.as_slice(), offs.as_slice()) {
-            ([on], [off]) => (*on, *off, (off - on).rem_euclid(period) / period),
-            ([], []) => {
-                // One chart only (damper always on): the damper is on all the time.
-                (
-                    0.0,
-                    0.0,
-                    if cycle.mode0 == HopperMode::Damped {
-                        1.0
-                    } else {
-                        0.0
-                    },
-                )
-            }
-            _ => {
-                return Err(ModelError::UnexpectedSwitching {
-                    on: ons.len(),
-                    off: offs.len(),
-                })
-            }
-        };
-        Ok(HopperOrbit {
-            cycle,
-            t_on,
-            t_off,
-            duty,
-        })
+        HopperOrbit::from_cycle(cycle)
     }
 
     /// Samples the orbit at `samples` equally spaced phases in `[0, T)`.

@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use htfid_estimate::{BiasSource, HtfEstimate, Method};
+use htfid_estimate::{HtfEstimate, Method};
 use htfid_experiment::{add_noise, distortion_bootstrap, drive, Driven};
 use htfid_hybrid::{simulate, EventKind, HybridSystem};
-use htfid_identify::{budget_with_bias, fit_to_htf, HtfFit, HtfFitSpec};
+use htfid_identify::{fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{saltation, LimitCycle, ShootingOptions};
 use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf};
@@ -633,30 +633,13 @@ fn fit_model(
     let spec = crate::commands::run::fit_spec(settings);
     let fit = fit_to_htf(model, cycle, estimates, &spec, &settings.integrator)?;
     let mut out = crate::commands::run::fit_json(settings, &fit);
-    let lines = estimates.iter().find_map(|(_, e)| match e.method() {
-        Method::PeriodicLinesPaired => Some(BiasSource::PairingDistortion),
-        Method::PeriodicLines => Some(BiasSource::NonlinearDistortion),
-        _ => None,
+    // Every output's estimate comes from the same estimator.
+    let method = estimates
+        .first()
+        .map_or(Method::Siddiqi, |(_, e)| e.method());
+    out["uncertainty"] = crate::commands::run::budget_json(&fit, method, || {
+        bootstrap(settings, model, cycle, est, &spec, &fit)
     });
-    let budget = match lines {
-        Some(source) => bootstrap(settings, model, cycle, est, &spec, &fit)
-            .and_then(|(d, p)| Ok(budget_with_bias(&fit, source, &d, Some(&p))?))
-            .map(|b| (b, Some("bootstrap"))),
-        None => fit
-            .uncertainty
-            .clone()
-            .context("the fit's Jacobian is rank deficient: no error budget exists")
-            .map(|b| {
-                let method = b.htf_bias_source.map(|_| "curvature");
-                (b, method)
-            }),
-    };
-    // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run): the
-    // reason is recorded instead.
-    out["uncertainty"] = match budget {
-        Ok((b, method)) => crate::commands::run::uncertainty_json(&fit.parameters, &b, method),
-        Err(err) => json!({ "error": format!("{err:#}") }),
-    };
     Ok(out)
 }
 

@@ -5,18 +5,18 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use htfid_estimate::{
-    estimate_experiment, Alpha, BiasSource, HtfEstimate, Layout, LineSpec, LineWindows, Method,
-    MultiOptions, Request, Sampled, UncertaintyBudget,
+    estimate_experiment, Alpha, HtfEstimate, Layout, LineSpec, LineWindows, Method, MultiOptions,
+    Request, Sampled, UncertaintyBudget,
 };
 use htfid_excite::{alias_map, Polarity};
 use htfid_identify::{budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec};
-use htfid_model::Hopper;
+use htfid_model::{Hopper, HopperOrbit};
 use htfid_plot::Style;
 use htfid_theory::HarmonicTransferFunction;
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use crate::commands::simulate::{base_summary, simulate_experiment, Simulated};
+use crate::commands::simulate::{base_summary, simulate_experiment, simulate_on, Simulated};
 use crate::commands::theory::{self, ltp_json, write_theory_csv};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
@@ -233,16 +233,12 @@ fn estimator_chain(
             fit_parameters(settings, sim, &e)
         })
         .with_context(|| format!("parametric fit to the \"{}\" estimates failed", est.name()))?;
-    let budget = stages.run(&format!("uncertainty ({})", est.name()), || {
-        fit_uncertainty(settings, est, sim, &e, &fit)
-    });
     let mut json = fit_json(settings, &fit);
-    // The fit stands without its budget (a rank-deficient Jacobian, a failed re-run): the
-    // reason is recorded instead.
-    json["uncertainty"] = match budget {
-        Ok((b, method)) => uncertainty_json(&settings.estimation.fit, &b, method),
-        Err(err) => json!({ "error": format!("{err:#}") }),
-    };
+    json["uncertainty"] = stages.run(&format!("uncertainty ({})", est.name()), || {
+        budget_json(&fit, e.method(), || {
+            distortion_bootstrap(settings, est, sim, &fit)
+        })
+    });
     Ok(Chain {
         est,
         estimate: e,
@@ -357,37 +353,34 @@ pub(crate) fn harmonic_errors(
     Value::Object(out)
 }
 
-/// The fit's error budget (`htfid_identify`): noise, the estimator's known bias, structure.
-/// The line estimators' distortion (what a `+u` / `-u` pairing leaves, or all of the nonlinear
-/// response without pairing) is the error the estimator makes on the same experiment simulated
-/// without noise on the fitted model (a parametric bootstrap); the regularised estimators carry
-/// their own estimate of their smoothing bias. Returns the budget and how the bias was found.
-fn fit_uncertainty(
-    settings: &Settings,
-    est: Estimator,
-    sim: &Simulated,
-    e: &HtfEstimate,
+/// `fit.<estimator>.uncertainty` of `summary.json`: the fit's error budget (`htfid_identify`):
+/// noise, the estimator's known bias, structure. A line estimator's distortion (what a `+u` /
+/// `-u` pairing leaves, or all of the nonlinear response without pairing) is the error the
+/// estimator makes on the same experiment simulated without noise on the fitted model, which
+/// `bootstrap` runs (a parametric bootstrap); the regularised estimators carry their own
+/// estimate of their smoothing bias. The fit stands without its budget (a rank-deficient
+/// Jacobian, a failed re-run): the reason is recorded instead.
+pub(crate) fn budget_json(
     fit: &HtfFit,
-) -> Result<(UncertaintyBudget, Option<&'static str>)> {
-    match e.method() {
-        Method::PeriodicLinesPaired | Method::PeriodicLines => {
-            let source = if e.method() == Method::PeriodicLinesPaired {
-                BiasSource::PairingDistortion
-            } else {
-                BiasSource::NonlinearDistortion
-            };
-            let (d, p_bias) = distortion_bootstrap(settings, est, sim, fit)?;
-            let b = budget_with_bias(fit, source, &d, Some(&p_bias))?;
-            Ok((b, Some("bootstrap")))
-        }
-        _ => {
-            let b = fit
-                .uncertainty
-                .clone()
-                .context("the fit's Jacobian is rank deficient: no error budget exists")?;
-            let method = b.htf_bias_source.map(|_| "curvature");
-            Ok((b, method))
-        }
+    method: Method,
+    bootstrap: impl FnOnce() -> Result<(Vec<Complex64>, Vec<f64>)>,
+) -> Value {
+    let budget = match method.distortion() {
+        Some(source) => bootstrap()
+            .and_then(|(d, p)| Ok(budget_with_bias(fit, source, &d, Some(&p))?))
+            .map(|b| (b, Some("bootstrap"))),
+        None => fit
+            .uncertainty
+            .clone()
+            .context("the fit's Jacobian is rank deficient: no error budget exists")
+            .map(|b| {
+                let method = b.htf_bias_source.map(|_| "curvature");
+                (b, method)
+            }),
+    };
+    match budget {
+        Ok((b, method)) => uncertainty_json(&fit.parameters, &b, method),
+        Err(err) => json!({ "error": format!("{err:#}") }),
     }
 }
 
@@ -409,19 +402,13 @@ fn distortion_bootstrap(
         fit,
         &fit_spec(settings),
         &again.integrator,
-        // The experiment as configured, on the fitted hopper (its orbit found as `run` finds
-        // it).
-        |fitted: &Hopper, _orbit| -> Result<Vec<HtfEstimate>> {
-            let mut at_fit = again.clone();
-            at_fit.system = crate::settings::System::Hopper {
-                params: *fitted.params(),
-                damper: fitted.damper(),
-                effects: *fitted.effects(),
-            };
+        // The experiment as configured, on the fitted hopper from its orbit.
+        |fitted: &Hopper, orbit| -> Result<Vec<HtfEstimate>> {
+            let orbit = HopperOrbit::from_cycle(orbit.clone())?;
             let mut quiet = Stages::silent();
-            let sim = simulate_experiment(&at_fit, &mut quiet)?;
-            let deviation = orbit_deviation(&at_fit, &sim)?;
-            let e = estimate(&at_fit, (&sim.t, &sim.u), &sim.excitation, &deviation, est)?;
+            let sim = simulate_on(&again, fitted.clone(), orbit, &mut quiet)?;
+            let deviation = orbit_deviation(&again, &sim)?;
+            let e = estimate(&again, (&sim.t, &sim.u), &sim.excitation, &deviation, est)?;
             Ok(vec![e])
         },
     )?;

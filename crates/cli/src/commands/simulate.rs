@@ -84,6 +84,16 @@ pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hop
 /// Limit cycle, then the whole experiment from `t = 0` on the orbit.
 pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
     let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
+    simulate_on(settings, hopper, orbit, stages)
+}
+
+/// The configured experiment on `hopper`, from `t = 0` on its limit cycle `orbit`.
+pub fn simulate_on(
+    settings: &Settings,
+    hopper: Hopper,
+    orbit: HopperOrbit,
+    stages: &mut Stages,
+) -> Result<Simulated> {
     let excitation = signals::build(settings)?;
     let (_, grid) = settings.record_grid(excitation.end);
     let n = grid.len();
