@@ -92,7 +92,7 @@
 //! # Ok::<(), htfid_api::Error>(())
 //! ```
 
-use htfid_estimate::{siddiqi, split_periodic, Record};
+use htfid_estimate::{deviation_record, siddiqi, split_periodic};
 use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 
 pub use htfid_estimate::{Alpha, HtfEstimate, HtfRow};
@@ -303,7 +303,7 @@ pub fn estimate(
     let n = (u.len().min(y.len()) / per_period) * per_period;
     let u = split_periodic(&u[..n], dt, t0, period, options.orbit_harmonics)?;
     let y = split_periodic(&y[..n], dt, t0, period, 2 * options.orbit_harmonics)?;
-    let record = Record::new(u.deviation, y.deviation, dt, t0)?;
+    let record = deviation_record(u.deviation, y.deviation, dt, t0)?;
     Ok(siddiqi(
         &record,
         period,

@@ -348,7 +348,7 @@ fn parse_csv(text: &str, path: &Path, spec: &CsvSpec) -> Result<TimeSeries, Data
     Ok(TimeSeries::from_checked(
         time,
         input,
-        output,
+        vec![output],
         dt,
         path.to_path_buf(),
     ))

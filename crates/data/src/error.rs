@@ -230,6 +230,30 @@ pub enum DataError {
         /// The rate given, in Hz.
         rate_hz: f64,
     },
+    /// The sample step is zero, negative, NaN or infinite.
+    #[error("sample step must be finite and > 0 (got {dt} s)")]
+    InvalidStep {
+        /// The step given, in s.
+        dt: f64,
+    },
+    /// A series was given no output.
+    #[error("{}: a record needs at least one output", path.display())]
+    NoOutputs {
+        /// Where the data came from.
+        path: PathBuf,
+    },
+    /// Series joined into one record have different times or inputs.
+    #[error(
+        "{}: output {} was read with other times or another input than the outputs before it",
+        path.display(),
+        output + 1
+    )]
+    OutputsDisagree {
+        /// Where the disagreeing series came from.
+        path: PathBuf,
+        /// 0-based index the output would have had.
+        output: usize,
+    },
     /// The start time is NaN or infinite.
     #[error("start time must be finite (got {start} s)")]
     InvalidStartTime {

@@ -478,7 +478,7 @@ pub(crate) fn assemble(
     Ok(TimeSeries::from_checked(
         times,
         input.values.to_vec(),
-        output.values.to_vec(),
+        vec![output.values.to_vec()],
         dt,
         path.to_path_buf(),
     ))

@@ -6,48 +6,64 @@ use crate::error::{ColumnId, DataError, Location};
 /// Default relative tolerance on the sample step, see [`CsvSpec::time_tolerance`](crate::CsvSpec).
 pub const DEFAULT_TIME_TOLERANCE: f64 = 1e-6;
 
-/// A uniformly sampled input/output record.
+/// A uniformly sampled record: one input and one or more outputs at common sample times. The
+/// one record type of htfid: read from files here, simulated by `htfid-experiment`, diagnosed
+/// by `htfid-diagnose`.
 ///
-/// Invariants, checked by every constructor: at least 2 samples; `time`, `input` and `output`
-/// have equal lengths; all values finite; `time` strictly increasing with a uniform step `dt`
-/// (in s) within the tolerance the data were read with. Times are absolute: `time[0]` is the
-/// time of the first sample as recorded, not shifted to zero.
+/// Invariants, checked by every constructor: at least 2 samples; at least one output; `time`,
+/// `input` and every output have equal lengths; all values finite; `time` strictly increasing
+/// with a uniform step `dt` (in s) within the tolerance the data were read with. Times are
+/// absolute: `time[0]` is the time of the first sample as recorded, not shifted to zero.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TimeSeries {
     time: Vec<f64>,
     input: Vec<f64>,
-    output: Vec<f64>,
+    outputs: Vec<Vec<f64>>,
     dt: f64,
     source: PathBuf,
 }
 
 impl TimeSeries {
-    /// Builds a series from explicit sample times, checking the invariants with the default
-    /// relative tolerance [`DEFAULT_TIME_TOLERANCE`]. `source` names where the data came from
-    /// (used in messages); errors give 0-based sample indices ([`Location::Row`]).
+    /// Builds a one-output series from explicit sample times, checking the invariants with the
+    /// default relative tolerance [`DEFAULT_TIME_TOLERANCE`]. `source` names where the data
+    /// came from (used in messages); errors give 0-based sample indices ([`Location::Row`]).
     pub fn new(
         time: Vec<f64>,
         input: Vec<f64>,
         output: Vec<f64>,
         source: impl Into<PathBuf>,
     ) -> Result<Self, DataError> {
+        Self::with_outputs(time, input, vec![output], source)
+    }
+
+    /// [`new`](Self::new) with any number (at least one) of outputs.
+    pub fn with_outputs(
+        time: Vec<f64>,
+        input: Vec<f64>,
+        outputs: Vec<Vec<f64>>,
+        source: impl Into<PathBuf>,
+    ) -> Result<Self, DataError> {
         let source = source.into();
-        check_lengths(
-            &source,
-            time.len(),
-            &[("input", &input), ("output", &output)],
-        )?;
+        check_outputs(&source, &outputs)?;
+        let mut columns: Vec<(String, &[f64])> = vec![("input".to_string(), &input)];
+        for (o, y) in outputs.iter().enumerate() {
+            columns.push((output_name(o), y));
+        }
+        let named: Vec<(&str, &[f64])> = columns.iter().map(|(n, v)| (n.as_str(), *v)).collect();
+        check_lengths(&source, time.len(), &named)?;
         check_count(&source, time.len(), 2)?;
-        for (name, values) in [("time", &time), ("input", &input), ("output", &output)] {
+        check_finite_slice(&source, "time", &time)?;
+        for (name, values) in &named {
             check_finite_slice(&source, name, values)?;
         }
         let dt = check_uniform(&time, DEFAULT_TIME_TOLERANCE, f64::EPSILON).map_err(|fault| {
             fault.into_error(&source, ColumnId::Name("time".into()), Location::Row)
         })?;
-        Ok(Self::from_checked(time, input, output, dt, source))
+        Ok(Self::from_checked(time, input, outputs, dt, source))
     }
 
-    /// Builds a series sampled at `rate_hz` starting at `start` s: `time[k] = start + k / rate_hz`.
+    /// Builds a one-output series sampled at `rate_hz` starting at `start` s:
+    /// `time[k] = start + k / rate_hz`.
     pub fn from_sample_rate(
         rate_hz: f64,
         start: f64,
@@ -55,29 +71,76 @@ impl TimeSeries {
         output: Vec<f64>,
         source: impl Into<PathBuf>,
     ) -> Result<Self, DataError> {
-        let source = source.into();
         let dt = check_rate(rate_hz, start)?;
-        check_lengths(&source, input.len(), &[("output", &output)])?;
+        Self::from_step(start, dt, input, vec![output], source)
+    }
+
+    /// Builds a series sampled every `dt` s from `start` s, `time[k] = start + k dt`, with any
+    /// number (at least one) of outputs: the record of a simulation on a uniform grid.
+    pub fn from_step(
+        start: f64,
+        dt: f64,
+        input: Vec<f64>,
+        outputs: Vec<Vec<f64>>,
+        source: impl Into<PathBuf>,
+    ) -> Result<Self, DataError> {
+        let source = source.into();
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(DataError::InvalidStep { dt });
+        }
+        if !start.is_finite() {
+            return Err(DataError::InvalidStartTime { start });
+        }
+        check_outputs(&source, &outputs)?;
+        let names: Vec<String> = (0..outputs.len()).map(output_name).collect();
+        let named: Vec<(&str, &[f64])> = names
+            .iter()
+            .map(String::as_str)
+            .zip(outputs.iter().map(Vec::as_slice))
+            .collect();
+        check_lengths(&source, input.len(), &named)?;
         check_count(&source, input.len(), 2)?;
-        for (name, values) in [("input", &input), ("output", &output)] {
+        check_finite_slice(&source, "input", &input)?;
+        for (name, values) in &named {
             check_finite_slice(&source, name, values)?;
         }
         let time = uniform_times(start, dt, input.len());
-        Ok(Self::from_checked(time, input, output, dt, source))
+        Ok(Self::from_checked(time, input, outputs, dt, source))
+    }
+
+    /// One series holding the outputs of all of `parts`, in order: the same record read once
+    /// per output column. Every part must have the same times and input.
+    pub fn join_outputs(parts: Vec<TimeSeries>) -> Result<Self, DataError> {
+        let mut parts = parts.into_iter();
+        let Some(mut joined) = parts.next() else {
+            return Err(DataError::NoOutputs {
+                path: PathBuf::new(),
+            });
+        };
+        for part in parts {
+            if part.time != joined.time || part.input != joined.input {
+                return Err(DataError::OutputsDisagree {
+                    path: part.source,
+                    output: joined.outputs.len(),
+                });
+            }
+            joined.outputs.extend(part.outputs);
+        }
+        Ok(joined)
     }
 
     /// Assembles a series whose invariants the caller has already established.
     pub(crate) fn from_checked(
         time: Vec<f64>,
         input: Vec<f64>,
-        output: Vec<f64>,
+        outputs: Vec<Vec<f64>>,
         dt: f64,
         source: PathBuf,
     ) -> Self {
         Self {
             time,
             input,
-            output,
+            outputs,
             dt,
             source,
         }
@@ -93,9 +156,27 @@ impl TimeSeries {
         &self.input
     }
 
-    /// The output (response, e.g. position in m) per sample.
+    /// The first output (response, e.g. position in m) per sample.
     pub fn output(&self) -> &[f64] {
-        &self.output
+        &self.outputs[0]
+    }
+
+    /// Every output, each per sample.
+    pub fn outputs(&self) -> &[Vec<f64>] {
+        &self.outputs
+    }
+
+    /// The record of output `o` alone (same times, input and source), `None` past the last
+    /// output.
+    pub fn output_series(&self, o: usize) -> Option<Self> {
+        let y = self.outputs.get(o)?;
+        Some(Self::from_checked(
+            self.time.clone(),
+            self.input.clone(),
+            vec![y.clone()],
+            self.dt,
+            self.source.clone(),
+        ))
     }
 
     /// The sample step in s. Read from a time column it is `(t_last - t_first) / (len - 1)`,
@@ -138,11 +219,32 @@ impl TimeSeries {
         Ok(Self::from_checked(
             self.time[start..end].to_vec(),
             self.input[start..end].to_vec(),
-            self.output[start..end].to_vec(),
+            self.outputs
+                .iter()
+                .map(|y| y[start..end].to_vec())
+                .collect(),
             self.dt,
             self.source.clone(),
         ))
     }
+}
+
+/// How messages name output `o` (0-based): `output` for the first, `output 2` and on after it.
+fn output_name(o: usize) -> String {
+    if o == 0 {
+        "output".to_string()
+    } else {
+        format!("output {}", o + 1)
+    }
+}
+
+fn check_outputs(source: &Path, outputs: &[Vec<f64>]) -> Result<(), DataError> {
+    if outputs.is_empty() {
+        return Err(DataError::NoOutputs {
+            path: source.to_path_buf(),
+        });
+    }
+    Ok(())
 }
 
 /// Why a time vector is not uniformly sampled, by 0-based sample index.
@@ -310,6 +412,59 @@ fn check_finite_slice(path: &Path, name: &str, values: &[f64]) -> Result<(), Dat
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    /// Several outputs: built at once or joined from one read per column, sliced together,
+    /// taken apart again; a join of records with other times or inputs is refused by output.
+    #[test]
+    fn a_record_holds_several_outputs() {
+        let t: Vec<f64> = (0..6).map(|k| 0.5 + 0.25 * k as f64).collect();
+        let u: Vec<f64> = (0..6).map(|k| k as f64).collect();
+        let (y1, y2): (Vec<f64>, Vec<f64>) = (0..6).map(|k| (k as f64 * 2.0, -(k as f64))).unzip();
+        let both =
+            TimeSeries::with_outputs(t.clone(), u.clone(), vec![y1.clone(), y2.clone()], "r")
+                .unwrap();
+        assert_eq!(both.outputs().len(), 2);
+        assert_eq!(both.output(), &y1[..]);
+        let joined = TimeSeries::join_outputs(vec![
+            TimeSeries::new(t.clone(), u.clone(), y1.clone(), "r").unwrap(),
+            TimeSeries::new(t.clone(), u.clone(), y2.clone(), "r").unwrap(),
+        ])
+        .unwrap();
+        assert_eq!(joined, both);
+        let part = both.slice(2..5).unwrap();
+        assert_eq!(part.outputs()[1], vec![-2.0, -3.0, -4.0]);
+        assert_eq!(both.output_series(1).unwrap().output(), &y2[..]);
+        assert!(both.output_series(2).is_none());
+        // The same grid from its step: times start + k dt exactly.
+        let stepped =
+            TimeSeries::from_step(0.5, 0.25, u.clone(), vec![y1.clone(), y2], "r").unwrap();
+        assert_eq!(stepped.time(), &t[..]);
+        assert_eq!(stepped.dt().to_bits(), 0.25f64.to_bits());
+        let other_input: Vec<f64> = u.iter().map(|v| v + 1.0).collect();
+        let err = TimeSeries::join_outputs(vec![
+            TimeSeries::new(t.clone(), u, y1.clone(), "a.csv").unwrap(),
+            TimeSeries::new(t.clone(), other_input, y1.clone(), "b.csv").unwrap(),
+        ])
+        .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "b.csv: output 2 was read with other times or another input than the outputs before it"
+        );
+        let err = TimeSeries::with_outputs(t.clone(), vec![0.0; 6], vec![], "r").unwrap_err();
+        assert_eq!(err.to_string(), "r: a record needs at least one output");
+        let err =
+            TimeSeries::with_outputs(t, vec![0.0; 6], vec![y1, vec![0.0; 5]], "r").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "r: column \"output 2\" has 5 values, the time vector has 6"
+        );
+        let err =
+            TimeSeries::from_step(0.0, 0.0, vec![0.0; 3], vec![vec![0.0; 3]], "r").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "sample step must be finite and > 0 (got 0 s)"
+        );
+    }
 
     #[test]
     fn uniform_step_is_end_to_end_mean() {

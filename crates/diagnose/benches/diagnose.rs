@@ -13,8 +13,8 @@ use std::time::{Duration, Instant};
 
 use htfid_data::{read_csv, CsvSpec};
 use htfid_diagnose::{
-    diagnose, simulate_record, DiagnoseOptions, FittedModel, Interpolation, NominalModel, Record,
-    Sensor, SimMethod,
+    diagnose, simulate_record, DiagnoseOptions, FittedModel, Interpolation, NominalModel, Sensor,
+    SimMethod, TimeSeries,
 };
 use htfid_hybrid::{simulate, Options};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams, InputFn};
@@ -29,7 +29,7 @@ fn chirp(t: f64) -> f64 {
     0.004 * (14.0 * PI * tau * tau / 30.0 + 2.0 * PI * j / 9.0).sin()
 }
 
-fn paper_record(effects: Effects) -> Record {
+fn paper_record(effects: Effects) -> TimeSeries {
     let params = HopperParams::paper();
     let u: InputFn = Arc::new(chirp);
     let hopper = Hopper::with_effects(params, DamperLaw::Switching, effects)
@@ -66,7 +66,7 @@ fn paper_record(effects: Effects) -> Record {
         .map(|&t| (2.0 * PI * t).cos() + chirp(t) + noise(1e-4))
         .collect();
     let x: Vec<f64> = (0..n).map(|i| traj.state(i)[0] + noise(2e-6)).collect();
-    Record::new(grid, f, x).expect("valid record")
+    TimeSeries::new(grid, f, x, "test").expect("valid record")
 }
 
 fn best_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (Duration, T) {
@@ -125,7 +125,7 @@ fn main() {
         .with_sample_rate(1e7 / 16384.0, 0.0);
     match read_csv(path, &spec) {
         Ok(series) => {
-            let record = Record::from_series(&series).expect("valid");
+            let record = series;
             let model = FittedModel {
                 params: HopperParams {
                     m: 5.373e-6,

@@ -17,7 +17,7 @@ use crate::noise::noise_floor;
 use crate::screen::Screening;
 use crate::select;
 use crate::sim::{Extent, MeasuredForce, SimMethod, Stepping};
-use crate::{DiagnoseError, Effect, NominalModel, Record, Sensor};
+use crate::{DiagnoseError, Effect, NominalModel, Sensor, TimeSeries};
 
 /// Fewest scored samples a range must keep after the burn-in.
 const MIN_SCORED: usize = 16;
@@ -346,7 +346,7 @@ pub struct DiagnosisReport {
 /// Diagnoses `record` against `nominal`; see the crate docs for the method and the decision
 /// rule.
 pub fn diagnose(
-    record: &Record,
+    record: &TimeSeries,
     nominal: &NominalModel,
     opts: &DiagnoseOptions,
 ) -> Result<DiagnosisReport, DiagnoseError> {
@@ -355,18 +355,19 @@ pub fn diagnose(
 
 /// [`diagnose`] reporting progress as short sentences (called from worker threads).
 pub fn diagnose_with_progress(
-    record: &Record,
+    record: &TimeSeries,
     nominal: &NominalModel,
     opts: &DiagnoseOptions,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<DiagnosisReport, DiagnoseError> {
     nominal.validate()?;
     opts.validate()?;
+    crate::record::check_length(record.len())?;
     let n = record.len();
     let dt = record.dt();
     let (fit_ranges, val_ranges) = resolve_ranges(opts, n)?;
     for (which, ranges) in [("fit", &fit_ranges), ("validation", &val_ranges)] {
-        crate::record::check_varies(record.x(), ranges, which)?;
+        crate::record::check_varies(record.output(), ranges, which)?;
     }
     let free = nominal.free_slots();
     let start = ModelPoint {
@@ -393,12 +394,12 @@ pub fn diagnose_with_progress(
         burn_in_s,
     )?;
 
-    let x = record.x();
+    let x = record.output();
     let x_min = x.iter().copied().fold(f64::INFINITY, f64::min);
     let x_max = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let mut ctx = Context {
         record,
-        input: MeasuredForce::new(record.t()[0], dt, record.f(), opts.interpolation),
+        input: MeasuredForce::new(record.time()[0], dt, record.input(), opts.interpolation),
         damper: nominal.damper,
         method: opts.sim,
         extent: Extent {
@@ -409,12 +410,13 @@ pub fn diagnose_with_progress(
         scales: Scales {
             x_std: positive_or(std_dev(x), 1.0),
             v_std: 1.0,
-            f_std: positive_or(std_dev(record.f()), 1.0),
+            f_std: positive_or(std_dev(record.input()), 1.0),
         },
         fit,
         validation,
         fit_initial_state: opts.fit_initial_state,
         max_iterations: opts.max_iterations,
+        forcing_period: (nominal.params.forcing_amplitude != 0.0).then_some(nominal.params.period),
     };
     let screening = Screening::new(&ctx, half);
     let v: Vec<f64> = screening.samples().iter().map(|(_, k)| k.v).collect();
@@ -509,7 +511,20 @@ pub fn diagnose_with_progress(
         noise.is_some_and(|s| decision.diagnosis.extended.rmse > opts.unexplained_ratio * s);
     if decision.diagnosis.mismatch.is_empty() && remains {
         progress("searching for terms outside the library");
-        let (found, sentence) = discover::discover(&ctx, half, extended_fit, opts);
+        let (mut found, mut sentence) = discover::discover(&ctx, half, extended_fit, opts);
+        // Library effects that only partly mimic the force outside the library bend the
+        // residual the terms are read from; the refitted nominal's residual shows it whole.
+        if found.is_none() && !std::ptr::eq(extended_fit, &nominal_fit) {
+            let (again, second) = discover::discover(&ctx, half, &nominal_fit, opts);
+            if let Some(mut d) = again {
+                d.read_from = "nominal".to_string();
+                found = Some(d);
+                sentence = format!(
+                    "{second}; read from the refitted nominal's residual, beside which the \
+                     selected effects left no formula that held up ({sentence})"
+                );
+            }
+        }
         decision.diagnosis.evidence.push(sentence);
         decision.diagnosis.discovered = found;
     }
@@ -541,7 +556,7 @@ pub fn diagnose_with_progress(
 /// `init` (position, velocity at `range.start`) or, when `None`, from the state estimated from
 /// the data as [`diagnose`] does. Returns the simulated positions of the range.
 pub fn simulate_record(
-    record: &Record,
+    record: &TimeSeries,
     model: &FittedModel,
     range: Range<usize>,
     init: Option<[f64; 2]>,
@@ -561,7 +576,7 @@ pub fn simulate_record(
         forcing_amplitude: 0.0,
         ..model.params
     };
-    let input = MeasuredForce::new(record.t()[0], record.dt(), record.f(), interpolation);
+    let input = MeasuredForce::new(record.time()[0], record.dt(), record.input(), interpolation);
     let (hopper, force) = input.drive_with(p, model.damper, model.effects)?;
     let f_n = (p.k / p.m).sqrt() / (2.0 * std::f64::consts::PI);
     let half = init_half_width(f_n, record.dt());
@@ -579,7 +594,7 @@ pub fn simulate_record(
                 .init
         }
     };
-    let x = record.x();
+    let x = record.output();
     let extent = Extent {
         x_min: x.iter().copied().fold(f64::INFINITY, f64::min),
         x_max: x.iter().copied().fold(f64::NEG_INFINITY, f64::max),
@@ -590,7 +605,7 @@ pub fn simulate_record(
     crate::sim::simulate_positions(
         &hopper,
         Some(&force),
-        record.t()[range.start],
+        record.time()[range.start],
         init,
         record.dt(),
         &stepping,
@@ -695,14 +710,14 @@ fn auto_burn_in(
 }
 
 fn segments(
-    record: &Record,
+    record: &TimeSeries,
     ranges: &[Range<usize>],
     skip: usize,
     half: usize,
     which: &'static str,
     burn_in_s: f64,
 ) -> Result<Vec<Segment>, DiagnoseError> {
-    let x = record.x();
+    let x = record.output();
     let n = x.len();
     ranges
         .iter()
@@ -753,7 +768,7 @@ fn fit_nominal(
     let (c0, c1) = (cost(start), cost(&refined));
     if !c0.is_finite() && !c1.is_finite() {
         return Err(DiagnoseError::NominalSimulation {
-            time: ctx.record.t()[0],
+            time: ctx.record.time()[0],
             reason: "the nominal model cannot be simulated on the fit ranges".to_string(),
         });
     }
@@ -766,7 +781,7 @@ impl Context<'_> {
     /// A "fit" of no parameters: the model as given.
     pub(crate) fn fit_fixed(&self, p: &ModelPoint) -> Result<FitResult, (f64, String)> {
         let stepping = self.stepping(p);
-        let hopper = self.hopper(p).map_err(|e| (self.record.t()[0], e))?;
+        let hopper = self.hopper(p).map_err(|e| (self.record.time()[0], e))?;
         let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
         let n = self.n_fit();
         let mut r = vec![0.0; n];
@@ -827,7 +842,7 @@ fn validation_inits(
     p: &ModelPoint,
     stepping: &Stepping,
 ) -> Result<Vec<[f64; 2]>, (f64, String)> {
-    let hopper = ctx.hopper(p).map_err(|e| (ctx.record.t()[0], e))?;
+    let hopper = ctx.hopper(p).map_err(|e| (ctx.record.time()[0], e))?;
     validation_inits_of(ctx, &hopper, stepping)
 }
 
@@ -837,7 +852,7 @@ pub(crate) fn validation_inits_of(
     hopper: &Driven,
     stepping: &Stepping,
 ) -> Result<Vec<[f64; 2]>, (f64, String)> {
-    let x = ctx.record.x();
+    let x = ctx.record.output();
     let steps = [1e-4 * ctx.scales.x_std, 1e-4 * ctx.scales.v_std];
     let mut inits = Vec::with_capacity(ctx.validation.len());
     for seg in &ctx.validation {
@@ -922,7 +937,7 @@ fn evaluate_on(
     segs: &[Segment],
     inits: &[[f64; 2]],
 ) -> Result<Evaluation, (f64, String)> {
-    let hopper = ctx.hopper(p).map_err(|e| (ctx.record.t()[0], e))?;
+    let hopper = ctx.hopper(p).map_err(|e| (ctx.record.time()[0], e))?;
     evaluate_driven(ctx, &hopper, stepping, segs, inits)
 }
 
@@ -934,7 +949,7 @@ pub(crate) fn evaluate_driven(
     segs: &[Segment],
     inits: &[[f64; 2]],
 ) -> Result<Evaluation, (f64, String)> {
-    let x = ctx.record.x();
+    let x = ctx.record.output();
     let mut residuals = Vec::with_capacity(segs.len());
     let mut measured = Vec::new();
     let mut buf = Vec::new();
@@ -952,7 +967,7 @@ pub(crate) fn evaluate_driven(
     }
     let score = score_of(&residuals, &measured);
     if !score.rmse.is_finite() {
-        return Err((ctx.record.t()[0], "non-finite simulation".to_string()));
+        return Err((ctx.record.time()[0], "non-finite simulation".to_string()));
     }
     Ok(Evaluation { score, residuals })
 }
@@ -1164,7 +1179,7 @@ fn separating_experiment(a: Effect, b: Effect) -> &'static str {
 /// Checks whether the nominal model describes the data at all, before any effect is named.
 /// Returns the reasons it does not, each with the check that found it.
 fn mismatch_checks(ctx: &Context<'_>, nominal_val: &Evaluation, nominal: &Score) -> Vec<String> {
-    let x = ctx.record.x();
+    let x = ctx.record.output();
     let (mut measured, mut simulated) = (Vec::new(), Vec::new());
     for (seg, r) in ctx.validation.iter().zip(&nominal_val.residuals) {
         for (k, ri) in seg.scored().zip(r) {

@@ -86,7 +86,7 @@ pub struct Discovered {
     pub terms: Vec<DiscoveredTerm>,
     /// `1 - rmse_after / rmse_before` on the held-out data.
     pub gain: f64,
-    /// Held-out RMSE of the final model without the formula.
+    /// Held-out RMSE of the model the formula was added to ([`read_from`](Self::read_from)).
     pub rmse_before: f64,
     /// Held-out RMSE with it.
     pub rmse_after: f64,
@@ -97,6 +97,15 @@ pub struct Discovered {
     pub x_eq: f64,
     /// The forcing period `T` used by the phase terms, in s.
     pub period: f64,
+    /// The model whose residual the terms were read from and added to: `final` (the selected
+    /// effects) or `nominal` (the refitted nominal, when the selected effects bent the residual
+    /// so that no formula held up beside them).
+    #[serde(default = "final_model")]
+    pub read_from: String,
+}
+
+fn final_model() -> String {
+    "final".to_string()
 }
 
 /// One term of a [`Discovered`] formula.
@@ -281,7 +290,7 @@ fn regression_data(
     let mut q = *p;
     q.effects.tau = 0.0;
     let hopper = ctx.hopper(&q).ok()?.hopper;
-    let (t, x, dt) = (ctx.record.t(), ctx.record.x(), ctx.record.dt());
+    let (t, x, dt) = (ctx.record.time(), ctx.record.output(), ctx.record.dt());
     let mut rows: Vec<Vec<f64>> = Vec::new();
     let mut ys = Vec::new();
     let mut d = [0.0; 2];
@@ -541,6 +550,18 @@ fn refit(
         bounds: Some(bounds.clone()),
         lambda0: 1e-3,
     };
+    // The equation error's coefficients can make the model blow up where the output error
+    // would not take them (a term that destabilises the orbit beside a moved switch): start
+    // from a fraction of them that simulates, down to none.
+    let mut trial = vec![0.0; n];
+    for shrink in [1.0, 0.5, 0.25, 0.1, 0.0] {
+        let mut u = base.values[..k].to_vec();
+        u.extend(theta0.iter().map(|t| shrink * t));
+        if residual(&u, &mut trial).is_ok() {
+            u0 = u;
+            break;
+        }
+    }
     let lm = levenberg_marquardt(residual, &u0, n, &opts).ok()?;
     let u = lm.params;
     // Jacobian at the optimum for the Newey-West errors; a step that would cross the lower
@@ -758,6 +779,7 @@ pub(crate) fn discover(
             } else {
                 0.0
             },
+            read_from: final_model(),
         }),
         sentence,
     )

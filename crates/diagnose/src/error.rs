@@ -4,16 +4,6 @@ use htfid_model::ModelError;
 #[non_exhaustive]
 #[derive(Debug, thiserror::Error)]
 pub enum DiagnoseError {
-    /// Two columns of a record differ in length.
-    #[error("record column {column} has {found} samples, but t has {expected}")]
-    LengthMismatch {
-        /// The offending column (`f` or `x`).
-        column: &'static str,
-        /// Length of `t`.
-        expected: usize,
-        /// Length of the column.
-        found: usize,
-    },
     /// The record is too short to diagnose.
     #[error("a record needs at least {min} samples (got {found})")]
     TooShort {
@@ -22,31 +12,12 @@ pub enum DiagnoseError {
         /// Length given.
         found: usize,
     },
-    /// A sample is NaN or infinite.
-    #[error("record column {column} is not finite at sample {index} (value {value})")]
-    NonFinite {
-        /// `t`, `f` or `x`.
-        column: &'static str,
-        /// 0-based sample index.
-        index: usize,
-        /// The value found.
-        value: f64,
-    },
-    /// The sample times are not uniform (or not increasing).
-    #[error(
-        "record time step {index} -> {next} is {step} s, but the mean step is {dt} s \
-         (relative tolerance {tolerance})",
-        next = index + 1
-    )]
-    NonUniformTime {
-        /// Index of the first sample of the offending step.
-        index: usize,
-        /// The step found (s).
-        step: f64,
-        /// The mean step (s).
-        dt: f64,
-        /// Relative tolerance applied.
-        tolerance: f64,
+    /// The data's HTFs could not be compared with the models' (too few excited periods, a
+    /// forcing period that is no whole number of samples, a model without a limit cycle).
+    #[error("the data's HTFs cannot be compared with the models': {reason}")]
+    Htf {
+        /// What failed.
+        reason: String,
     },
     /// An option is out of range.
     #[error("{name} must be {expected} (got {value})")]

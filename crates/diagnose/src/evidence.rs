@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 use crate::deriv::{savitzky_golay, window_half_width};
 use crate::discover::acceleration_kernel;
 use crate::sim::MeasuredForce;
-use crate::{DiagnoseError, Diagnosis, FittedModel, Interpolation, Record};
+use crate::{DiagnoseError, Diagnosis, FittedModel, Interpolation, TimeSeries};
 
 /// The mean of a residual over the samples whose explanatory variable falls in `[lo, hi)`
 /// (the last bin includes `hi`).
@@ -187,18 +187,18 @@ pub struct ResidualSamples {
 /// term linear in position of hundreds of V/s^2, larger than the structure sought. The
 /// five-point differences are `0.3 %` off there.
 pub fn residual_acceleration(
-    record: &Record,
+    record: &TimeSeries,
     model: &FittedModel,
     ranges: &[Range<usize>],
     skip_s: f64,
     interpolation: Interpolation,
 ) -> Result<ResidualSamples, DiagnoseError> {
-    let (t, dt) = (record.t(), record.dt());
-    let input = MeasuredForce::new(t[0], dt, record.f(), interpolation);
+    let (t, dt) = (record.time(), record.dt());
+    let input = MeasuredForce::new(t[0], dt, record.input(), interpolation);
     let p = model.params;
     let hopper = input.drive(p, model.damper, model.effects)?;
     let s = model.sensor;
-    let x: Vec<f64> = record.x().iter().map(|&y| (y - s.b) / s.g).collect();
+    let x: Vec<f64> = record.output().iter().map(|&y| (y - s.b) / s.g).collect();
     let f_n = (p.k / p.m).sqrt() / (2.0 * std::f64::consts::PI);
     let half = window_half_width(f_n, dt);
     let kernel = acceleration_kernel(half, dt);
@@ -493,7 +493,7 @@ mod tests {
                 v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
             }
         }
-        let record = Record::new(ts, fs, xs).unwrap();
+        let record = TimeSeries::new(ts, fs, xs, "test").unwrap();
         let nominal = NominalModel::linear_spring_mass_damper(m, k, c).unwrap();
         let model = FittedModel {
             params: nominal.measured_params(),

@@ -14,7 +14,7 @@ use crate::sim::{
     simulate_positions_with, Extent, ExtraForce, Force, MeasuredForce, SimFailure, SimMethod,
     Stepping,
 };
-use crate::{Record, Sensor};
+use crate::{Sensor, TimeSeries};
 
 /// Relative finite-difference step of the Jacobians.
 const FD_STEP: f64 = 1e-7;
@@ -48,7 +48,7 @@ pub(crate) struct Scales {
 /// Everything a fit needs that does not change between candidates.
 #[derive(Debug)]
 pub(crate) struct Context<'a> {
-    pub record: &'a Record,
+    pub record: &'a TimeSeries,
     pub input: MeasuredForce,
     pub damper: DamperLaw,
     pub method: SimMethod,
@@ -58,6 +58,8 @@ pub(crate) struct Context<'a> {
     pub validation: Vec<Segment>,
     pub fit_initial_state: bool,
     pub max_iterations: usize,
+    /// The nominal's forcing period when it is forced (the forcing is in the measured force).
+    pub forcing_period: Option<f64>,
 }
 
 /// A point in model space.
@@ -185,7 +187,7 @@ impl Context<'_> {
         out: &mut Vec<f64>,
     ) -> Result<(), SimFailure> {
         out.resize(seg.range.len(), 0.0);
-        let t0 = self.record.t()[seg.range.start];
+        let t0 = self.record.time()[seg.range.start];
         simulate_positions_with(
             &model.hopper,
             model.force.as_ref(),
@@ -209,7 +211,7 @@ impl Context<'_> {
         stepping: &Stepping,
         r: &mut [f64],
     ) -> Result<(), SimFailure> {
-        let x = self.record.x();
+        let x = self.record.output();
         let mut buf = Vec::new();
         let mut at = 0;
         for (seg, &xv) in segs.iter().zip(init) {

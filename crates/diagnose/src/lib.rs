@@ -1,6 +1,7 @@
 //! From measured data to a named cause, an extended model and a measured gain.
 //!
-//! Given a measured record ([`Record`]: time, applied force `f`, position `x`) and a
+//! Given a measured record ([`TimeSeries`], htfid's one record type: time, its input the
+//! applied force `f`, its first output the position `x`) and a
 //! [`NominalModel`], [`diagnose`] shows what the nominal model gets wrong, names the physical
 //! cause from a library of candidate effects ([`Effect`]), fits the extended model and
 //! measures its gain on held-out data. The answer is a [`DiagnosisReport`] whose
@@ -11,7 +12,7 @@
 //! measurement chain ([`Sensor`]: a lag, an offset and a gain of the position sensor) is part
 //! of every model.
 //!
-//! Main types: [`Record`] (validated measured data), [`NominalModel`] (the hopper's parameters,
+//! Main types: [`TimeSeries`] (validated measured data), [`NominalModel`] (the hopper's parameters,
 //! damper law, effects already present and the parameters refitted everywhere),
 //! [`DiagnoseOptions`] (ranges, candidates, thresholds), [`diagnose`] and
 //! [`diagnose_with_progress`], [`DiagnosisReport`] with [`Diagnosis`], [`Candidate`], [`Score`]
@@ -57,8 +58,9 @@
 //! 5. **Nested tests and held-out judgement.** A candidate passes when it improves the model
 //!    of the round before both on the fit data, by a likelihood-ratio test corrected for
 //!    correlated residuals, and on the held-out data, by at least `min_gain`. The best passing
-//!    candidate (lowest held-out error) is added; after the first round only the first
-//!    round's passing candidates are tried. A simpler library effect nested in a chosen one
+//!    candidate (lowest held-out error) is added; later rounds try every candidate again but an
+//!    effect on the whole motion whose first-round fit did not move it (an effect that gains
+//!    little beside a larger one still missing is found once that one is modelled). A simpler library effect nested in a chosen one
 //!    replaces it when the data do not need the difference, and a backward pass drops any
 //!    chosen effect whose removal the same test does not reject.
 //!
@@ -152,7 +154,7 @@
 //! # Example
 //!
 //! ```
-//! use htfid_diagnose::{diagnose, DiagnoseOptions, Effect, NominalModel, Record};
+//! use htfid_diagnose::{diagnose, DiagnoseOptions, Effect, NominalModel, TimeSeries};
 //!
 //! // A linear oscillator m x'' + c x' + k x = f with a hidden cubic spring k3 x^3, sampled at
 //! // 200 Hz and simulated here by a plain RK4 with a smooth force.
@@ -180,7 +182,7 @@
 //!         v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
 //!     }
 //! }
-//! let record = Record::new(ts, fs, xs)?;
+//! let record = TimeSeries::new(ts, fs, xs, "simulated")?;
 //! let nominal = NominalModel::linear_spring_mass_damper(m, k, c)?;
 //! let opts = DiagnoseOptions {
 //!     candidates: vec![Effect::CubicStiffness, Effect::CoulombFriction, Effect::QuadraticDrag],
@@ -190,7 +192,7 @@
 //! assert_eq!(report.diagnosis.cause, "cubic_stiffness");
 //! assert!((report.diagnosis.parameters["k3"] / k3 - 1.0).abs() < 0.01);
 //! assert!(report.diagnosis.gain > 0.9);
-//! # Ok::<(), htfid_diagnose::DiagnoseError>(())
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 mod boundary;
@@ -201,6 +203,7 @@ mod effect;
 mod error;
 mod evidence;
 mod fit;
+mod htf;
 mod interp;
 mod model_fit;
 mod noise;
@@ -224,13 +227,16 @@ pub use evidence::{
     binned_means, error_waterfall, quantile_range, residual_acceleration, Bin, BinnedResidual,
     ErrorStep, ResidualSamples, Structure, PHASE_BINS, STATE_BINS,
 };
+pub use htf::{
+    htf_comparison, HarmonicDifference, HtfComparison, HtfComparisonSpec, DIFFERENCE_SIGMAS,
+};
+pub use htfid_data::TimeSeries;
 pub use interp::Interpolation;
 pub use model_fit::{
-    diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelFitOptions, ModelRecord,
-    ModelScore, ParameterChange,
+    diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelFitOptions, ModelScore,
+    ParameterChange,
 };
 pub use nominal::NominalModel;
-pub use record::Record;
 pub use sensor::Sensor;
 pub use sim::SimMethod;
 pub use term::{term_library, velocity_pairs, TermEffect, TermKind};

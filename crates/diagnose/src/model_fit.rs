@@ -14,20 +14,8 @@ use serde::Serialize;
 use crate::boundary::{Boundary, BoundaryEffect};
 use crate::interp::{Interpolation, SampledSignal};
 use crate::term::{term_library, TermEffect, TermKind};
-use crate::DiagnoseError;
+use crate::{DiagnoseError, TimeSeries};
 use htfid_lang::Site;
-
-/// A measured record for a model: uniform times, the input `u`, and one column per model
-/// output (in the model's order).
-#[derive(Debug, Clone)]
-pub struct ModelRecord {
-    /// Sample times (s), uniform.
-    pub t: Vec<f64>,
-    /// The model's input at the samples.
-    pub u: Vec<f64>,
-    /// Measured outputs, one column per model output.
-    pub y: Vec<Vec<f64>>,
-}
 
 /// How a model is refitted.
 #[derive(Debug, Clone)]
@@ -300,27 +288,27 @@ const MAX_CONFIGURED_NRMSE: f64 = 1e3;
 /// time, in the record's own (absolute) times.
 fn simulate_outputs(
     model: &Model,
-    rec: &ModelRecord,
+    rec: &TimeSeries,
     input: &InputFn,
     (mode, x0): (htfid_lang::Mode, &[f64]),
     opts: &Options,
 ) -> Result<Vec<Vec<f64>>, DiagnoseError> {
-    let t0 = rec.t[0];
+    let t0 = rec.time()[0];
     let driven = model.with_input(Some(input.clone()));
-    let end = *rec.t.last().unwrap_or(&t0);
-    let traj = simulate(&driven, mode, t0, x0, end, &rec.t, opts).map_err(|e| {
+    let end = *rec.time().last().unwrap_or(&t0);
+    let traj = simulate(&driven, mode, t0, x0, end, rec.time(), opts).map_err(|e| {
         DiagnoseError::Simulation {
             time: end,
             reason: e.to_string(),
         }
     })?;
     let p = model.outputs().len();
-    let mut out = vec![vec![0.0; rec.t.len()]; p];
+    let mut out = vec![vec![0.0; rec.len()]; p];
     let mut y = vec![0.0; p];
-    for i in 0..rec.t.len() {
+    for i in 0..rec.len() {
         // Outputs that read the input see the applied one.
-        let u = input(rec.t[i]);
-        driven.eval_outputs(traj.modes[i], rec.t[i], traj.state(i), u, &mut y);
+        let u = input(rec.time()[i]);
+        driven.eval_outputs(traj.modes[i], rec.time()[i], traj.state(i), u, &mut y);
         for (column, v) in out.iter_mut().zip(&y) {
             column[i] = *v;
         }
@@ -355,7 +343,7 @@ fn correlation_inflation(r: &[f64]) -> f64 {
 /// One record prepared for output-error fits: its input as a function of time, the samples
 /// scored, the output scales, and the model's starting point.
 struct Prepared<'a> {
-    rec: &'a ModelRecord,
+    rec: &'a TimeSeries,
     signal: Arc<SampledSignal>,
     dt: f64,
     rows: std::ops::Range<usize>,
@@ -368,30 +356,28 @@ struct Prepared<'a> {
 impl<'a> Prepared<'a> {
     fn new(
         model: &Model,
-        rec: &'a ModelRecord,
+        rec: &'a TimeSeries,
         rows_end: usize,
         opts: &ModelFitOptions,
     ) -> Result<Self, DiagnoseError> {
-        let n = rec.t.len();
-        if n < 32 || rec.u.len() != n || rec.y.iter().any(|y| y.len() != n) {
-            return Err(DiagnoseError::TooShort { min: 32, found: n });
-        }
-        if rec.y.len() != model.outputs().len() {
+        let n = rec.len();
+        crate::record::check_length(n)?;
+        if rec.outputs().len() != model.outputs().len() {
             return Err(DiagnoseError::InvalidOption {
                 name: "outputs",
                 expected: "one measured column per model output",
-                value: rec.y.len() as f64,
+                value: rec.outputs().len() as f64,
             });
         }
-        let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
+        let dt = rec.dt();
         let skip = ((opts.burn_in / dt).ceil() as usize).min(n / 4);
         let rows = skip..rows_end.min(n);
-        for (o, y) in rec.y.iter().enumerate() {
+        for (o, y) in rec.outputs().iter().enumerate() {
             let name = model.outputs()[o].name.as_str();
             crate::record::check_varies(y, std::slice::from_ref(&rows), &format!("scored {name}"))?;
         }
         let scale: Vec<f64> = rec
-            .y
+            .outputs()
             .iter()
             .map(|y| {
                 let part = &y[rows.clone()];
@@ -401,9 +387,9 @@ impl<'a> Prepared<'a> {
             })
             .collect();
         let signal = Arc::new(SampledSignal::new(
-            rec.t[0],
+            rec.time()[0],
             dt,
-            &rec.u,
+            rec.input(),
             Interpolation::CubicSpline,
         ));
         let sim_opts = Options {
@@ -411,7 +397,7 @@ impl<'a> Prepared<'a> {
             atol: opts.rtol * 1e-2,
             ..Options::default()
         };
-        let (mode0, guess) = start_state(model, rec.t[0], &sim_opts)?;
+        let (mode0, guess) = start_state(model, rec.time()[0], &sim_opts)?;
         Ok(Prepared {
             rec,
             signal,
@@ -434,9 +420,12 @@ impl<'a> Prepared<'a> {
             .rows
             .clone()
             .step_by(stride)
-            .map(|i| self.rec.t[i])
+            .map(|i| self.rec.time()[i])
             .collect();
-        let (t0, end) = (self.rec.t[0], *times.last().unwrap_or(&self.rec.t[0]));
+        let (t0, end) = (
+            self.rec.time()[0],
+            *times.last().unwrap_or(&self.rec.time()[0]),
+        );
         let traj = simulate(&driven, self.mode0, t0, x0, end, &times, &self.sim_opts)
             .map_err(sim_failure)?;
         Ok(StateSamples {
@@ -469,7 +458,7 @@ impl<'a> Prepared<'a> {
     }
 
     fn residual_len(&self) -> usize {
-        self.rec.y.len() * self.rows.len()
+        self.rec.outputs().len() * self.rows.len()
     }
 
     /// The recorded outputs `model` gives from `x0` with the boundary `b`.
@@ -487,9 +476,9 @@ impl<'a> Prepared<'a> {
 
     fn fill(&self, sim: &[Vec<f64>], r: &mut [f64]) {
         let rows = self.rows.len();
-        for o in 0..self.rec.y.len() {
+        for o in 0..self.rec.outputs().len() {
             for (j, i) in self.rows.clone().enumerate() {
-                r[o * rows + j] = (sim[o][i] - self.rec.y[o][i]) / self.scale[o];
+                r[o * rows + j] = (sim[o][i] - self.rec.outputs()[o][i]) / self.scale[o];
             }
         }
     }
@@ -522,11 +511,11 @@ impl<'a> Prepared<'a> {
     /// Per output: RMS error and RMS error over the output's scale, on `range`.
     fn errors(&self, sim: &[Vec<f64>], range: std::ops::Range<usize>) -> (Vec<f64>, Vec<f64>) {
         let n = range.len().max(1) as f64;
-        (0..self.rec.y.len())
+        (0..self.rec.outputs().len())
             .map(|o| {
                 let rms = (range
                     .clone()
-                    .map(|i| (sim[o][i] - self.rec.y[o][i]).powi(2))
+                    .map(|i| (sim[o][i] - self.rec.outputs()[o][i]).powi(2))
                     .sum::<f64>()
                     / n)
                     .sqrt();
@@ -548,8 +537,8 @@ impl<'a> Prepared<'a> {
 /// [`DiagnoseError::NominalFit`] when the refit fails.
 pub fn diagnose_model(
     model: &Model,
-    rec: &ModelRecord,
-    validation: Option<&ModelRecord>,
+    rec: &TimeSeries,
+    validation: Option<&TimeSeries>,
     opts: &ModelFitOptions,
 ) -> Result<ModelDiagnosis, DiagnoseError> {
     if !(0.1..=0.95).contains(&opts.fit_fraction) {
@@ -559,14 +548,14 @@ pub fn diagnose_model(
             value: opts.fit_fraction,
         });
     }
-    let n = rec.t.len();
+    let n = rec.len();
     let cut = match validation {
         Some(_) => n,
         None => ((n as f64) * opts.fit_fraction) as usize,
     };
     let est = Prepared::new(model, rec, cut, opts)?;
     let val = match validation {
-        Some(v) => Some(Prepared::new(model, v, v.t.len(), opts)?),
+        Some(v) => Some(Prepared::new(model, v, v.len(), opts)?),
         None => None,
     };
     // Score of a model with fitted state `x_est` on the estimation record.
@@ -1051,7 +1040,7 @@ impl Joint<'_, '_> {
     /// The longest lag or delay tried: a tenth of the record and, for a forced model, half its
     /// period (a delay of a whole period reproduces a periodic response).
     fn longest_lag(&self) -> f64 {
-        let record = 0.1 * self.est.dt * self.est.rec.t.len() as f64;
+        let record = 0.1 * self.est.dt * self.est.rec.len() as f64;
         self.model
             .period()
             .map_or(record, |period| record.min(0.5 * period))
@@ -1192,9 +1181,9 @@ impl Joint<'_, '_> {
 }
 
 /// The input's standard deviation (at least 1e-3), the scale of an input offset.
-fn input_scale(rec: &ModelRecord) -> f64 {
-    let n = rec.u.len().max(1) as f64;
-    let mean = rec.u.iter().sum::<f64>() / n;
-    let var = rec.u.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+fn input_scale(rec: &TimeSeries) -> f64 {
+    let n = rec.input().len().max(1) as f64;
+    let mean = rec.input().iter().sum::<f64>() / n;
+    let var = rec.input().iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
     var.sqrt().max(1e-3)
 }

@@ -25,8 +25,8 @@ pub(crate) struct Screening<'c, 'a> {
 
 impl<'c, 'a> Screening<'c, 'a> {
     pub(crate) fn new(ctx: &'c Context<'a>, half: usize) -> Self {
-        let t = ctx.record.t();
-        let x = ctx.record.x();
+        let t = ctx.record.time();
+        let x = ctx.record.output();
         let mut samples = Vec::new();
         for seg in &ctx.fit {
             let r = seg.scored();

@@ -11,10 +11,12 @@
 //! - a held-out improvement of at least `min_gain` over the model of the round before, as a
 //!   share of the error above the noise floor (see [`held_out_gain`]).
 //!
-//! After the first round, the candidates that passed it are tried again, and so are a switching
-//! threshold or a contact whose fit alone left its parameters within one standard error of
-//! their absent values (masked by another effect until that one is modelled). The passing
-//! candidate with the lowest held-out error is added, except that a candidate
+//! Later rounds try again every candidate but an effect on the whole motion whose first-round
+//! fit did not move it (see `tried_again`): an effect that gains too little held out beside a
+//! larger one still missing (a late switch beside an unmodelled cubic spring; a delay behind a
+//! wrong stiffness) or that does not move at all while another hides it (a threshold masked by
+//! damping in flight) is found once that one is modelled. The passing candidate with the lowest
+//! held-out error is added, except that a candidate
 //! nested in it (its added parameters a subset) that passes too is preferred unless the
 //! richer one is itself a significant improvement over it. Selection stops when no candidate
 //! passes or `max_effects` are chosen. A backward pass then refits the model without each
@@ -30,6 +32,9 @@ use crate::effect::Slot;
 use crate::fit::{Context, FitResult, ModelPoint};
 use crate::screen::Screening;
 use crate::{DiagnoseOptions, Effect, Score};
+
+/// Longest input delay taken for an actuator's, in forcing periods.
+const MAX_DELAY_PERIODS: f64 = 0.25;
 
 /// A candidate judged against the model before it.
 #[derive(Debug)]
@@ -271,6 +276,21 @@ fn judge(
                 sig(e.x_min, 4),
                 sig(e.x_max, 4)
             )),
+            // The measured force repeats with the forcing: delayed by a large part of its
+            // period, it lines the forcing up with itself again, a match that says nothing of
+            // an actuator.
+            Slot::Delay
+                if ctx
+                    .forcing_period
+                    .is_some_and(|p| v >= MAX_DELAY_PERIODS * p) =>
+            {
+                reasons.push(format!(
+                    "the delay {} s is {} forcing periods: a delay that long aligns the periodic \
+                     forcing with itself rather than describing an actuator",
+                    sig(v, 4),
+                    sig(v / ctx.forcing_period.unwrap_or(f64::NAN), 2)
+                ))
+            }
             Slot::VTh if v.is_nan() || v.abs() >= e.v_max => reasons.push(format!(
                 "the threshold {} lies outside the measured velocities (|v| < {})",
                 sig(v, 4),
@@ -290,21 +310,49 @@ fn judge(
     }
 }
 
-/// Whether a first-round candidate may be masked: an effect that acts on part of the motion
-/// only (a switching threshold, a contact) whose fit alone found nothing to move, every added
-/// parameter within one standard error of its absent value (or undetermined). Its cost is flat
-/// or kinked where it does not act, so another effect can hide it until that one is modelled
-/// (damping while the damper is off hides a late switch, whose threshold alone stays at zero).
-/// Effects acting on the whole motion have smooth costs: one that does not move alone is
-/// absent, and trying it beside others would only let it compensate for them.
-fn masked(j: &Judged, before: &[Slot], absent: &ModelPoint) -> bool {
-    if !matches!(j.outcome.effect, Effect::SwitchThreshold | Effect::HardStop) {
-        return false;
+/// Asymmetric friction is fitted as Coulomb friction `mu` beside a constant force `d`, its
+/// coefficients `mu_pos = mu - d` and `mu_neg = mu + d`. Friction takes energy out of the
+/// motion in both directions, so both coefficients are `>= 0`; a fit where one is negative by
+/// more than two standard errors has found a constant force larger than the friction: Coulomb
+/// friction beside an input offset, not an asymmetric contact. The sentence that says so.
+fn negative_friction(fit: &FitResult) -> Option<String> {
+    let at = |s: Slot| fit.slots.iter().position(|&x| x == s);
+    let (Some(i_mu), Some(i_d)) = (at(Slot::Mu), at(Slot::InputOffset)) else {
+        return None;
+    };
+    let (mu, d) = (fit.values[i_mu], fit.values[i_d]);
+    let se = fit.stderr[i_mu].hypot(fit.stderr[i_d]);
+    (mu - d.abs() < -2.0 * se).then(|| {
+        format!(
+            "asymmetric friction renamed: a friction coefficient would be negative (mu_pos = {}, \
+             mu_neg = {}), so the fit found Coulomb friction of {} beside a constant force of {}, \
+             larger than the friction: coulomb_friction and input_offset",
+            sig(mu - d, 4),
+            sig(mu + d, 4),
+            sig(mu, 4),
+            sig(d, 4)
+        )
+    })
+}
+
+/// Whether a first-round candidate is tried again in later rounds. An effect that acts on part
+/// of the motion only (a switching threshold, a contact) always is: its cost is flat or kinked
+/// where it does not act, so another effect can hide it until that one is modelled (damping
+/// while the damper is off hides a late switch, whose threshold alone stays at zero). An
+/// effect acting on the whole motion is tried again unless its fit alone left every added
+/// parameter within one standard error of its absent value (or undetermined): its cost is
+/// smooth, one that does not move alone is absent, and trying it beside others would only let
+/// it compensate for them. One that moved without passing may gain too little held out beside a
+/// larger effect still missing (a delay behind a wrong stiffness) and is found once that one is
+/// modelled.
+fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> bool {
+    if matches!(j.outcome.effect, Effect::SwitchThreshold | Effect::HardStop) {
+        return true;
     }
     let Some(fit) = j.outcome.fit.as_ref() else {
-        return false;
+        return true;
     };
-    fit.slots.iter().enumerate().all(|(i, s)| {
+    !fit.slots.iter().enumerate().all(|(i, s)| {
         before.contains(s)
             || !fit.stderr[i].is_finite()
             || (fit.values[i] - absent.get(*s)).abs() <= fit.stderr[i]
@@ -369,9 +417,6 @@ pub(crate) fn select(
         let mut seen: Vec<Vec<Slot>> = Vec::new();
         let mut tried = Vec::new();
         for &e in &opts.candidates {
-            // After the first round the effects that passed it are tried again, and so are a
-            // threshold and a contact whose fit on their own found nothing to move (see
-            // `masked`). An effect that moved but did not help is not looked for beside others.
             if chosen.contains(&e) || (round > 0 && !retried.contains(&e)) {
                 continue;
             }
@@ -416,7 +461,7 @@ pub(crate) fn select(
         if round == 0 {
             retried = judged
                 .iter()
-                .filter(|j| j.passes || masked(j, &slots, absent))
+                .filter(|j| tried_again(j, &slots, absent))
                 .map(|j| j.outcome.effect)
                 .collect();
         }
@@ -599,10 +644,21 @@ pub(crate) fn select(
     // A mass error's look-alike: a refitted mass changes the weight `m g`, a constant force,
     // as well as the inertia. When the inertia change is below the data's resolution, a
     // constant force with the configured mass explains the record as well; the two are then
-    // rivals (`parameter_error` and `input_offset`).
+    // rivals (`parameter_error` and `input_offset`). A mass that stayed within
+    // `significance_sigma` standard errors of its configured value is no mass error and needs
+    // no look-alike.
     if let Some(k) = chosen.iter().position(|&e| e == Effect::ParameterError) {
         let own = own_slots(&chosen, k, &nominal.slots);
+        let mass_moved = current
+            .slots
+            .iter()
+            .position(|&s| s == Slot::M)
+            .is_some_and(|i| {
+                (current.values[i] - absent.get(Slot::M)).abs()
+                    > opts.significance_sigma * current.stderr[i]
+            });
         if own.contains(&Slot::M)
+            && mass_moved
             && opts.candidates.contains(&Effect::InputOffset)
             && !chosen.contains(&Effect::InputOffset)
             && !current.slots.contains(&Slot::InputOffset)
@@ -650,6 +706,21 @@ pub(crate) fn select(
                     _ => {}
                 }
             }
+        }
+    }
+
+    // Asymmetric friction with a negative coefficient is Coulomb friction beside a larger
+    // constant force: the same fit, named for what it found.
+    if let Some(k) = chosen.iter().position(|&e| e == Effect::AsymmetricFriction) {
+        if let Some(sentence) = negative_friction(&current) {
+            evidence.push(sentence);
+            chosen[k] = Effect::CoulombFriction;
+            if !chosen.contains(&Effect::InputOffset) {
+                chosen.push(Effect::InputOffset);
+            }
+            rivals.retain(|(a, b)| {
+                *a != Effect::AsymmetricFriction && *b != Effect::AsymmetricFriction
+            });
         }
     }
 

@@ -9,7 +9,7 @@ mod common;
 
 use common::{generate, Protocol};
 use htfid_diagnose::{
-    diagnose, DiagnoseError, DiagnoseOptions, Effect, NominalModel, NominalParam, Record,
+    diagnose, DiagnoseError, DiagnoseOptions, Effect, NominalModel, NominalParam, TimeSeries,
 };
 use htfid_model::{DamperLaw, Effects, HopperParams};
 
@@ -19,41 +19,41 @@ fn uniform(n: usize) -> Vec<f64> {
 
 #[test]
 fn records_are_validated_with_exact_messages() {
-    let err = Record::new(uniform(40), vec![0.0; 39], vec![0.0; 40]).unwrap_err();
+    // The record type checks its own invariants where it is built, naming the source.
+    let err = TimeSeries::new(uniform(40), vec![0.0; 39], vec![0.0; 40], "rec").unwrap_err();
     assert_eq!(
         err.to_string(),
-        "record column f has 39 samples, but t has 40"
+        "rec: column \"input\" has 39 values, the time vector has 40"
     );
-    let err = Record::new(uniform(10), vec![0.0; 10], vec![0.0; 10]).unwrap_err();
+    let mut x = vec![0.0; 40];
+    x[7] = f64::NAN;
+    let err = TimeSeries::new(uniform(40), vec![0.0; 40], x, "rec").unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "rec: row 7: column \"output\": value \"NaN\" is not a finite number"
+    );
+    let mut t = uniform(40);
+    t[20] += 0.005;
+    let err = TimeSeries::new(t, vec![0.0; 40], vec![0.0; 40], "rec").unwrap_err();
+    assert!(err.to_string().starts_with("rec: row 20: "), "{err}");
+    // The diagnosis needs more samples than a record's minimum of two.
+    let record = TimeSeries::new(uniform(10), vec![0.0; 10], vec![1e-3; 10], "rec").unwrap();
+    let nominal = NominalModel::hopper(HopperParams::paper()).unwrap();
+    let err = diagnose(&record, &nominal, &DiagnoseOptions::default()).unwrap_err();
+    assert!(matches!(
+        err,
+        DiagnoseError::TooShort { min: 32, found: 10 }
+    ));
     assert_eq!(
         err.to_string(),
         "a record needs at least 32 samples (got 10)"
     );
-    let mut x = vec![0.0; 40];
-    x[7] = f64::NAN;
-    let err = Record::new(uniform(40), vec![0.0; 40], x).unwrap_err();
-    assert_eq!(
-        err.to_string(),
-        "record column x is not finite at sample 7 (value NaN)"
-    );
-    let mut t = uniform(40);
-    t[20] += 0.005;
-    let err = Record::new(t, vec![0.0; 40], vec![0.0; 40]).unwrap_err();
-    assert!(matches!(
-        err,
-        DiagnoseError::NonUniformTime { index: 19, .. }
-    ));
-    assert!(err
-        .to_string()
-        .starts_with("record time step 19 -> 20 is 0.015"));
-    let err = Record::from_sample_rate(-1.0, 0.0, vec![0.0; 40], vec![0.0; 40]).unwrap_err();
-    assert_eq!(err.to_string(), "rate_hz must be > 0 and finite (got -1)");
 }
 
 #[test]
 fn options_and_ranges_are_validated() {
     let x: Vec<f64> = (0..400).map(|k| 1e-4 * k as f64).collect();
-    let record = Record::new(uniform(400), vec![0.0; 400], x).unwrap();
+    let record = TimeSeries::new(uniform(400), vec![0.0; 400], x, "test").unwrap();
     let nominal = NominalModel::hopper(HopperParams::paper()).unwrap();
     let run = |opts: DiagnoseOptions| diagnose(&record, &nominal, &opts).unwrap_err().to_string();
     assert_eq!(
@@ -233,7 +233,7 @@ fn report_carries_the_json_contract_and_consistent_outputs() {
             "default ranges cover the record"
         );
         let scored = val.start + skip..val.end;
-        let x = &record.x()[scored.clone()];
+        let x = &record.output()[scored.clone()];
         let y = &out[scored];
         let rmse =
             (y.iter().zip(x).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / x.len() as f64).sqrt();
@@ -303,10 +303,11 @@ fn degenerate_records_are_refused_or_claim_no_effect() {
     let nominal = NominalModel::hopper(HopperParams::paper()).unwrap();
     let short = uniform(64);
     let e = diagnose(
-        &Record::new(
+        &TimeSeries::new(
             short.clone(),
             vec![0.0; 64],
             (0..64).map(|k| 0.15 + 1e-4 * k as f64).collect(),
+            "test",
         )
         .unwrap(),
         &nominal,
@@ -327,7 +328,7 @@ fn degenerate_records_are_refused_or_claim_no_effect() {
     let n = 3000;
     let t = uniform(n);
     let e = diagnose(
-        &Record::new(t.clone(), vec![0.0; n], vec![0.15; n]).unwrap(),
+        &TimeSeries::new(t.clone(), vec![0.0; n], vec![0.15; n], "test").unwrap(),
         &nominal,
         &DiagnoseOptions::default(),
     )
@@ -349,7 +350,7 @@ fn degenerate_records_are_refused_or_claim_no_effect() {
         ),
     ];
     for (f, x) in unrelated {
-        let record = Record::new(t.clone(), f, x).unwrap();
+        let record = TimeSeries::new(t.clone(), f, x, "test").unwrap();
         let report = diagnose(&record, &nominal, &DiagnoseOptions::default()).unwrap();
         let cause = report.diagnosis.cause.as_str();
         assert!(

@@ -2,7 +2,7 @@
 //! (`htfid-truth`: its own equations and integrator), against the paper's hopper as configured
 //! with nothing refitted. 90 s records keep each test short.
 
-use htfid_diagnose::{diagnose, DiagnoseOptions, Diagnosis, NominalModel, Record};
+use htfid_diagnose::{diagnose, DiagnoseOptions, Diagnosis, NominalModel, TimeSeries};
 use htfid_model::{DamperLaw, Effects, HopperParams};
 use htfid_truth::{generate, Effect, Noise, Scenario};
 
@@ -28,7 +28,7 @@ fn diagnosis(effects: Vec<Effect>) -> Diagnosis {
         ..Scenario::default()
     };
     let r = generate(&s).expect("generator");
-    let record = Record::new(r.t, r.f, r.x).expect("record");
+    let record = TimeSeries::new(r.t, r.f, r.x, "test").expect("record");
     diagnose(&record, &nominal(), &DiagnoseOptions::default())
         .expect("diagnosis")
         .diagnosis

@@ -14,7 +14,9 @@
 //! The quick set (`cargo test`) checks one record per group; the wide sweep (ignored, run in
 //! CI by `just sweep`) runs 200 records and prints the score of each group.
 
-use htfid_diagnose::{diagnose, DiagnoseOptions, Diagnosis, NominalModel, Record};
+use htfid_diagnose::{
+    diagnose, diagnose_with_progress, DiagnoseOptions, Diagnosis, NominalModel, TimeSeries,
+};
 use htfid_model::{DamperLaw, Effects, HopperParams};
 use htfid_truth::{catalogue, generate, EffectLabel, LabelClass, Scenario};
 
@@ -49,7 +51,7 @@ fn is_shift(e: &EffectLabel) -> bool {
 /// error of the rest length or of gravity alike ([`is_shift`]). Coulomb friction `mu` beside a
 /// constant force `d` is exactly asymmetric friction (`mu_pos = mu - d`, `mu_neg = mu + d` is the
 /// same force law, sticking band included), so asymmetric friction names both the friction and
-/// the shift of such a record.
+/// the shift of such a record, and Coulomb friction names asymmetric friction beside a shift.
 fn equivalents(e: &EffectLabel, all: &[EffectLabel]) -> Vec<&'static str> {
     let friction = all
         .iter()
@@ -63,6 +65,9 @@ fn equivalents(e: &EffectLabel, all: &[EffectLabel]) -> Vec<&'static str> {
     }
     match e.name.as_str() {
         "coulomb_friction" if all.iter().any(is_shift) => vec!["asymmetric_friction"],
+        // And back: asymmetric friction beside a constant force is Coulomb friction beside
+        // another constant force.
+        "asymmetric_friction" if all.iter().any(is_shift) => vec!["coulomb_friction"],
         // The hopper is piecewise linear with its switch at a velocity of zero, so a reading
         // scaled by g is the position of a hopper with m, k and c scaled by 1 / g and a
         // constant force added: the same records, told apart only by the configured mass.
@@ -197,7 +202,7 @@ fn run(s: &Scenario) -> Outcome {
         Ok(r) => r,
         Err(e) => return (Err(format!("generator: {e}")), None),
     };
-    let diagnosed = Record::new(r.t, r.f, r.x)
+    let diagnosed = TimeSeries::new(r.t, r.f, r.x, "test")
         .map_err(|e| format!("record: {e}"))
         .and_then(|record| {
             diagnose(&record, &nominal(), &DiagnoseOptions::default())
@@ -301,7 +306,7 @@ fn garbage_data_are_a_model_mismatch_with_the_reason() {
     let r = generate(&s).unwrap();
     for (scale, reason) in [(-1.0, "sign:"), (1000.0, "scale:")] {
         let x: Vec<f64> = r.x.iter().map(|v| scale * v).collect();
-        let record = Record::new(r.t.clone(), r.f.clone(), x).unwrap();
+        let record = TimeSeries::new(r.t.clone(), r.f.clone(), x, "test").unwrap();
         let d = diagnose(&record, &nominal(), &DiagnoseOptions::default())
             .unwrap()
             .diagnosis;
@@ -402,8 +407,12 @@ fn one_cell() {
         .unwrap_or_else(|_| "switch_threshold+flight_damping".to_string());
     let s = cell_among(&name, 200);
     let r = generate(&s).expect("generator");
-    let record = Record::new(r.t, r.f, r.x).expect("record");
-    let report = diagnose(&record, &nominal(), &DiagnoseOptions::default()).expect("diagnosis");
+    let record = TimeSeries::new(r.t, r.f, r.x, "test").expect("record");
+    // Every round's candidates as the command's progress shows them.
+    let report = diagnose_with_progress(&record, &nominal(), &DiagnoseOptions::default(), &|m| {
+        eprintln!("  progress: {m}")
+    })
+    .expect("diagnosis");
     eprintln!("{}: label {:?}", s.name, s.label());
     eprintln!(
         "cause {} names {:?}",

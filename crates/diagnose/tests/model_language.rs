@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use htfid_diagnose::{diagnose_model, ModelCause, ModelFitOptions, ModelRecord};
+use htfid_diagnose::{diagnose_model, ModelCause, ModelFitOptions, TimeSeries};
 use htfid_lang::Model;
 use htfid_truth::{generate, ParameterErrors, Scenario};
 
@@ -17,13 +17,9 @@ fn hopper() -> Model {
         .unwrap()
 }
 
-fn record(scenario: &Scenario) -> ModelRecord {
+fn record(scenario: &Scenario) -> TimeSeries {
     let r = generate(scenario).unwrap();
-    ModelRecord {
-        t: r.t.clone(),
-        u: r.f.clone(),
-        y: vec![r.x.clone()],
-    }
+    TimeSeries::new(r.t, r.f, r.x, "generator").unwrap()
 }
 
 fn options() -> ModelFitOptions {

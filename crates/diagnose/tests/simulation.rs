@@ -5,7 +5,7 @@
 mod common;
 
 use common::{generate, Protocol};
-use htfid_diagnose::{simulate_record, FittedModel, Interpolation, Record, Sensor, SimMethod};
+use htfid_diagnose::{simulate_record, FittedModel, Interpolation, Sensor, SimMethod, TimeSeries};
 use htfid_model::{DamperLaw, Effects, HardStop, Hopper, HopperParams};
 
 fn rms(a: &[f64], b: &[f64]) -> f64 {
@@ -46,7 +46,7 @@ fn linear_oscillator_matches_its_closed_form_solution() {
         })
         .collect();
     let f: Vec<f64> = (0..n).map(|i| f0 * (w * i as f64 / fs).sin()).collect();
-    let record = Record::from_sample_rate(fs, 0.0, f, exact.clone()).unwrap();
+    let record = TimeSeries::from_sample_rate(fs, 0.0, f, exact.clone(), "test").unwrap();
     let model = FittedModel {
         params: HopperParams {
             m,
@@ -148,7 +148,7 @@ fn fixed_step_and_adaptive_agree_with_the_models_own_hybrid_simulation() {
             sim,
         )
         .unwrap();
-        let err = max_abs(&y, record.x());
+        let err = max_abs(&y, record.output());
         assert!(err < 2e-7, "{sim:?}: max error {err}");
     }
     // Started from the state estimated from the data instead, the estimate's error (a local
@@ -163,7 +163,7 @@ fn fixed_step_and_adaptive_agree_with_the_models_own_hybrid_simulation() {
         SimMethod::default(),
     )
     .unwrap();
-    assert!(rms(&y[1000..], &record.x()[1000..]) < 2e-8);
+    assert!(rms(&y[1000..], &record.output()[1000..]) < 2e-8);
 }
 
 #[test]
@@ -193,7 +193,7 @@ fn the_fixed_step_simulation_sticks_with_coulomb_friction_as_the_independent_tru
         .count();
     assert!(sticks >= 10, "the scenario must stick ({sticks} sticks)");
     let truth = generate(&scenario).unwrap();
-    let record = Record::new(truth.t, truth.f, truth.x).unwrap();
+    let record = TimeSeries::new(truth.t, truth.f, truth.x, "test").unwrap();
     let n = record.len();
     let model = FittedModel {
         params: HopperParams {
@@ -217,7 +217,7 @@ fn the_fixed_step_simulation_sticks_with_coulomb_friction_as_the_independent_tru
         SimMethod::default(),
     )
     .unwrap();
-    let err = max_abs(&y, record.x());
+    let err = max_abs(&y, record.output());
     eprintln!("max error against the truth through {sticks} sticks: {err:e} m");
     assert!(err < 2e-7, "max error {err}");
 }

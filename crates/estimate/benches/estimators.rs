@@ -7,7 +7,9 @@
 use std::f64::consts::PI;
 use std::time::Instant;
 
-use htfid_estimate::{multi_experiment, siddiqi, Alpha, Leakage, MultiOptions, Record};
+use htfid_estimate::{
+    deviation_record, multi_experiment, siddiqi, Alpha, Leakage, MultiOptions, TimeSeries,
+};
 
 const PERIOD: f64 = 1.0;
 const DT: f64 = 0.01;
@@ -57,12 +59,12 @@ fn main() {
     for scale in [1usize, 4, 16] {
         let seg = 30.0 * scale as f64;
         let (u, y) = experiment(seg);
-        let whole = Record::new(u.clone(), y.clone(), DT, 0.0).expect("valid record");
+        let whole = deviation_record(u.clone(), y.clone(), DT, 0.0).expect("valid record");
         let per = u.len() / SEGMENTS;
-        let segments: Vec<Record> = (0..SEGMENTS)
+        let segments: Vec<TimeSeries> = (0..SEGMENTS)
             .map(|s| {
                 let r = s * per..(s + 1) * per;
-                Record::new(
+                deviation_record(
                     u[r.clone()].to_vec(),
                     y[r].to_vec(),
                     DT,
@@ -102,7 +104,7 @@ fn main() {
         println!(
             "{:>6} {:>9.0} {:>8} {:>12.3} s {:>12.3} s {:>12.3} s {:>12.3} s",
             format!("{scale}x"),
-            whole.duration(),
+            whole.len() as f64 * whole.dt(),
             bins,
             fixed,
             gcv,

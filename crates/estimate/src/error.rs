@@ -12,13 +12,17 @@ pub enum Error {
     /// No periodic component stands out of the record's spectrum.
     #[error("no periodic component stands out of the output's spectrum (no peak 30 times above its median); give the period")]
     NoPeriodicComponent,
-    /// Input and output of a record have different lengths.
-    #[error("input has {input} samples but output has {output}; a record needs one output sample per input sample")]
-    LengthMismatch {
-        /// Input samples.
-        input: usize,
-        /// Output samples.
-        output: usize,
+    /// A record could not be built (the record type's own check, its message kept).
+    #[error("record: {reason}")]
+    Record {
+        /// The record type's message.
+        reason: String,
+    },
+    /// A record holds more than one output; the estimators read one.
+    #[error("record has {outputs} outputs; the estimators read one (take it with TimeSeries::output_series)")]
+    SeveralOutputs {
+        /// Outputs of the record.
+        outputs: usize,
     },
     /// A record is too short to be transformed.
     #[error("record has {samples} samples; at least {minimum} are needed")]

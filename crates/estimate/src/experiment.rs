@@ -11,9 +11,10 @@ use crate::error::{Error, Result};
 use crate::estimate::HtfEstimate;
 use crate::lines::{periodic_lines, periodic_lines_paired, LineSpec};
 use crate::multi::{multi_experiment, MultiOptions};
-use crate::record::Record;
+use crate::record::deviation_record;
 use crate::siddiqi::siddiqi;
 use crate::smooth::Alpha;
+use htfid_data::TimeSeries;
 
 /// How far a window's length may be from a whole number of samples, in samples.
 const WHOLE_SAMPLE_TOL: f64 = 1e-6;
@@ -150,7 +151,7 @@ pub fn estimate_experiment(
 
 /// The record of `duration` seconds (a whole number of samples) from the first sample at or
 /// after `start`.
-fn window(signal: &Sampled<'_>, start: f64, duration: f64) -> Result<Record> {
+fn window(signal: &Sampled<'_>, start: f64, duration: f64) -> Result<TimeSeries> {
     let dt = signal.dt;
     if !(dt.is_finite() && dt > 0.0) {
         return Err(Error::InvalidTimeStep { dt });
@@ -170,7 +171,7 @@ fn window(signal: &Sampled<'_>, start: f64, duration: f64) -> Result<Record> {
             signal_end: end,
         });
     }
-    Record::new(
+    deviation_record(
         signal.u[i0..i0 + n].to_vec(),
         signal.y[i0..i0 + n].to_vec(),
         dt,
@@ -199,8 +200,8 @@ mod tests {
         let s = signal(&u, 0.1, 1.0);
         let r = window(&s, 2.05, 1.0).unwrap();
         assert_eq!(r.len(), 10);
-        assert!((r.u()[0] - 11.0).abs() < 1e-12, "{}", r.u()[0]);
-        assert!((r.t_start() - 2.1).abs() < 1e-12);
+        assert!((r.input()[0] - 11.0).abs() < 1e-12, "{}", r.input()[0]);
+        assert!((r.time()[0] - 2.1).abs() < 1e-12);
     }
 
     #[test]

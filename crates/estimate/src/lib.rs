@@ -36,8 +36,9 @@
 //!   `Y(jw) = sum_n G_n(jw) U(jw - j n wp)`. `G_n` is indexed by the **output** frequency `w`:
 //!   input at `w - n wp` appears at `w` with gain `G_n(jw)`. All frequencies are in rad/s and the
 //!   `band` arguments select output frequencies, edges included.
-//! - A [`Record`] is uniformly sampled with interval `dt`, its first sample at absolute time
-//!   `t_start`. Its length must be a whole number of system periods, `N dt = P T` with `P` an
+//! - A record is htfid's one record type, a [`TimeSeries`] with one output (build one from
+//!   deviations with [`deviation_record`]), uniformly sampled with interval `dt`, its first
+//!   sample at absolute time `t_start`. Its length must be a whole number of system periods, `N dt = P T` with `P` an
 //!   integer (to within `1e-6` periods), so that `wp` is exactly `P` DFT bins; otherwise
 //!   [`Error::NotWholePeriods`].
 //! - DFT scaling and phase ([`dft`]): `X[k] = dt * sum_i x_i exp(-j w_k (t_start + i dt))`,
@@ -69,7 +70,7 @@
 //!
 //! ```
 //! use std::f64::consts::PI;
-//! use htfid_estimate::{periodic_lines, LineSpec, Record};
+//! use htfid_estimate::{deviation_record, periodic_lines, LineSpec};
 //!
 //! let (t_sys, dt, tm) = (1.0, 0.01, 8.0);
 //! let wp = 2.0 * PI / t_sys;
@@ -81,7 +82,7 @@
 //!     .map(|&t| lines.iter().map(|&b| (2.0 * PI * b as f64 * t / tm + b as f64).cos()).sum())
 //!     .collect();
 //! let y: Vec<f64> = t.iter().zip(&u).map(|(&t, &u)| (2.0 + 0.5 * (wp * t).cos()) * u).collect();
-//! let record = Record::new(u, y, dt, t[0])?;
+//! let record = deviation_record(u, y, dt, t[0])?;
 //! let est = periodic_lines(&record, t_sys, &LineSpec::new(tm, lines.to_vec())?, &[-1, 0, 1])?;
 //! for row in est.rows() {
 //!     let truth = if row.n == 0 { 2.0 } else { 0.25 };
@@ -108,13 +109,14 @@ mod uncertainty;
 pub use error::{Error, Result};
 pub use estimate::{BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
 pub use experiment::{estimate_experiment, Estimator, Layout, LineWindows, Request, Sampled};
+pub use htfid_data::TimeSeries;
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
 pub use lm::{
     levenberg_marquardt, levenberg_marquardt_parallel, FdScheme, LmFit, LmOptions, LmStop,
 };
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};
-pub use record::{dft, Record};
+pub use record::{deviation_record, dft};
 pub use siddiqi::siddiqi;
 pub use size::estimator_bytes;
 pub use smooth::Alpha;

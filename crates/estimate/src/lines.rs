@@ -8,7 +8,8 @@ use rustfft::FftPlanner;
 
 use crate::error::{Error, Result};
 use crate::estimate::{HtfEstimate, Method};
-use crate::record::{validate_harmonics, validate_period, Record, Spectrum};
+use crate::record::{check_record, validate_harmonics, validate_period, Spectrum};
+use htfid_data::TimeSeries;
 
 /// Tolerance on "whole number" of periods and samples, as for records.
 const WHOLE_TOL: f64 = 1e-6;
@@ -82,7 +83,7 @@ impl LineSpec {
 /// The input is taken as noise free, and output bins are assumed to receive nothing from
 /// harmonics outside `harmonics` (unmodelled harmonics alias onto modelled bins).
 pub fn periodic_lines(
-    record: &Record,
+    record: &TimeSeries,
     period: f64,
     lines: &LineSpec,
     harmonics: &[i32],
@@ -97,8 +98,8 @@ pub fn periodic_lines(
 /// survives while every even-order term of a nonlinear response (equal for `+u` and `-u`)
 /// cancels.
 pub fn periodic_lines_paired(
-    plus: &Record,
-    minus: &Record,
+    plus: &TimeSeries,
+    minus: &TimeSeries,
     period: f64,
     lines: &LineSpec,
     harmonics: &[i32],
@@ -111,11 +112,11 @@ pub fn periodic_lines_paired(
             minus_dt: minus.dt(),
         });
     }
-    let shift = (minus.t_start() - plus.t_start()) / period;
+    let shift = (minus.time()[0] - plus.time()[0]) / period;
     if (shift - shift.round()).abs() > WHOLE_TOL {
         return Err(Error::PairPhaseMismatch {
-            plus_start: plus.t_start(),
-            minus_start: minus.t_start(),
+            plus_start: plus.time()[0],
+            minus_start: minus.time()[0],
             period,
         });
     }
@@ -128,12 +129,16 @@ fn whole(x: f64) -> Option<usize> {
 }
 
 fn estimate(
-    plus: &Record,
-    minus: Option<&Record>,
+    plus: &TimeSeries,
+    minus: Option<&TimeSeries>,
     period: f64,
     spec: &LineSpec,
     harmonics: &[i32],
 ) -> Result<HtfEstimate> {
+    check_record(plus)?;
+    if let Some(m) = minus {
+        check_record(m)?;
+    }
     validate_period(period)?;
     validate_harmonics(harmonics)?;
     let dt = plus.dt();
@@ -215,17 +220,17 @@ fn estimate(
     let mut free_bins = 0usize;
     for m in 0..periods {
         let range = m * nm..(m + 1) * nm;
-        let t0 = plus.t_start() + (m * nm) as f64 * dt;
-        let mut su = Spectrum::new(&plus.u()[range.clone()], dt, t0, &fft);
-        let mut sy = Spectrum::new(&plus.y()[range.clone()], dt, t0, &fft);
+        let t0 = plus.time()[0] + (m * nm) as f64 * dt;
+        let mut su = Spectrum::new(&plus.input()[range.clone()], dt, t0, &fft);
+        let mut sy = Spectrum::new(&plus.output()[range.clone()], dt, t0, &fft);
         if let Some(minus) = minus {
             // The minus record is referenced to the plus record's start: both start at the same
             // orbit phase (checked below), so the LTP response is the same in local time, and
             // only with a common time reference do the even-order responses, equal in local
             // time, cancel in the half difference.
             let t0m = t0;
-            let mu = Spectrum::new(&minus.u()[range.clone()], dt, t0m, &fft);
-            let my = Spectrum::new(&minus.y()[range], dt, t0m, &fft);
+            let mu = Spectrum::new(&minus.input()[range.clone()], dt, t0m, &fft);
+            let my = Spectrum::new(&minus.output()[range], dt, t0m, &fft);
             su = su.half_difference(&mu);
             sy = sy.half_difference(&my);
         }

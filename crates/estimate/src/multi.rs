@@ -6,9 +6,10 @@ use num_complex::Complex64;
 
 use crate::error::{Error, Result};
 use crate::estimate::{BiasSource, HtfEstimate, Method};
-use crate::record::{Prepared, Record};
+use crate::record::Prepared;
 use crate::smallls::SmallLs;
 use crate::smooth::{self, Alpha, BinSystem};
+use htfid_data::TimeSeries;
 
 /// Regularisation of the multi-experiment estimator.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -89,7 +90,7 @@ impl Default for MultiOptions {
 /// Records phase-shifted by `T / K` alias: harmonics `n` and `n + K` enter every bin through
 /// proportional columns, so truth outside the modelled set leaks into the estimate.
 pub fn multi_experiment(
-    records: &[Record],
+    records: &[TimeSeries],
     period: f64,
     harmonics: &[i32],
     band: (f64, f64),

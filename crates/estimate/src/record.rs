@@ -3,9 +3,9 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use htfid_data::TimeSeries;
 use num_complex::Complex64;
 use rustfft::{Fft, FftPlanner};
-use serde::Serialize;
 
 use crate::error::{Error, Result};
 
@@ -17,79 +17,36 @@ const MIN_SAMPLES: usize = 4;
 /// of `2 pi 1e-6` per period is far below anything the estimators resolve.
 const WHOLE_PERIOD_TOL: f64 = 1e-6;
 
-/// One uniformly sampled input-output record.
-///
-/// `u[i]` and `y[i]` are taken at absolute time `t_start + i * dt`. The output is a deviation
-/// from the limit cycle (the caller subtracts the orbit).
-#[derive(Debug, Clone, Serialize)]
-pub struct Record {
-    u: Vec<f64>,
-    y: Vec<f64>,
-    dt: f64,
-    t_start: f64,
+/// Checks a record the estimators read: one output (a deviation from the limit cycle, the
+/// caller subtracts the orbit) and at least 4 samples, so that a DFT has more than a DC bin.
+/// The estimators read `input()[i]` and `output()[i]` at absolute time `time()[0] + i dt()`.
+pub(crate) fn check_record(r: &TimeSeries) -> Result<()> {
+    if r.outputs().len() != 1 {
+        return Err(Error::SeveralOutputs {
+            outputs: r.outputs().len(),
+        });
+    }
+    if r.len() < MIN_SAMPLES {
+        return Err(Error::TooShort {
+            samples: r.len(),
+            minimum: MIN_SAMPLES,
+        });
+    }
+    Ok(())
 }
 
-impl Record {
-    /// Validates and wraps a record: equal lengths (at least 4 samples), `dt > 0`, finite start
-    /// time and finite samples.
-    pub fn new(u: Vec<f64>, y: Vec<f64>, dt: f64, t_start: f64) -> Result<Self> {
-        if u.len() != y.len() {
-            return Err(Error::LengthMismatch {
-                input: u.len(),
-                output: y.len(),
-            });
-        }
-        if u.len() < MIN_SAMPLES {
-            return Err(Error::TooShort {
-                samples: u.len(),
-                minimum: MIN_SAMPLES,
-            });
-        }
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(Error::InvalidTimeStep { dt });
-        }
-        if !t_start.is_finite() {
-            return Err(Error::InvalidStartTime { t_start });
-        }
-        check_finite("input", &u)?;
-        check_finite("output", &y)?;
-        Ok(Self { u, y, dt, t_start })
+/// A record of deviations `u`, `y` sampled every `dt` from `t_start`, for the estimators.
+pub fn deviation_record(u: Vec<f64>, y: Vec<f64>, dt: f64, t_start: f64) -> Result<TimeSeries> {
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(Error::InvalidTimeStep { dt });
     }
-
-    /// Input samples.
-    pub fn u(&self) -> &[f64] {
-        &self.u
-    }
-
-    /// Output samples (deviation from the orbit).
-    pub fn y(&self) -> &[f64] {
-        &self.y
-    }
-
-    /// Sample interval, s.
-    pub fn dt(&self) -> f64 {
-        self.dt
-    }
-
-    /// Absolute time of the first sample, s.
-    pub fn t_start(&self) -> f64 {
-        self.t_start
-    }
-
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.u.len()
-    }
-
-    /// Always `false`: a record holds at least four samples.
-    pub fn is_empty(&self) -> bool {
-        self.u.is_empty()
-    }
-
-    /// Record length `N * dt`, s.
-    pub fn duration(&self) -> f64 {
-        self.u.len() as f64 * self.dt
-    }
+    let r = TimeSeries::from_step(t_start, dt, u, vec![y], "deviations from the orbit").map_err(
+        |e| Error::Record {
+            reason: e.to_string(),
+        },
+    )?;
+    check_record(&r)?;
+    Ok(r)
 }
 
 fn check_finite(signal: &'static str, x: &[f64]) -> Result<()> {
@@ -272,7 +229,7 @@ impl Prepared {
     /// `margin` extra bins on each side of the band must also stay below Nyquist (the local
     /// polynomial window reads them); `min_bins` is the smallest band accepted.
     pub(crate) fn new(
-        records: &[Record],
+        records: &[TimeSeries],
         period: f64,
         harmonics: &[i32],
         band: (f64, f64),
@@ -280,20 +237,23 @@ impl Prepared {
         min_bins: usize,
     ) -> Result<Self> {
         let first = records.first().ok_or(Error::NoRecords)?;
+        for r in records {
+            check_record(r)?;
+        }
         validate_harmonics(harmonics)?;
         for (index, r) in records.iter().enumerate().skip(1) {
             // Equal dt to rounding: records cut from one experiment share dt exactly.
-            if r.len() != first.len() || (r.dt - first.dt).abs() > 1e-12 * first.dt {
+            if r.len() != first.len() || (r.dt() - first.dt()).abs() > 1e-12 * first.dt() {
                 return Err(Error::RecordsDiffer {
                     index,
                     samples: r.len(),
-                    dt: r.dt,
+                    dt: r.dt(),
                     expected_samples: first.len(),
-                    expected_dt: first.dt,
+                    expected_dt: first.dt(),
                 });
             }
         }
-        let grid = Grid::new(first.len(), first.dt, period)?;
+        let grid = Grid::new(first.len(), first.dt(), period)?;
         let (lo, hi) = band;
         if !(lo.is_finite() && hi.is_finite() && lo < hi) {
             return Err(Error::InvalidBand { lo, hi });
@@ -333,11 +293,11 @@ impl Prepared {
         let fft = FftPlanner::new().plan_fft_forward(grid.n);
         let u = records
             .iter()
-            .map(|r| Spectrum::new(&r.u, r.dt, r.t_start, &fft))
+            .map(|r| Spectrum::new(r.input(), r.dt(), r.time()[0], &fft))
             .collect();
         let y = records
             .iter()
-            .map(|r| Spectrum::new(&r.y, r.dt, r.t_start, &fft))
+            .map(|r| Spectrum::new(r.output(), r.dt(), r.time()[0], &fft))
             .collect();
         Ok(Self {
             grid,
@@ -347,7 +307,7 @@ impl Prepared {
             m: bins,
             u,
             y,
-            t_starts: records.iter().map(|r| r.t_start).collect(),
+            t_starts: records.iter().map(|r| r.time()[0]).collect(),
         })
     }
 
@@ -433,22 +393,40 @@ mod tests {
 
     #[test]
     fn record_validation_messages() {
-        let e = Record::new(vec![0.0; 5], vec![0.0; 4], 0.1, 0.0).unwrap_err();
+        let e = deviation_record(vec![0.0; 5], vec![0.0; 4], 0.1, 0.0).unwrap_err();
         assert_eq!(
             e.to_string(),
-            "input has 5 samples but output has 4; a record needs one output sample per input sample"
+            "record: deviations from the orbit: column \"output\" has 4 values, the time vector \
+             has 5"
         );
-        let e =
-            Record::new(vec![0.0; 5], vec![0.0, 0.0, f64::NAN, 0.0, 0.0], 0.1, 0.0).unwrap_err();
+        let e = deviation_record(vec![0.0; 5], vec![0.0, 0.0, f64::NAN, 0.0, 0.0], 0.1, 0.0)
+            .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "record: deviations from the orbit: row 2: column \"output\": value \"NaN\" is not a \
+             finite number"
+        );
         assert!(matches!(
-            e,
-            Error::NonFiniteSample {
-                signal: "output",
-                index: 2,
-                ..
-            }
+            deviation_record(vec![0.0; 5], vec![0.0; 5], 0.0, 0.0),
+            Err(Error::InvalidTimeStep { .. })
         ));
-        assert!(Record::new(vec![0.0; 5], vec![0.0; 5], 0.0, 0.0).is_err());
-        assert!(Record::new(vec![0.0; 3], vec![0.0; 3], 0.1, 0.0).is_err());
+        assert!(matches!(
+            deviation_record(vec![0.0; 3], vec![0.0; 3], 0.1, 0.0),
+            Err(Error::TooShort {
+                samples: 3,
+                minimum: 4
+            })
+        ));
+        let two = TimeSeries::with_outputs(
+            vec![0.0, 0.1, 0.2, 0.3, 0.4],
+            vec![0.0; 5],
+            vec![vec![0.0; 5], vec![1.0; 5]],
+            "two",
+        )
+        .unwrap();
+        assert!(matches!(
+            check_record(&two),
+            Err(Error::SeveralOutputs { outputs: 2 })
+        ));
     }
 }

@@ -2,8 +2,9 @@
 
 use crate::error::Result;
 use crate::estimate::{BiasSource, HtfEstimate, Method};
-use crate::record::{Prepared, Record};
+use crate::record::Prepared;
 use crate::smooth::{self, Alpha, BinSystem};
+use htfid_data::TimeSeries;
 
 /// Second differences need at least three bins.
 const MIN_BINS: usize = 3;
@@ -32,7 +33,7 @@ const MIN_BINS: usize = 3;
 /// smoothing dominates it accounts for 77 to 85 % of the error (`tests/siddiqi.rs`): it falls
 /// short where the penalty flattens much of the curvature.
 pub fn siddiqi(
-    record: &Record,
+    record: &TimeSeries,
     period: f64,
     harmonics: &[i32],
     band: (f64, f64),

@@ -6,7 +6,8 @@ use std::f64::consts::PI;
 
 use common::{c_at, max_rel_err, random_spectrum, synth_record, with_noise, Grid, Rational, Truth};
 use htfid_estimate::{
-    multi_experiment, Alpha, Error, Leakage, MultiOptions, Record, Regularisation,
+    deviation_record, multi_experiment, Alpha, Error, Leakage, MultiOptions, Regularisation,
+    TimeSeries,
 };
 use num_complex::Complex64;
 use rand::SeedableRng;
@@ -29,7 +30,7 @@ fn phase_shifted(
     k: usize,
     truth: &dyn Truth,
     seed: u64,
-) -> (Vec<Record>, Vec<Complex64>, Vec<f64>) {
+) -> (Vec<TimeSeries>, Vec<Complex64>, Vec<f64>) {
     let c = random_spectrum(KMAX, seed);
     let taus: Vec<f64> = (0..k).map(|r| r as f64 * PERIOD / k as f64).collect();
     let records = taus
@@ -95,7 +96,7 @@ fn standard_errors_match_monte_carlo_scatter() {
     let mut sum_sq = vec![0.0; h * m];
     let mut reported_var = vec![0.0; h * m];
     for _ in 0..trials {
-        let noisy: Vec<Record> = clean
+        let noisy: Vec<TimeSeries> = clean
             .iter()
             .map(|r| with_noise(r, sigma, &mut rng))
             .collect();
@@ -187,7 +188,7 @@ fn memoryless_truth(n: i32) -> Complex64 {
     }
 }
 
-fn white_records(k: usize, seed: u64) -> Vec<Record> {
+fn white_records(k: usize, seed: u64) -> Vec<TimeSeries> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let normal = Normal::new(0.0, 1.0).unwrap();
     (0..k)
@@ -199,7 +200,7 @@ fn white_records(k: usize, seed: u64) -> Vec<Record> {
                 .enumerate()
                 .map(|(i, &v)| memoryless(t0 + i as f64 * GRID.dt, v))
                 .collect();
-            Record::new(u, y, GRID.dt, t0).unwrap()
+            deviation_record(u, y, GRID.dt, t0).unwrap()
         })
         .collect()
 }
@@ -273,12 +274,12 @@ fn fewer_records_than_harmonics_needs_regularisation() {
 #[test]
 fn records_must_be_whole_periods_and_share_a_grid() {
     let u = vec![0.0; 150];
-    let r = Record::new(u.clone(), u, 0.01, 0.0).unwrap();
+    let r = deviation_record(u.clone(), u, 0.01, 0.0).unwrap();
     let e = multi_experiment(&[r], PERIOD, &[0], BAND, &MultiOptions::default()).unwrap_err();
     assert!(matches!(e, Error::NotWholePeriods { .. }));
     assert!(e.to_string().contains("1.5 periods"), "{e}");
     let records = white_records(2, 7);
-    let short = Record::new(vec![0.0; 400], vec![0.0; 400], 0.01, 0.0).unwrap();
+    let short = deviation_record(vec![0.0; 400], vec![0.0; 400], 0.01, 0.0).unwrap();
     let e = multi_experiment(
         &[records[0].clone(), short],
         PERIOD,
@@ -331,10 +332,10 @@ fn segment_errors(n: usize) -> (f64, f64) {
     for i in 0..total - 1 {
         y[i + 1] = phi * y[i] + dt * memoryless(i as f64 * dt, u[i]);
     }
-    let records: Vec<Record> = starts
+    let records: Vec<TimeSeries> = starts
         .iter()
         .map(|&s| {
-            Record::new(
+            deviation_record(
                 u[s..s + n].to_vec(),
                 y[s..s + n].to_vec(),
                 dt,

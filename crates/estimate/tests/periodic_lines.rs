@@ -5,7 +5,9 @@ mod common;
 use std::f64::consts::PI;
 
 use common::{inverse, record_spectra, with_noise, Grid, Rational, Truth};
-use htfid_estimate::{periodic_lines, periodic_lines_paired, Error, LineSpec, Record};
+use htfid_estimate::{
+    deviation_record, periodic_lines, periodic_lines_paired, Error, LineSpec, TimeSeries,
+};
 use num_complex::Complex64;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -51,7 +53,7 @@ fn record(
     periods: usize,
     sign: f64,
     beta: f64,
-) -> Record {
+) -> TimeSeries {
     let (us, ys) = record_spectra(ONE, c, 0.0, truth);
     let u1 = inverse(ONE, t0, &us);
     let y1 = inverse(ONE, t0, &ys);
@@ -61,7 +63,7 @@ fn record(
     let y: Vec<f64> = (0..periods)
         .flat_map(|_| u1.iter().zip(&y1).map(|(a, b)| sign * b + beta * a * a))
         .collect();
-    Record::new(u, y, DT, t0).unwrap()
+    deviation_record(u, y, DT, t0).unwrap()
 }
 
 #[test]

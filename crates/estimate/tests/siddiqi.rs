@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 use common::{
     random_spectrum, rms_rel_err, synth_record, with_noise, Affine, Grid, Rational, Truth,
 };
-use htfid_estimate::{dft, siddiqi, Alpha, Error, HtfEstimate, Record};
+use htfid_estimate::{deviation_record, dft, siddiqi, Alpha, Error, HtfEstimate, TimeSeries};
 use num_complex::Complex64;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -28,7 +28,7 @@ fn worst_error(est: &HtfEstimate, truth: &dyn Fn(i32, f64) -> Complex64) -> f64 
 }
 
 /// One record of a single periodic random input through `truth`, `p` periods at 25 Hz.
-fn smooth_record(truth: &Rational, p: usize, band_hi: f64, seed: u64) -> Record {
+fn smooth_record(truth: &Rational, p: usize, band_hi: f64, seed: u64) -> TimeSeries {
     let grid = Grid {
         n: p * 25,
         dt: 0.04,
@@ -57,7 +57,7 @@ fn constant_htfs_of_a_memoryless_system_are_recovered_for_any_alpha() {
             (1.0 + 0.4 * (wp * t).cos() + 0.2 * (2.0 * wp * t).sin()) * v
         })
         .collect();
-    let rec = Record::new(u, y, dt, t0).unwrap();
+    let rec = deviation_record(u, y, dt, t0).unwrap();
     let truth = |n: i32, _w: f64| match n {
         0 => Complex64::new(1.0, 0.0),
         1 | -1 => Complex64::new(0.2, 0.0),
@@ -165,7 +165,7 @@ fn gcv_lands_near_the_best_fixed_alpha_under_noise() {
     // on a half-decade grid (measured 1.07x).
     let truth = Rational::standard(1);
     let clean = smooth_record(&truth, 128, 25.0, 5);
-    let rms = (clean.y().iter().map(|v| v * v).sum::<f64>() / clean.len() as f64).sqrt();
+    let rms = (clean.output().iter().map(|v| v * v).sum::<f64>() / clean.len() as f64).sqrt();
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let rec = with_noise(&clean, 0.1 * rms, &mut rng);
     let hs = [-1, 0, 1];
@@ -201,10 +201,10 @@ fn effective_alpha_is_scaled_by_the_shifted_input_power() {
     let hs = [-1, 0, 1];
     let est = siddiqi(&rec, PERIOD, &hs, band, Alpha::Fixed(0.3)).unwrap();
     // Independent of the estimator: mean |U[k - nP]|^2 over band bins and harmonics.
-    let u = dft(rec.u(), rec.dt(), rec.t_start()).unwrap();
+    let u = dft(rec.input(), rec.dt(), rec.time()[0]).unwrap();
     let n = u.len() as i64;
-    let dw = 2.0 * PI / rec.duration();
-    let p = (rec.duration() / PERIOD).round() as i64;
+    let dw = 2.0 * PI / (rec.len() as f64 * rec.dt());
+    let p = ((rec.len() as f64 * rec.dt()) / PERIOD).round() as i64;
     let (k_lo, k_hi) = ((band.0 / dw).ceil() as i64, (band.1 / dw).floor() as i64);
     let mut sum = 0.0;
     let mut count = 0.0;
@@ -240,7 +240,7 @@ fn posterior_standard_errors_are_conservative_and_grow_so_with_alpha() {
     // alpha = 1, 0.37 at alpha = 100.
     let truth = Rational::standard(1);
     let clean = smooth_record(&truth, 64, 20.0, 9);
-    let rms = (clean.y().iter().map(|v| v * v).sum::<f64>() / clean.len() as f64).sqrt();
+    let rms = (clean.output().iter().map(|v| v * v).sum::<f64>() / clean.len() as f64).sqrt();
     let hs = [-1, 0, 1];
     let band = (0.5, 20.0);
     let ratio = |alpha: f64| -> f64 {

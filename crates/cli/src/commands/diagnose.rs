@@ -12,8 +12,8 @@ use htfid_data::{OutputDir, TimeSeries};
 
 use crate::records::{read_record, Columns};
 use htfid_diagnose::{
-    diagnose_with_progress, simulate_record, DiagnoseOptions, DiagnosisReport, Effect,
-    NominalModel, NominalParam, Record, Score,
+    diagnose_with_progress, htf_comparison, simulate_record, DiagnoseOptions, DiagnosisReport,
+    Effect, HarmonicDifference, HtfComparisonSpec, NominalModel, NominalParam, Score,
 };
 use htfid_model::Effects;
 use htfid_plot::{
@@ -41,6 +41,8 @@ const PLOTS: [&str; 7] = [
 
 /// Harmonics of the data-against-theory HTF figure.
 const HTF_HARMONICS: [i32; 5] = [-2, -1, 0, 1, 2];
+/// Output band of the data's HTF figure, rad/s.
+const HTF_BAND: (f64, f64) = (1.0, 40.0);
 
 pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
     if crate::model_diagnose_config::names_a_model_file(config) {
@@ -70,14 +72,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     let mut outdir = open(&dir, force, &names)?;
 
     let started = Instant::now();
-    let series = read_series(&settings)?;
-    let record = Record::from_series(&series).with_context(|| {
-        format!(
-            "{}: data.file = \"{}\": measured data",
-            settings.path.display(),
-            settings.data.file.display()
-        )
-    })?;
+    let record = read_series(&settings)?;
     check_time_scale(&settings, &record)?;
     let nominal = nominal_model(&settings)?;
     let opts = options(&settings, record.len())?;
@@ -222,7 +217,7 @@ fn added_effects(d: &htfid_diagnose::Diagnosis) -> Vec<&str> {
 }
 
 /// Held-out samples after each range's burn-in, in order.
-fn held_out(record: &Record, report: &DiagnosisReport) -> Vec<usize> {
+fn held_out(record: &TimeSeries, report: &DiagnosisReport) -> Vec<usize> {
     let burn = (report.burn_in_s / record.dt()).ceil() as usize;
     report
         .validation_ranges
@@ -236,12 +231,12 @@ fn held_out(record: &Record, report: &DiagnosisReport) -> Vec<usize> {
 /// applied force, on the held-out samples (ranges joined end to end).
 fn validate(
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
 ) -> crate::validation::OutputValidation {
     let idx = held_out(record, report);
     let pick = |v: &[f64]| -> Vec<f64> { idx.iter().map(|&i| v[i]).collect() };
-    let (x, f) = (pick(record.x()), pick(record.f()));
+    let (x, f) = (pick(record.output()), pick(record.input()));
     let (nom, ext) = (pick(&report.nominal_output), pick(&report.extended_output));
     crate::validation::validate(
         &s.data.output,
@@ -269,7 +264,7 @@ fn validate(
 fn draw_validation(
     out: &mut OutputDir,
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
     check: &crate::validation::OutputValidation,
 ) -> Result<()> {
@@ -306,15 +301,15 @@ fn draw_validation(
             s.data.output
         ),
         &output_label(s),
-        record.t(),
-        record.x(),
+        record.time(),
+        record.output(),
         &models,
         &check.fits,
         win.clone(),
     );
-    let tw = record.t()[win.clone()].to_vec();
+    let tw = record.time()[win.clone()].to_vec();
     let residual =
-        |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.x()[i] - sim[i]).collect() };
+        |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.output()[i] - sim[i]).collect() };
     let mut res = Panel::new(
         "residual, measured minus simulated",
         htfid_plot::TIME_LABEL,
@@ -446,7 +441,7 @@ fn ranges_json(r: &[Range<usize>]) -> Value {
 /// Scores of the nominal and extended models on the config's extra test ranges.
 fn test_scores(
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
     opts: &DiagnoseOptions,
 ) -> Result<Vec<Value>> {
@@ -456,7 +451,7 @@ fn test_scores(
         let score = |model| -> Result<Score> {
             let sim =
                 simulate_record(record, model, r.clone(), None, opts.interpolation, opts.sim)?;
-            let x = &record.x()[r.clone()];
+            let x = &record.output()[r.clone()];
             let skip = burn.min(x.len() / 2);
             let (sim, x) = (&sim[skip..], &x[skip..]);
             let mse = sim.iter().zip(x).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / x.len() as f64;
@@ -480,16 +475,16 @@ fn test_scores(
 }
 
 /// Residuals of both models over the held-out ranges, and where they are.
-fn residuals(record: &Record, report: &DiagnosisReport) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+fn residuals(record: &TimeSeries, report: &DiagnosisReport) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let (mut t, mut r0, mut r1) = (Vec::new(), Vec::new(), Vec::new());
     let burn = (report.burn_in_s / record.dt()).ceil() as usize;
     for r in &report.validation_ranges {
         for i in (r.start + burn).min(r.end)..r.end {
             let (a, b) = (report.nominal_output[i], report.extended_output[i]);
             if a.is_finite() && b.is_finite() {
-                t.push(record.t()[i]);
-                r0.push(record.x()[i] - a);
-                r1.push(record.x()[i] - b);
+                t.push(record.time()[i]);
+                r0.push(record.output()[i] - a);
+                r1.push(record.output()[i] - b);
             }
         }
     }
@@ -525,111 +520,52 @@ struct Figures {
     htf: Option<String>,
 }
 
-/// The data's HTFs (Siddiqi's estimator on the excited part of the record, deviations from the
-/// measured period-averaged orbit, input = measured force minus the known forcing) against the
-/// exact theory of the nominal and the extended model.
+/// The data's HTFs against the exact theory of the nominal and the extended model
+/// (`htfid_diagnose::htf_comparison`), drawn: `htf_data` and `htf_difference`.
 fn htf_figure(
     out: &mut OutputDir,
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
-) -> Result<Vec<evidence::HarmonicDifference>> {
-    use htfid_estimate::{siddiqi, split_periodic, Alpha, Record as EstRecord};
+) -> Result<Vec<HarmonicDifference>> {
     use htfid_plot::Style;
-    use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
-    let period = s.params.period;
-    let dt = record.dt();
-    let per = period / dt;
-    if (per - per.round()).abs() > 1e-6 {
-        anyhow::bail!("the sample period does not divide the forcing period");
-    }
-    let per = per.round() as usize;
-    let wp = 2.0 * std::f64::consts::PI / period;
-    let u: Vec<f64> = record
-        .t()
-        .iter()
-        .zip(record.f())
-        .map(|(&t, &f)| f - s.params.forcing_amplitude * (wp * t).cos())
-        .collect();
-    let peak = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let first = u
-        .iter()
-        .position(|v| v.abs() > 1e-3 * peak)
-        .context("no excitation in the record")?;
-    // Start on a period boundary at or before the first excited sample.
-    let t0 = record.t()[first];
-    let start = first - ((t0.rem_euclid(period) / dt).round() as usize).min(first);
-    let periods = (record.len() - start) / per;
-    anyhow::ensure!(periods >= 10, "fewer than 10 excited periods");
-    let end = start + periods * per;
-    // The measured orbit is the period average of the excited window (`split_periodic`); the
-    // estimator sees the deviations from it.
-    let t_start = record.t()[start];
-    let x_split = split_periodic(&record.x()[start..end], dt, t_start, period, 10)?;
-    let u_split = split_periodic(&u[start..end], dt, t_start, period, 5)?;
-    let rec = EstRecord::new(u_split.deviation, x_split.deviation, dt, t_start)?;
-    let est = siddiqi(&rec, period, &HTF_HARMONICS, (1.0, 40.0), Alpha::Fixed(1.0))?;
-    // Each model's HTFs about its own limit cycle (`LinearisedHtf`: closed form where the
-    // linearisation is constant per chart, the periodic response otherwise).
-    let model = |m: &htfid_diagnose::FittedModel| -> Result<htfid_model::Hopper> {
-        let mut params = m.params;
-        params.forcing_amplitude = s.params.forcing_amplitude;
-        params.period = period;
-        Ok(htfid_model::Hopper::with_effects(
-            params, m.damper, m.effects,
-        )?)
+    let omegas = crate::settings::log_grid(HTF_BAND.0, HTF_BAND.1, 400);
+    let spec = HtfComparisonSpec {
+        forcing_amplitude: s.params.forcing_amplitude,
+        period: s.params.period,
+        harmonics: HTF_HARMONICS.to_vec(),
+        band: HTF_BAND,
+        alpha: 1.0,
+        theory_omegas: omegas.clone(),
     };
-    let opts = htfid_hybrid::Options::default();
-    let (h0, h1) = (
-        model(&report.nominal_model)?,
-        model(&report.extended_model)?,
-    );
-    let (c0, c1) = (
-        h0.limit_cycle(&Default::default(), &opts)?,
-        h1.limit_cycle(&Default::default(), &opts)?,
-    );
-    let (l0, l1) = (
-        LinearisedHtf::new(&h0, &c0.cycle, &opts)?,
-        LinearisedHtf::new(&h1, &c1.cycle, &opts)?,
-    );
-    let (nominal, extended) = (l0.channel(0)?, l1.channel(0)?);
-    let omegas = crate::settings::log_grid(1.0, 40.0, 400);
+    let cmp = htf_comparison(record, &report.nominal_model, &report.extended_model, &spec)?;
     let ext_label = format!("{}, theory", ext_label(report));
-    type Data = (i32, Vec<f64>, Vec<Complex64>, Vec<f64>);
-    let data: Vec<Data> = HTF_HARMONICS
+    let measured: Vec<Vec<Complex64>> = cmp
+        .differences
         .iter()
-        .map(|&n| {
-            let rows: Vec<_> = est.rows().filter(|r| r.n == n).collect();
-            (
-                n,
-                rows.iter().map(|r| r.omega).collect(),
-                rows.iter().map(|r| r.value).collect(),
-                rows.iter().map(|r| r.stderr).collect(),
-            )
+        .map(|d| {
+            cmp.estimate
+                .rows()
+                .filter(|r| r.n == d.n)
+                .map(|r| r.value)
+                .collect()
         })
         .collect();
-    let th: Vec<(Vec<Complex64>, Vec<Complex64>)> = HTF_HARMONICS
+    let per_harmonic: Vec<(i32, Vec<plots::Curve<'_>>)> = cmp
+        .differences
         .iter()
-        .map(|&n| {
+        .zip(&measured)
+        .zip(cmp.nominal_theory.iter().zip(&cmp.extended_theory))
+        .map(|((d, values), (g0, g1))| {
             (
-                omegas.iter().map(|&w| nominal.g(n, w)).collect(),
-                omegas.iter().map(|&w| extended.g(n, w)).collect(),
-            )
-        })
-        .collect();
-    let per_harmonic: Vec<(i32, Vec<plots::Curve<'_>>)> = data
-        .iter()
-        .zip(&th)
-        .map(|((n, w, v, se), (g0, g1))| {
-            (
-                *n,
+                d.n,
                 vec![
                     plots::Curve {
                         label: "measured (Siddiqi estimate)",
-                        omega: w,
-                        values: v,
+                        omega: &d.omega,
+                        values,
                         style: Style::Line,
-                        stderr: Some(se),
+                        stderr: Some(&d.stderr),
                     },
                     plots::Curve {
                         label: "nominal, theory",
@@ -657,33 +593,14 @@ fn htf_figure(
         htf_unit(s),
     );
     plots::write(out, "htf_data", &fig)?;
-    // Measured minus each model, at the estimate's own frequencies.
-    let diffs: Vec<evidence::HarmonicDifference> = data
-        .iter()
-        .map(|(n, w, v, se)| evidence::HarmonicDifference {
-            n: *n,
-            omega: w.clone(),
-            stderr: se.clone(),
-            nominal: w
-                .iter()
-                .zip(v)
-                .map(|(&w, g)| g - nominal.g(*n, w))
-                .collect(),
-            extended: w
-                .iter()
-                .zip(v)
-                .map(|(&w, g)| g - extended.g(*n, w))
-                .collect(),
-        })
-        .collect();
-    evidence::draw_htf_difference(out, s, report, &diffs, htf_unit(s))?;
-    Ok(diffs)
+    evidence::draw_htf_difference(out, s, report, &cmp.differences, htf_unit(s))?;
+    Ok(cmp.differences)
 }
 
 fn draw(
     out: &mut OutputDir,
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
 ) -> Result<Figures> {
     let (t, r0, r1) = residuals(record, report);
@@ -736,8 +653,9 @@ fn draw(
             .push(Series::new(ext_label.clone(), tb, q1, Style::Line).with_role(Role::Extended));
     }
     let win = evidence::time_window(s, record, report);
-    let tw = record.t()[win.clone()].to_vec();
-    let res = |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.x()[i] - sim[i]).collect() };
+    let tw = record.time()[win.clone()].to_vec();
+    let res =
+        |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.output()[i] - sim[i]).collect() };
     let mut bottom = Panel::new(
         format!(
             "measured - simulated over the first {} of held-out data after the burn-in",
@@ -799,9 +717,9 @@ fn draw(
                 if !(a.is_finite() && b.is_finite()) {
                     continue;
                 }
-                let phase = record.t()[i].rem_euclid(period) / period;
+                let phase = record.time()[i].rem_euclid(period) / period;
                 let k = ((phase * bins as f64) as usize).min(bins - 1);
-                acc[k][0] += record.x()[i];
+                acc[k][0] += record.output()[i];
                 acc[k][1] += a;
                 acc[k][2] += b;
                 acc[k][3] += 1.0;
@@ -846,13 +764,13 @@ fn draw(
         let burn = (report.burn_in_s / record.dt()).ceil() as usize;
         let a = (r.start + burn).min(r.end);
         let b = (a + (1.0 / record.dt()) as usize).min(r.end);
-        let tt = record.t()[a..b].to_vec();
+        let tt = record.time()[a..b].to_vec();
         let panel = time_panel(
             "one second of held-out data",
             &output_label(s),
             &tt,
             [
-                ("measured", record.x()[a..b].to_vec()),
+                ("measured", record.output()[a..b].to_vec()),
                 ("nominal", report.nominal_output[a..b].to_vec()),
                 (ext_label.as_str(), report.extended_output[a..b].to_vec()),
             ],
@@ -934,12 +852,12 @@ fn causes_text(d: &htfid_diagnose::Diagnosis) -> String {
 #[allow(clippy::too_many_arguments)] // reason: the report reads every result of the run
 fn report_md(
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
     tests: &[Value],
     figures: &Figures,
     ev: &evidence::Evidence,
-    htf: &[evidence::HarmonicDifference],
+    htf: &[HarmonicDifference],
 ) -> String {
     use htfid_number::sig as num;
     let d = &report.diagnosis;
@@ -965,7 +883,12 @@ fn report_md(
         // A hint beside the verdict, never a cause: the library did not hold this term.
         let _ = writeln!(
             m,
-            "**Outside the library**, a term search on the residual proposes the extra force `{}` N (`x_eq` = {} m{}): it lowers the held-out RMSE from {} to {} {unit} (gain {} %). Coefficients with standard errors: {}.\n",
+            "**Outside the library**, a term search on the residual of {} proposes the extra force `{}` N (`x_eq` = {} m{}): added to it, it lowers the held-out RMSE from {} to {} {unit} (gain {} %). Coefficients with standard errors: {}.\n",
+            if found.read_from == "nominal" {
+                "the refitted nominal model (beside the selected effects, which partly mimic it, no formula held up)"
+            } else {
+                "the final model"
+            },
             found.formula,
             num(found.x_eq, 4),
             if found.period > 0.0 { format!(", `T` = {} s", num(found.period, 4)) } else { String::new() },
@@ -1173,7 +1096,7 @@ fn report_md(
 
 /// Refuses a record whose time scale cannot hold the nominal model's dynamics (see
 /// [`crate::records::check_time_scale`]).
-fn check_time_scale(settings: &DiagnoseSettings, record: &Record) -> Result<()> {
+fn check_time_scale(settings: &DiagnoseSettings, record: &TimeSeries) -> Result<()> {
     let p = &settings.params;
     let wn = (p.k / p.m).sqrt();
     let what = format!("one natural period of the nominal model (sqrt(k/m) = {wn:.3} rad/s)");

@@ -11,13 +11,12 @@ use anyhow::Result;
 use htfid_data::OutputDir;
 use htfid_diagnose::{
     error_waterfall, quantile_range, residual_acceleration, Bin, BinnedResidual, DiagnosisReport,
-    ErrorStep, Interpolation, Record, Structure,
+    ErrorStep, HarmonicDifference, Interpolation, Structure, TimeSeries,
 };
 use htfid_plot::{
     binned_panel, grid_figure, magnitude_panel, stacked_figure, waterfall_panel, BinnedSeries,
     BodeSeries, Panel, Role, Series, Style, WaterfallBar, SIGNIFICANT_RATIO,
 };
-use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::plots;
@@ -72,7 +71,7 @@ fn forcing_period(s: &DiagnoseSettings) -> Option<f64> {
 /// The residual accelerations of both models on the held-out samples, binned.
 pub fn compute(
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
     interpolation: Interpolation,
 ) -> Result<Evidence> {
@@ -312,7 +311,7 @@ pub fn draw_waterfall(
 /// the nominal model) from the start of the first held-out range, after its burn-in.
 pub fn time_window(
     s: &DiagnoseSettings,
-    record: &Record,
+    record: &TimeSeries,
     report: &DiagnosisReport,
 ) -> Range<usize> {
     let dt = record.dt();
@@ -335,39 +334,6 @@ pub fn window_words(s: &DiagnoseSettings) -> String {
     match forcing_period(s) {
         Some(_) => format!("{WINDOW_PERIODS} forcing periods"),
         None => format!("{NATURAL_PERIODS_PER_WINDOW} natural periods (of the nominal model)"),
-    }
-}
-
-/// Measured-minus-model HTF differences of one harmonic at the estimate's frequencies.
-pub struct HarmonicDifference {
-    pub n: i32,
-    pub omega: Vec<f64>,
-    pub stderr: Vec<f64>,
-    pub nominal: Vec<Complex64>,
-    pub extended: Vec<Complex64>,
-}
-
-impl HarmonicDifference {
-    /// Share of the frequency bins where `|difference| > 2 stderr` (the estimate's noise).
-    fn outside(d: &[Complex64], se: &[f64]) -> f64 {
-        let n = d.iter().zip(se).filter(|(_, s)| s.is_finite()).count();
-        if n == 0 {
-            return 0.0;
-        }
-        let out = d
-            .iter()
-            .zip(se)
-            .filter(|(g, s)| s.is_finite() && g.norm() > SIGNIFICANT_RATIO * **s)
-            .count();
-        out as f64 / n as f64
-    }
-
-    pub fn nominal_outside(&self) -> f64 {
-        Self::outside(&self.nominal, &self.stderr)
-    }
-
-    pub fn extended_outside(&self) -> f64 {
-        Self::outside(&self.extended, &self.stderr)
     }
 }
 

@@ -4,7 +4,8 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis, ModelRecord};
+use htfid_data::TimeSeries;
+use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis};
 use htfid_plot::{stacked_figure, Panel, Role, Series, Style};
 use serde_json::json;
 
@@ -45,7 +46,7 @@ pub fn run(
     crate::progress::line(&format!(
         "diagnosing {} ({} samples) against model `{}`, refitting {:?}",
         s.file.display(),
-        record.t.len(),
+        record.len(),
         s.model.name(),
         s.options.free
     ));
@@ -70,8 +71,8 @@ pub fn run(
         })?;
     // The figure shows the held-out data: the validation record when there is one.
     let shown = validation.as_ref().unwrap_or(&record);
-    let n = shown.t.len();
-    let dt = (shown.t[n - 1] - shown.t[0]) / (n - 1).max(1) as f64;
+    let n = shown.len();
+    let dt = shown.dt();
     // The samples the library scores as held-out: the validation record after its burn-in,
     // or the part of the record after the fit fraction.
     let held_out = match &validation {
@@ -85,8 +86,8 @@ pub fn run(
         .map(|(o, name)| {
             crate::validation::validate(
                 name,
-                &shown.y[o],
-                &shown.u,
+                &shown.outputs()[o],
+                shown.input(),
                 &models_of(&d, o),
                 held_out.clone(),
             )
@@ -169,7 +170,7 @@ pub fn run(
             fits.push((
                 label.clone(),
                 htfid_validate::fit_percent(
-                    &shown.y[o][held_out.clone()],
+                    &shown.outputs()[o][held_out.clone()],
                     &ext[o][held_out.clone()],
                 )
                 .ok(),
@@ -184,15 +185,18 @@ pub fn run(
         panels.push(crate::validation::compare_panel(
             &format!("{name}: measured and simulated (held-out data; fit over all of it)"),
             &format!("{name}{unit}"),
-            &shown.t,
-            &shown.y[o],
+            shown.time(),
+            &shown.outputs()[o],
             &models,
             &fits,
             win.clone(),
         ));
-        let tw = shown.t[win.clone()].to_vec();
-        let residual =
-            |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| shown.y[o][i] - sim[i]).collect() };
+        let tw = shown.time()[win.clone()].to_vec();
+        let residual = |sim: &[f64]| -> Vec<f64> {
+            win.clone()
+                .map(|i| shown.outputs()[o][i] - sim[i])
+                .collect()
+        };
         let mut panel = Panel::new(
             format!("{name}: residual, measured minus simulated"),
             htfid_plot::TIME_LABEL,
@@ -268,9 +272,10 @@ fn models_of(d: &ModelDiagnosis, o: usize) -> Vec<crate::validation::Simulated<'
     ]
 }
 
-fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<ModelRecord> {
-    let (mut t, mut u, mut y) = (Vec::new(), Vec::new(), Vec::new());
-    for (o, column) in s.outputs.iter().enumerate() {
+/// The record with one column per model output, each read from `file`.
+fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<TimeSeries> {
+    let mut parts = Vec::with_capacity(s.outputs.len());
+    for column in &s.outputs {
         let columns = Columns {
             input: &s.input,
             output: column,
@@ -280,20 +285,18 @@ fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Resul
             format: &s.format,
         };
         let series = read_record(&s.path, file, columns)?;
-        if o == 0 {
+        if parts.is_empty() {
             check_time_scale(s, &series)?;
-            t = series.time().to_vec();
-            u = series.input().to_vec();
         }
-        y.push(series.output().to_vec());
+        parts.push(series);
     }
-    Ok(ModelRecord { t, u, y })
+    Ok(TimeSeries::join_outputs(parts)?)
 }
 
 /// Refuses a record the model's forcing period says is in the wrong time unit, or one whose
 /// simulation cannot finish under the integrator's step cap (each fit simulates the whole
 /// record many times). A model without forcing has no period to compare with.
-fn check_time_scale(s: &ModelDiagnoseSettings, series: &htfid_data::TimeSeries) -> Result<()> {
+fn check_time_scale(s: &ModelDiagnoseSettings, series: &TimeSeries) -> Result<()> {
     let Some(period) = s.model.period() else {
         return Ok(());
     };

@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use htfid_data::TimeSeries;
-use htfid_estimate::{estimate_period, siddiqi, split_periodic, Alpha, HtfEstimate, Record};
+use htfid_estimate::{
+    deviation_record, estimate_period, siddiqi, split_periodic, Alpha, HtfEstimate,
+};
 use htfid_plot::Style;
 use num_complex::Complex64;
 use serde_json::{json, Value};
@@ -139,7 +141,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     for (o, s) in series.iter().enumerate() {
         let y_split = split_periodic(&s.output()[i0..i0 + n], dt, t_start, period, 10)
             .with_context(|| format!("output {}: period average", outputs[o]))?;
-        let record = Record::new(
+        let record = deviation_record(
             u_split.deviation.clone(),
             y_split.deviation.clone(),
             dt,

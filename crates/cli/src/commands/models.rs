@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
+use htfid_data::TimeSeries;
 use htfid_estimate::{HtfEstimate, Method};
 use htfid_experiment::{add_noise, distortion_bootstrap, drive, Driven};
 use htfid_hybrid::{simulate, EventKind, HybridSystem};
@@ -128,12 +129,10 @@ fn cycle_json(model: &Model, cycle: &LimitCycle<Mode>) -> Value {
     })
 }
 
-/// The configured experiment simulated from the orbit: every output, every state.
-pub struct ModelRecord {
-    pub t: Vec<f64>,
-    pub u: Vec<f64>,
-    /// Per output, with measurement noise when configured.
-    pub outputs: Vec<Vec<f64>>,
+/// The configured experiment simulated from the orbit: its record (the input and every
+/// output, with measurement noise when configured), and every state.
+pub struct ModelRun {
+    pub record: TimeSeries,
     /// Per state.
     pub states: Vec<Vec<f64>>,
     pub modes: Vec<f64>,
@@ -147,7 +146,7 @@ fn simulate_record(
     model: &Model,
     cycle: &LimitCycle<Mode>,
     stages: &mut Stages,
-) -> Result<ModelRecord> {
+) -> Result<ModelRun> {
     let excitation = signals::build(settings)?;
     let (_, grid) = settings.record_grid(excitation.end);
     let n = grid.len();
@@ -177,13 +176,13 @@ fn simulate_record(
     let states: Vec<Vec<f64>> = (0..model.dim())
         .map(|j| (0..n).map(|i| traj.state(i)[j]).collect())
         .collect();
-    Ok(ModelRecord {
+    let record = TimeSeries::with_outputs(grid, u, outputs, settings.path.clone())
+        .context("the simulated record")?;
+    Ok(ModelRun {
         modes: traj.modes.iter().map(|m| m.index() as f64).collect(),
         switches: traj.switches().count(),
         stats: traj.stats,
-        t: grid,
-        u,
-        outputs,
+        record,
         states,
         excitation,
     })
@@ -198,17 +197,17 @@ fn state_columns(model: &Model) -> Vec<String> {
 }
 
 /// `timeseries.csv` to an already registered path (so it can be written on another thread).
-fn write_timeseries(path: &std::path::Path, model: &Model, rec: &ModelRecord) -> Result<()> {
+fn write_timeseries(path: &std::path::Path, model: &Model, rec: &ModelRun) -> Result<()> {
     let state_names = state_columns(model);
-    let mut columns: Vec<(&str, &[f64])> = vec![("u", &rec.u)];
-    for (o, column) in model.outputs().iter().zip(&rec.outputs) {
+    let mut columns: Vec<(&str, &[f64])> = vec![("u", rec.record.input())];
+    for (o, column) in model.outputs().iter().zip(rec.record.outputs()) {
         columns.push((&o.name, column));
     }
     for (name, column) in state_names.iter().zip(&rec.states) {
         columns.push((name, column));
     }
     columns.push(("mode", &rec.modes));
-    htfid_data::write_timeseries_csv(path, &rec.t, &columns)?;
+    htfid_data::write_timeseries_csv(path, rec.record.time(), &columns)?;
     Ok(())
 }
 
@@ -251,10 +250,10 @@ fn write_limit_cycle(
     Ok(())
 }
 
-fn simulation_json(settings: &Settings, rec: &ModelRecord) -> Value {
+fn simulation_json(settings: &Settings, rec: &ModelRun) -> Value {
     json!({
-        "t_end": rec.t.last().copied().unwrap_or(0.0),
-        "samples": rec.t.len(),
+        "t_end": rec.record.time().last().copied().unwrap_or(0.0),
+        "samples": rec.record.len(),
         "sample_rate": settings.sample_rate,
         "switches": rec.switches,
         "steps": rec.stats.steps,
@@ -555,10 +554,16 @@ fn orbit_deviation(
     settings: &Settings,
     model: &Model,
     cycle: &LimitCycle<Mode>,
-    rec: &ModelRecord,
+    rec: &ModelRun,
 ) -> Result<Vec<Vec<f64>>> {
-    htfid_experiment::orbit_deviation(model, cycle, &rec.t, &rec.outputs, &settings.integrator)
-        .map_err(|e| crate::limits::experiment_failed(settings, crate::limits::Simulated::Orbit, e))
+    htfid_experiment::orbit_deviation(
+        model,
+        cycle,
+        rec.record.time(),
+        rec.record.outputs(),
+        &settings.integrator,
+    )
+    .map_err(|e| crate::limits::experiment_failed(settings, crate::limits::Simulated::Orbit, e))
 }
 
 type Estimates = Vec<Vec<(Estimator, HtfEstimate)>>;
@@ -571,7 +576,7 @@ fn estimate_and_fit(
     model: &Model,
     cycle: &LimitCycle<Mode>,
     channels: &[HtfChannel<'_, '_, Model>],
-    rec: &ModelRecord,
+    rec: &ModelRun,
     deviation: &[Vec<f64>],
     stages: &mut Stages,
 ) -> Result<(Estimates, JsonMap, JsonMap)> {
@@ -583,7 +588,15 @@ fn estimate_and_fit(
             let e = stages
                 .run(
                     &format!("estimate ({}, {})", est.name(), outputs[o]),
-                    || estimate(settings, (&rec.t, &rec.u), &rec.excitation, y, est),
+                    || {
+                        estimate(
+                            settings,
+                            (rec.record.time(), rec.record.input()),
+                            &rec.excitation,
+                            y,
+                            est,
+                        )
+                    },
                 )
                 .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
             per.push((est, e));
@@ -668,7 +681,15 @@ fn bootstrap(
             let rec = simulate_record(&again, fitted, orbit, &mut quiet)?;
             orbit_deviation(&again, fitted, orbit, &rec)?
                 .iter()
-                .map(|y| estimate(&again, (&rec.t, &rec.u), &rec.excitation, y, est))
+                .map(|y| {
+                    estimate(
+                        &again,
+                        (rec.record.time(), rec.record.input()),
+                        &rec.excitation,
+                        y,
+                        est,
+                    )
+                })
                 .collect()
         },
     )?;

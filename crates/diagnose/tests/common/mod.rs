@@ -5,7 +5,7 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
-use htfid_diagnose::Record;
+use htfid_diagnose::TimeSeries;
 use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperMode, HopperParams, InputFn};
 use rand::SeedableRng;
@@ -15,7 +15,7 @@ use rand_distr::{Distribution, Normal};
 /// The protocol of a synthetic experiment.
 #[derive(Debug, Clone)]
 pub struct Protocol {
-    /// Record length (s).
+    /// TimeSeries length (s).
     pub duration: f64,
     /// Sample rate (Hz).
     pub rate: f64,
@@ -123,7 +123,7 @@ pub fn generate(
     effects: Effects,
     extra: Option<ExtraForce>,
     seed: u64,
-) -> Record {
+) -> TimeSeries {
     let chirp = protocol.chirp();
     let u: InputFn = Arc::new(chirp);
     let hopper = WithExtra {
@@ -156,5 +156,5 @@ pub fn generate(
         f.push(applied + nf.sample(&mut rng));
         x.push(traj.state(i)[0] + nx.sample(&mut rng));
     }
-    Record::new(grid, f, x).unwrap()
+    TimeSeries::new(grid, f, x, "test").unwrap()
 }

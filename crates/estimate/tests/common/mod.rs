@@ -5,7 +5,7 @@
 
 use std::f64::consts::PI;
 
-use htfid_estimate::Record;
+use htfid_estimate::{deviation_record, TimeSeries};
 use num_complex::Complex64;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -193,9 +193,9 @@ pub fn synth_record(
     tau: f64,
     t_start: f64,
     truth: &dyn Truth,
-) -> Record {
+) -> TimeSeries {
     let (us, ys) = record_spectra(grid, c, tau, truth);
-    Record::new(
+    deviation_record(
         inverse(grid, t_start, &us),
         inverse(grid, t_start, &ys),
         grid.dt,
@@ -205,11 +205,11 @@ pub fn synth_record(
 }
 
 /// The same record with seeded white Gaussian noise of standard deviation `sigma` on the output.
-pub fn with_noise(r: &Record, sigma: f64, rng: &mut ChaCha8Rng) -> Record {
+pub fn with_noise(r: &TimeSeries, sigma: f64, rng: &mut ChaCha8Rng) -> TimeSeries {
     use rand_distr::{Distribution, Normal};
     let normal = Normal::new(0.0, sigma).unwrap();
-    let y = r.y().iter().map(|v| v + normal.sample(rng)).collect();
-    Record::new(r.u().to_vec(), y, r.dt(), r.t_start()).unwrap()
+    let y = r.output().iter().map(|v| v + normal.sample(rng)).collect();
+    deviation_record(r.input().to_vec(), y, r.dt(), r.time()[0]).unwrap()
 }
 
 /// Largest `|a - b| / max|b|` over paired complex values.
