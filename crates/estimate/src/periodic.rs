@@ -24,7 +24,7 @@ pub struct PeriodicSplit {
 
 /// Splits `y` (uniform samples `dt` apart, the first at absolute time `t_start`) into its
 /// periodic part at `period` and the deviation from it. The record must hold a whole number
-/// of periods (`N dt = P T` to within `1e-6` periods, as for [`crate::Record`]); the periodic
+/// of periods (`N dt = P T` to within `1e-6` periods, as for a record read by the estimators); the periodic
 /// part is then exactly the DFT bins at multiples of `P`, i.e. the average over the `P`
 /// periods at each phase, and removing it leaves every other bin untouched. `max_harmonic`
 /// limits the coefficients reported (not the split, which removes every multiple up to
