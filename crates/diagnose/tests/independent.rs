@@ -337,7 +337,7 @@ fn group(s: &Scenario) -> &'static str {
 const FLOORS: [(&str, f64); 6] = [
     ("clean", 0.9),
     ("single effect", 0.9),
-    ("compound", 0.7),
+    ("compound", 0.8),
     ("out of library", 0.8),
     ("mixed", 0.0),
     ("parameters within 10 %", 0.9),
