@@ -1385,6 +1385,31 @@ fn conclude(
             if let Some(c) = causes.iter().find(|c| c.effect == "asymmetric_friction") {
                 evidence.push(asymmetry_reading(c));
             }
+            // And the other way: Coulomb friction beside a constant force no larger than it is
+            // asymmetric friction with both coefficients >= 0.
+            let value = |effect: &str, key: &str| {
+                causes
+                    .iter()
+                    .find(|c| c.effect == effect)
+                    .and_then(|c| c.parameters.get(key).copied())
+            };
+            if let (Some(mu), Some(d)) = (
+                value("coulomb_friction", "mu"),
+                value("input_offset", "input_offset"),
+            ) {
+                if d.abs() <= mu {
+                    evidence.push(format!(
+                        "Coulomb friction mu = {} beside a constant force {} is the same force law \
+                         as asymmetric friction mu_pos = {}, mu_neg = {}: the record cannot tell a \
+                         symmetric contact beside a constant force from a one-sided one; a static \
+                         test with a known added weight separates them",
+                        sig(mu, 4),
+                        sig(d, 4),
+                        sig(mu - d, 4),
+                        sig(mu + d, 4)
+                    ));
+                }
+            }
             extended = sel.held_out;
             extended_fit = Some(sel.fit.clone());
         }
