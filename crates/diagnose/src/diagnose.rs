@@ -552,6 +552,37 @@ pub fn diagnose_with_progress(
     })
 }
 
+/// The score of `model` simulated on the samples `range` of `record` (from the state
+/// estimated from the data), leaving the first `burn_in_s` seconds (at most half the range)
+/// out: `rmse` of simulated minus measured output, `nrmse` over the measured output's standard
+/// deviation on the same samples.
+pub fn score_on_record(
+    record: &TimeSeries,
+    model: &FittedModel,
+    range: Range<usize>,
+    burn_in_s: f64,
+    interpolation: Interpolation,
+    sim: SimMethod,
+) -> Result<Score, DiagnoseError> {
+    let simulated = simulate_record(record, model, range.clone(), None, interpolation, sim)?;
+    let x = &record.output()[range];
+    let burn = ((burn_in_s / record.dt()).ceil() as usize).min(x.len() / 2);
+    let (simulated, x) = (&simulated[burn..], &x[burn..]);
+    let n = x.len() as f64;
+    let mse = simulated
+        .iter()
+        .zip(x)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        / n;
+    let mean = x.iter().sum::<f64>() / n;
+    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    Ok(Score {
+        nrmse: mse.sqrt() / var.sqrt(),
+        rmse: mse.sqrt(),
+    })
+}
+
 /// Simulates `model` on the samples `range` of `record`, driven by the measured force, from
 /// `init` (position, velocity at `range.start`) or, when `None`, from the state estimated from
 /// the data as [`diagnose`] does. Returns the simulated positions of the range.

@@ -13,6 +13,7 @@
 //!   samples in a bin contribute their summed deviation from the bin mean.
 //! - [`error_waterfall`]: the held-out RMSE from the configured model through the refit of
 //!   its free parameters and each selected effect to the final model.
+//! - [`amplitude_spectrum`]: where in frequency a residual's error sits.
 
 use std::ops::Range;
 
@@ -395,12 +396,64 @@ pub fn error_waterfall(d: &Diagnosis) -> Vec<ErrorStep> {
     steps
 }
 
+/// One-sided amplitude spectrum of `x` sampled every `dt` s, its mean removed, through a Hann
+/// window: `(omega, amplitude)` for the bins `1..n/2`, `omega` in rad/s and `amplitude = 4
+/// |X_k| / n` (a sine of amplitude `a` on a bin reads `a`). Empty below 16 samples.
+pub fn amplitude_spectrum(x: &[f64], dt: f64) -> (Vec<f64>, Vec<f64>) {
+    use rustfft::{num_complex::Complex64, FftPlanner};
+    let n = x.len();
+    if n < 16 {
+        return (Vec::new(), Vec::new());
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let mut buf: Vec<Complex64> = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
+            Complex64::new((v - mean) * w, 0.0)
+        })
+        .collect();
+    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
+    let dw = 2.0 * std::f64::consts::PI / (n as f64 * dt);
+    (1..n / 2)
+        .map(|k| (k as f64 * dw, 4.0 * buf[k].norm() / n as f64))
+        .unzip()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::{Cause, NominalModel, Score};
     use approx::assert_abs_diff_eq;
     use std::collections::BTreeMap;
+
+    /// A sine on a bin reads its amplitude at its frequency (the Hann window's coherent gain
+    /// of one half is undone), and a constant does not show.
+    #[test]
+    fn a_sine_on_a_bin_reads_its_amplitude() {
+        let (n, dt) = (1024, 0.01);
+        let w0 = 2.0 * std::f64::consts::PI * 37.0 / (n as f64 * dt);
+        let x: Vec<f64> = (0..n)
+            .map(|i| 5.0 + 0.3 * (w0 * i as f64 * dt + 0.4).sin())
+            .collect();
+        let (w, a) = amplitude_spectrum(&x, dt);
+        assert_eq!(w.len(), n / 2 - 1);
+        let k = a
+            .iter()
+            .enumerate()
+            .max_by(|p, q| p.1.total_cmp(q.1))
+            .map(|(k, _)| k)
+            .unwrap();
+        assert!((w[k] - w0).abs() < 1e-9, "peak at {} rad/s, not {w0}", w[k]);
+        assert!((a[k] - 0.3).abs() < 1e-12, "amplitude {}", a[k]);
+        assert!(
+            a[0] < 1e-12,
+            "the constant leaks into the first bin: {}",
+            a[0]
+        );
+        assert!(amplitude_spectrum(&x[..15], dt).0.is_empty());
+    }
 
     #[test]
     fn bin_means_and_standard_errors_by_hand() {

@@ -217,15 +217,15 @@ mod term;
 
 pub use boundary::{separating_experiment, BoundaryEffect};
 pub use diagnose::{
-    diagnose, diagnose_with_progress, simulate_record, Candidate, Cause, DiagnoseOptions,
-    Diagnosis, DiagnosisReport, FittedModel, Score,
+    diagnose, diagnose_with_progress, score_on_record, simulate_record, Candidate, Cause,
+    DiagnoseOptions, Diagnosis, DiagnosisReport, FittedModel, Score,
 };
 pub use discover::{Discovered, DiscoveredTerm};
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use evidence::{
-    binned_means, error_waterfall, quantile_range, residual_acceleration, Bin, BinnedResidual,
-    ErrorStep, ResidualSamples, Structure, PHASE_BINS, STATE_BINS,
+    amplitude_spectrum, binned_means, error_waterfall, quantile_range, residual_acceleration, Bin,
+    BinnedResidual, ErrorStep, ResidualSamples, Structure, PHASE_BINS, STATE_BINS,
 };
 pub use htf::{
     htf_comparison, HarmonicDifference, HtfComparison, HtfComparisonSpec, DIFFERENCE_SIGMAS,

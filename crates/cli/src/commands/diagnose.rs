@@ -12,8 +12,8 @@ use htfid_data::{OutputDir, TimeSeries};
 
 use crate::records::{read_record, Columns};
 use htfid_diagnose::{
-    diagnose_with_progress, htf_comparison, simulate_record, DiagnoseOptions, DiagnosisReport,
-    Effect, HarmonicDifference, HtfComparisonSpec, NominalModel, NominalParam, Score,
+    amplitude_spectrum, diagnose_with_progress, htf_comparison, score_on_record, DiagnoseOptions,
+    DiagnosisReport, Effect, HarmonicDifference, HtfComparisonSpec, NominalModel, NominalParam,
 };
 use htfid_model::Effects;
 use htfid_plot::{
@@ -21,7 +21,6 @@ use htfid_plot::{
     Style,
 };
 use num_complex::Complex64;
-use rustfft::FftPlanner;
 use serde_json::{json, Value};
 
 use crate::commands::diagnose_evidence as evidence;
@@ -445,22 +444,17 @@ fn test_scores(
     report: &DiagnosisReport,
     opts: &DiagnoseOptions,
 ) -> Result<Vec<Value>> {
-    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
     let mut out = Vec::new();
     for r in &s.data.test {
-        let score = |model| -> Result<Score> {
-            let sim =
-                simulate_record(record, model, r.clone(), None, opts.interpolation, opts.sim)?;
-            let x = &record.output()[r.clone()];
-            let skip = burn.min(x.len() / 2);
-            let (sim, x) = (&sim[skip..], &x[skip..]);
-            let mse = sim.iter().zip(x).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / x.len() as f64;
-            let mean = x.iter().sum::<f64>() / x.len() as f64;
-            let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / x.len() as f64;
-            Ok(Score {
-                nrmse: mse.sqrt() / var.sqrt(),
-                rmse: mse.sqrt(),
-            })
+        let score = |model| {
+            score_on_record(
+                record,
+                model,
+                r.clone(),
+                report.burn_in_s,
+                opts.interpolation,
+                opts.sim,
+            )
         };
         let nominal = score(&report.nominal_model)?;
         let extended = score(&report.extended_model)?;
@@ -489,29 +483,6 @@ fn residuals(record: &TimeSeries, report: &DiagnosisReport) -> (Vec<f64>, Vec<f6
         }
     }
     (t, r0, r1)
-}
-
-/// One-sided amplitude spectrum (Hann window) against angular frequency.
-fn spectrum(x: &[f64], dt: f64) -> (Vec<f64>, Vec<f64>) {
-    let n = x.len();
-    if n < 16 {
-        return (Vec::new(), Vec::new());
-    }
-    let mean = x.iter().sum::<f64>() / n as f64;
-    let mut buf: Vec<Complex64> = x
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let w = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos();
-            Complex64::new((v - mean) * w, 0.0)
-        })
-        .collect();
-    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
-    let dw = 2.0 * std::f64::consts::PI / (n as f64 * dt);
-    let (w, a): (Vec<f64>, Vec<f64>) = (1..n / 2)
-        .map(|k| (k as f64 * dw, 4.0 * buf[k].norm() / n as f64))
-        .unzip();
-    (w, a)
 }
 
 struct Figures {
@@ -688,8 +659,8 @@ fn draw(
     );
     plots::write(out, "residual_time", &fig)?;
 
-    let (w0, a0) = spectrum(&r0, record.dt());
-    let (w1, a1) = spectrum(&r1, record.dt());
+    let (w0, a0) = amplitude_spectrum(&r0, record.dt());
+    let (w1, a1) = amplitude_spectrum(&r1, record.dt());
     let mut panel = spectrum_panel(
         "residual spectrum (held-out data)",
         &w0,
