@@ -100,6 +100,33 @@ impl Source {
         }
     }
 
+    /// The run's name, which names its output folder: `name` as configured, else the config
+    /// file's stem, else `fallback`; a plain file name either way.
+    pub fn run_name(
+        &self,
+        name: Option<&Spanned<String>>,
+        fallback: &str,
+    ) -> Result<String, ConfigError> {
+        let s = match name {
+            Some(n) => n.get_ref().trim().to_string(),
+            None => self
+                .path
+                .file_stem()
+                .map_or_else(|| fallback.into(), |s| s.to_string_lossy().into_owned()),
+        };
+        if s.is_empty() || s.contains(['/', '\\']) || s.starts_with('.') {
+            return Err(self.error(
+                name.map(Spanned::span).as_ref(),
+                "name",
+                format!(
+                    "must be a plain file name (no slashes, not empty, not starting with '.') \
+                     (got \"{s}\")"
+                ),
+            ));
+        }
+        Ok(s)
+    }
+
     /// A number that must satisfy `ok`; `expected` is what the message says.
     pub fn number(
         &self,
@@ -352,4 +379,48 @@ fn check_kind(source: &Source, kind: Kind) -> Result<(), ConfigError> {
         key: "config".into(),
         message,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Deserialize)]
+    struct Named {
+        name: Option<Spanned<String>>,
+    }
+
+    fn named(text: &str, path: &str) -> (Source, Option<Spanned<String>>) {
+        let raw: Named = toml::from_str(text).unwrap();
+        let src = Source {
+            path: PathBuf::from(path),
+            text: text.to_string(),
+        };
+        (src, raw.name)
+    }
+
+    /// Every config kind names its output folder through `run_name`: a configured name is
+    /// trimmed, a missing one is the file's stem, and anything but a plain file name is
+    /// refused at its line and column.
+    #[test]
+    fn a_run_name_is_a_plain_file_name() {
+        let (src, name) = named("name = \"  swept \"\n", "dir/a.toml");
+        assert_eq!(src.run_name(name.as_ref(), "x").unwrap(), "swept");
+        let (src, name) = named("\n", "dir/a.toml");
+        assert_eq!(src.run_name(name.as_ref(), "x").unwrap(), "a");
+        for bad in ["../up", "a\\\\b", ".hidden", "  "] {
+            let (src, name) = named(&format!("\nname = \"{bad}\"\n"), "c.toml");
+            let err = src.run_name(name.as_ref(), "x").unwrap_err().to_string();
+            assert_eq!(
+                err,
+                format!(
+                    "c.toml:2:8: name: must be a plain file name (no slashes, not empty, not \
+                     starting with '.') (got \"{}\")",
+                    bad.replace("\\\\", "\\").trim()
+                )
+            );
+        }
+        let (src, name) = named("\n", ".hidden.toml");
+        assert!(src.run_name(name.as_ref(), "x").is_err());
+    }
 }

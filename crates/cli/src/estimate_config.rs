@@ -84,22 +84,7 @@ impl EstimateSettings {
     /// Loads and checks a config; `data` replaces `[data] file`.
     pub fn from_file(path: &Path, data: Option<PathBuf>) -> Result<Self, ConfigError> {
         let (raw, src): (RawEstimateConfig, Source) = load(path, Kind::Estimate)?;
-        let name = match &raw.name {
-            Some(n) => {
-                let s = n.get_ref().trim().to_string();
-                if s.is_empty() || s.contains(['/', '\\']) || s.starts_with('.') {
-                    return Err(src.error(
-                        Some(&n.span()),
-                        "name",
-                        "must be a plain file name (no slashes, not empty, not starting with '.')",
-                    ));
-                }
-                s
-            }
-            None => path
-                .file_stem()
-                .map_or_else(|| "estimate".into(), |s| s.to_string_lossy().into_owned()),
-        };
+        let name = src.run_name(raw.name.as_ref(), "estimate")?;
         let d = &raw.data;
         let dir = path.parent().unwrap_or(Path::new("."));
         let file = data.unwrap_or_else(|| dir.join(d.file.get_ref()));

@@ -102,12 +102,7 @@ pub fn names_a_model_file(path: &Path) -> bool {
 impl ModelDiagnoseSettings {
     pub fn from_file(path: &Path, data: Option<PathBuf>) -> Result<Self, ConfigError> {
         let (raw, src): (RawModelDiagnoseConfig, Source) = load(path, Kind::Diagnosis)?;
-        let name = match &raw.name {
-            Some(n) => n.get_ref().trim().to_string(),
-            None => path
-                .file_stem()
-                .map_or_else(|| "diagnosis".into(), |s| s.to_string_lossy().into_owned()),
-        };
+        let name = src.run_name(raw.name.as_ref(), "diagnosis")?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let d = &raw.data;
         if d.time.is_some() == d.sample_rate.is_some() {

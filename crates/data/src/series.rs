@@ -44,18 +44,7 @@ impl TimeSeries {
         source: impl Into<PathBuf>,
     ) -> Result<Self, DataError> {
         let source = source.into();
-        check_outputs(&source, &outputs)?;
-        let mut columns: Vec<(String, &[f64])> = vec![("input".to_string(), &input)];
-        for (o, y) in outputs.iter().enumerate() {
-            columns.push((output_name(o), y));
-        }
-        let named: Vec<(&str, &[f64])> = columns.iter().map(|(n, v)| (n.as_str(), *v)).collect();
-        check_lengths(&source, time.len(), &named)?;
-        check_count(&source, time.len(), 2)?;
-        check_finite_slice(&source, "time", &time)?;
-        for (name, values) in &named {
-            check_finite_slice(&source, name, values)?;
-        }
+        check_columns(&source, Some(&time), &input, &outputs)?;
         let dt = check_uniform(&time, DEFAULT_TIME_TOLERANCE, f64::EPSILON).map_err(|fault| {
             fault.into_error(&source, ColumnId::Name("time".into()), Location::Row)
         })?;
@@ -91,19 +80,7 @@ impl TimeSeries {
         if !start.is_finite() {
             return Err(DataError::InvalidStartTime { start });
         }
-        check_outputs(&source, &outputs)?;
-        let names: Vec<String> = (0..outputs.len()).map(output_name).collect();
-        let named: Vec<(&str, &[f64])> = names
-            .iter()
-            .map(String::as_str)
-            .zip(outputs.iter().map(Vec::as_slice))
-            .collect();
-        check_lengths(&source, input.len(), &named)?;
-        check_count(&source, input.len(), 2)?;
-        check_finite_slice(&source, "input", &input)?;
-        for (name, values) in &named {
-            check_finite_slice(&source, name, values)?;
-        }
+        check_columns(&source, None, &input, &outputs)?;
         let time = uniform_times(start, dt, input.len());
         Ok(Self::from_checked(time, input, outputs, dt, source))
     }
@@ -238,11 +215,35 @@ fn output_name(o: usize) -> String {
     }
 }
 
-fn check_outputs(source: &Path, outputs: &[Vec<f64>]) -> Result<(), DataError> {
+/// The invariants of a record's columns: at least one output, every column as long as the
+/// input (and `time`, when given), at least 2 samples, all values finite (`time` first).
+fn check_columns(
+    source: &Path,
+    time: Option<&[f64]>,
+    input: &[f64],
+    outputs: &[Vec<f64>],
+) -> Result<(), DataError> {
     if outputs.is_empty() {
         return Err(DataError::NoOutputs {
             path: source.to_path_buf(),
         });
+    }
+    let names: Vec<String> = (0..outputs.len()).map(output_name).collect();
+    let mut named: Vec<(&str, &[f64])> = vec![("input", input)];
+    named.extend(
+        names
+            .iter()
+            .map(String::as_str)
+            .zip(outputs.iter().map(Vec::as_slice)),
+    );
+    let n = time.map_or(input.len(), <[f64]>::len);
+    check_lengths(source, n, &named)?;
+    check_count(source, n, 2)?;
+    if let Some(time) = time {
+        check_finite_slice(source, "time", time)?;
+    }
+    for (name, values) in &named {
+        check_finite_slice(source, name, values)?;
     }
     Ok(())
 }

@@ -514,7 +514,7 @@ pub fn diagnose_with_progress(
         let (mut found, mut sentence) = discover::discover(&ctx, half, extended_fit, opts);
         // Library effects that only partly mimic the force outside the library bend the
         // residual the terms are read from; the refitted nominal's residual shows it whole.
-        if found.is_none() && !std::ptr::eq(extended_fit, &nominal_fit) {
+        if found.is_none() && decision.extended.is_some() {
             let (again, second) = discover::discover(&ctx, half, &nominal_fit, opts);
             if let Some(mut d) = again {
                 d.read_from = "nominal".to_string();
@@ -554,8 +554,8 @@ pub fn diagnose_with_progress(
 
 /// The score of `model` simulated on the samples `range` of `record` (from the state
 /// estimated from the data), leaving the first `burn_in_s` seconds (at most half the range)
-/// out: `rmse` of simulated minus measured output, `nrmse` over the measured output's standard
-/// deviation on the same samples.
+/// out, as the diagnosis scores its held-out ranges: `rmse` of simulated minus measured
+/// output, `nrmse` over the measured output's standard deviation on the same samples.
 pub fn score_on_record(
     record: &TimeSeries,
     model: &FittedModel,
@@ -567,20 +567,12 @@ pub fn score_on_record(
     let simulated = simulate_record(record, model, range.clone(), None, interpolation, sim)?;
     let x = &record.output()[range];
     let burn = ((burn_in_s / record.dt()).ceil() as usize).min(x.len() / 2);
-    let (simulated, x) = (&simulated[burn..], &x[burn..]);
-    let n = x.len() as f64;
-    let mse = simulated
+    let residual: Vec<f64> = simulated[burn..]
         .iter()
-        .zip(x)
-        .map(|(a, b)| (a - b).powi(2))
-        .sum::<f64>()
-        / n;
-    let mean = x.iter().sum::<f64>() / n;
-    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-    Ok(Score {
-        nrmse: mse.sqrt() / var.sqrt(),
-        rmse: mse.sqrt(),
-    })
+        .zip(&x[burn..])
+        .map(|(a, b)| a - b)
+        .collect();
+    Ok(score_of(&[residual], &x[burn..]))
 }
 
 /// Simulates `model` on the samples `range` of `record`, driven by the measured force, from

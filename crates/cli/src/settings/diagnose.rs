@@ -7,7 +7,7 @@ use htfid_model::{DamperLaw, HopperParams};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::{check_hopper_scales, HopperSpans, Num, OptNum, RawForcing};
+use super::{check_hopper_scales, damper_law, HopperSpans, Num, OptNum, RawForcing};
 use crate::config::{load, ConfigError, Kind, Source};
 
 #[derive(Debug, Deserialize)]
@@ -139,20 +139,7 @@ fn ranges(
 impl DiagnoseSettings {
     pub fn from_file(path: &Path) -> Result<DiagnoseSettings, ConfigError> {
         let (raw, src): (RawDiagnoseConfig, Source) = load(path, Kind::Diagnosis)?;
-        let name = match &raw.name {
-            Some(n) => n.get_ref().trim().to_string(),
-            None => path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "diagnosis".into()),
-        };
-        if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
-            return Err(src.error(
-                raw.name.as_ref().map(|n| n.span()).as_ref(),
-                "name",
-                "must be a plain file name",
-            ));
-        }
+        let name = src.run_name(raw.name.as_ref(), "diagnosis")?;
         let d = &raw.data;
         // A relative data path is relative to the config file's folder.
         let file = {
@@ -263,13 +250,7 @@ impl DiagnoseSettings {
                 amplitude: raw.forcing.as_ref().map(|f| f.amplitude.span()),
             },
         )?;
-        let damper = match &m.damper {
-            None => DamperLaw::Switching,
-            Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
-                "always_on" => DamperLaw::AlwaysOn,
-                _ => DamperLaw::Switching,
-            },
-        };
+        let damper = damper_law(&src, m.damper.as_ref())?;
         let input_offset = src.opt_number(
             &m.input_offset,
             0.0,

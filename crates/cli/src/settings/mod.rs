@@ -420,24 +420,7 @@ impl Settings {
     }
 
     pub fn resolve(raw: RawConfig, src: &Source) -> Result<Settings, ConfigError> {
-        let name = match &raw.name {
-            Some(n) => {
-                let s = n.get_ref().trim().to_string();
-                if s.is_empty() || s.contains(['/', '\\']) || s.starts_with('.') {
-                    return Err(src.error(
-                        Some(&n.span()),
-                        "name",
-                        format!("must be a plain file name (no slashes, not empty, not starting with '.') (got \"{s}\")"),
-                    ));
-                }
-                s
-            }
-            None => src
-                .path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "experiment".into()),
-        };
+        let name = src.run_name(raw.name.as_ref(), "experiment")?;
         let system = resolve_system(src, &raw)?;
         let overrides = match (&raw.model.file, &raw.model.parameters) {
             (Some(file), Some(table)) => {
@@ -674,4 +657,4 @@ pub use diagnose::*;
 use estimation::resolve_estimation;
 use excitation::resolve_excitation;
 pub use system::with_overrides;
-use system::{check_hopper_scales, resolve_system, HopperSpans};
+use system::{check_hopper_scales, damper_law, resolve_system, HopperSpans};

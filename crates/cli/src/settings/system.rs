@@ -21,6 +21,20 @@ const MAX_PERIOD_RATIO: f64 = 1e4;
 /// Damping ratios beyond this lock the damper rigidly and make the equations stiff.
 const MAX_DAMPING_RATIO: f64 = 1e4;
 
+/// `model.damper`: `"switching"` (the default) or `"always_on"`.
+pub(super) fn damper_law(
+    src: &Source,
+    damper: Option<&Spanned<String>>,
+) -> Result<DamperLaw, ConfigError> {
+    Ok(match damper {
+        None => DamperLaw::Switching,
+        Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
+            "always_on" => DamperLaw::AlwaysOn,
+            _ => DamperLaw::Switching,
+        },
+    })
+}
+
 /// Refuses hopper parameters that are each finite but leave no meaningful simulation: an
 /// overflowing static sag (`g = 1e308`), a natural period no step size can share with the
 /// forcing period (`k = 1e300` hangs the integrator, `m = 1e-300` collapses its step).
@@ -253,13 +267,7 @@ pub(super) fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, Co
                 amplitude: Some(forcing.amplitude.span()),
             },
         )?;
-        let damper = match &m.damper {
-            None => DamperLaw::Switching,
-            Some(d) => match src.choice(d, "model.damper", &["switching", "always_on"])? {
-                "always_on" => DamperLaw::AlwaysOn,
-                _ => DamperLaw::Switching,
-            },
-        };
+        let damper = damper_law(src, m.damper.as_ref())?;
         let effects = resolve_effects(src, raw.effects.as_ref(), "effects")?;
         if let Some(e) = &raw.effects {
             check_effect_scales(src, &params, &effects, e, "effects")?;
