@@ -541,7 +541,7 @@ fn refit(
     bounds.extend(theta0.iter().map(|_| (f64::NEG_INFINITY, f64::INFINITY)));
     let opts = LmOptions {
         max_iter: ctx.max_iterations,
-        ftol: 1e-9,
+        ftol: ctx.step_tolerance(n),
         xtol: 1e-9,
         gtol: 1e-7,
         fd_scheme: FdScheme::Forward,

@@ -7,7 +7,6 @@ use std::sync::Arc;
 use htfid_estimate::{levenberg_marquardt_parallel, FdScheme, LmOptions};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
 use nalgebra::DMatrix;
-use rayon::prelude::*;
 
 use crate::effect::Slot;
 use crate::sim::{
@@ -58,6 +57,9 @@ pub(crate) struct Context<'a> {
     pub validation: Vec<Segment>,
     pub fit_initial_state: bool,
     pub max_iterations: usize,
+    /// Smallest likelihood-ratio improvement of a step that continues a fit
+    /// ([`crate::DiagnoseOptions::fit_tolerance`]).
+    pub fit_tolerance: f64,
     /// The nominal's forcing period when it is forced (the forcing is in the measured force).
     pub forcing_period: Option<f64>,
 }
@@ -149,6 +151,13 @@ impl Layout {
 }
 
 impl Context<'_> {
+    /// The Levenberg-Marquardt `ftol` of a fit of `n` samples: a step that lowers the cost by
+    /// the fraction `f` improves the likelihood ratio by `n ln(1 / (1 - f))`, about `n f`, so
+    /// `fit_tolerance / n` ends the fit at a step worth less than `fit_tolerance`.
+    pub(crate) fn step_tolerance(&self, n: usize) -> f64 {
+        self.fit_tolerance / n.max(1) as f64
+    }
+
     pub(crate) fn hopper(&self, p: &ModelPoint) -> Result<Driven, String> {
         let (hopper, force) = self
             .input
@@ -354,7 +363,7 @@ impl Context<'_> {
         };
         let opts = LmOptions {
             max_iter: self.max_iterations,
-            ftol: 1e-9,
+            ftol: self.step_tolerance(n),
             xtol: 1e-9,
             gtol: 1e-7,
             fd_scheme: FdScheme::Forward,
@@ -368,15 +377,9 @@ impl Context<'_> {
             format!("{e}; {}", fit_advice(&e, &names))
         })?;
         let u = lm.params;
-        let jac = self.jacobian(
-            &layout,
-            start,
-            &u,
-            &lm.residuals,
-            &typical,
-            &bounds,
-            stepping,
-        )?;
+        // The Jacobian at the optimum, as the iteration formed it last (one-sided at a bound,
+        // the other side where one fails to simulate).
+        let jac = DMatrix::from_fn(n, np, |i, j| lm.jacobian[i][j]);
         let (se_u, inflation) = hac(&jac, &lm.residuals, &segment_lengths(&self.fit));
         let point = layout.point(start, &u);
         let mut values = Vec::with_capacity(slots.len());
@@ -403,63 +406,6 @@ impl Context<'_> {
             stepping: stepping.clone(),
             evaluations: lm.evaluations,
         })
-    }
-
-    /// Forward-difference Jacobian at `u`, columns in parallel; a side that leaves the bounds
-    /// or fails to simulate is replaced by the other side.
-    #[allow(clippy::type_complexity)]
-    fn jacobian(
-        &self,
-        layout: &Layout,
-        start: &ModelPoint,
-        u: &[f64],
-        r0: &[f64],
-        typical: &[f64],
-        bounds: &[(f64, f64)],
-        stepping: &Stepping,
-    ) -> Result<DMatrix<f64>, String> {
-        let n = r0.len();
-        let eval = |uj: &[f64], r: &mut [f64]| -> bool {
-            let p = layout.point(start, uj);
-            let Ok(hopper) = self.hopper(&p) else {
-                return false;
-            };
-            let init = layout.init(&self.fit, uj);
-            self.residuals(&hopper, &self.fit, &init, stepping, r)
-                .is_ok()
-                && r.iter().all(|v| v.is_finite())
-        };
-        let cols: Vec<Option<Vec<f64>>> = (0..u.len())
-            .into_par_iter()
-            .map(|j| {
-                let h = FD_STEP * u[j].abs().max(typical[j]);
-                let mut r = vec![0.0; n];
-                for step in [h, -h] {
-                    let v = u[j] + step;
-                    if v < bounds[j].0 || v > bounds[j].1 {
-                        continue;
-                    }
-                    let mut uj = u.to_vec();
-                    uj[j] = v;
-                    if eval(&uj, &mut r) {
-                        let realised = v - u[j];
-                        for (ri, &r0i) in r.iter_mut().zip(r0) {
-                            *ri = (*ri - r0i) / realised;
-                        }
-                        return Some(r);
-                    }
-                }
-                None
-            })
-            .collect();
-        let mut jac = DMatrix::zeros(n, u.len());
-        for (j, col) in cols.into_iter().enumerate() {
-            let col = col.ok_or_else(|| {
-                format!("the model cannot be simulated near the fit (parameter {j})")
-            })?;
-            jac.column_mut(j).copy_from_slice(&col);
-        }
-        Ok(jac)
     }
 }
 

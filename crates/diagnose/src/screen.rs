@@ -8,6 +8,7 @@
 
 use htfid_hybrid::HybridSystem;
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 use crate::deriv::{savitzky_golay, Kinematics};
 use crate::effect::Slot;
@@ -153,7 +154,9 @@ impl<'c, 'a> Screening<'c, 'a> {
         free: &[Slot],
         effect: Effect,
     ) -> Vec<ModelPoint> {
-        let mut scored: Vec<(f64, ModelPoint, i8)> = Vec::new();
+        // Grid points with their side (a threshold's sign; 0 where all compete), scored by
+        // output-error cost in parallel below.
+        let mut grid: Vec<(ModelPoint, i8)> = Vec::new();
         match effect {
             Effect::SwitchThreshold => {
                 // Thresholds up to nine tenths of the largest measured speed: a threshold
@@ -165,9 +168,7 @@ impl<'c, 'a> Screening<'c, 'a> {
                     for side in [-1i8, 1] {
                         let mut p = *base;
                         p.set(Slot::VTh, v0 + f64::from(side) * q * v_max);
-                        if let Some(c) = self.ctx.fit_cost(&p) {
-                            scored.push((c, p, side));
-                        }
+                        grid.push((p, side));
                     }
                 }
             }
@@ -200,20 +201,15 @@ impl<'c, 'a> Screening<'c, 'a> {
                             .chain([0.1 * k, k, 10.0 * k, 100.0 * k])
                         {
                             p.set(Slot::KStop, k_stop);
-                            if let Some(c) = self.ctx.fit_cost(&p) {
-                                // Every grid point competes with every other: side 0.
-                                scored.push((c, p, 0));
-                            }
+                            // Every grid point competes with every other: side 0.
+                            grid.push((p, 0));
                         }
                     }
                 }
             }
             Effect::ActuatorLag | Effect::InputDelay | Effect::SensorLag => {
                 let slot = lag_slot(effect);
-                let first = self.start(base, free, effect);
-                if let Some(c) = self.ctx.fit_cost(&first) {
-                    scored.push((c, first, 0));
-                }
+                grid.push((self.start(base, free, effect), 0));
                 // Lags and delays across decades, up to a tenth of the record.
                 let dt = self.ctx.record.dt();
                 let longest = 0.1 * dt * self.ctx.record.len() as f64;
@@ -224,13 +220,15 @@ impl<'c, 'a> Screening<'c, 'a> {
                     }
                     let mut p = *base;
                     p.set(slot, v);
-                    if let Some(c) = self.ctx.fit_cost(&p) {
-                        scored.push((c, p, 0));
-                    }
+                    grid.push((p, 0));
                 }
             }
             _ => return vec![self.start(base, free, effect)],
         }
+        let mut scored: Vec<(f64, ModelPoint, i8)> = grid
+            .into_par_iter()
+            .filter_map(|(p, side)| self.ctx.fit_cost(&p).map(|c| (c, p, side)))
+            .collect();
         scored.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut starts: Vec<ModelPoint> = Vec::new();
         match effect {

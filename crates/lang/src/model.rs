@@ -446,6 +446,34 @@ impl Model {
             .map(|i| Mode(i as u32))
     }
 
+    /// Whether `x` at `t` lies on the side of every guard of `mode` from which that guard can
+    /// fire: a guard that fires falling is not below zero, one that fires rising not above.
+    /// A state past one of its mode's guards would run that mode's field where the model
+    /// never does.
+    pub fn admits(&self, mode: Mode, t: f64, x: &[f64]) -> bool {
+        (0..self.num_guards(mode)).all(|g| {
+            let h = self.guard(mode, g, t, x);
+            match self.guard_direction(mode, g) {
+                Crossing::Falling => h >= 0.0,
+                Crossing::Rising => h <= 0.0,
+                Crossing::Either => true,
+            }
+        })
+    }
+
+    /// The mode a simulation of a given state starts in: `preferred` when it
+    /// [admits](Model::admits) the state, else the first mode that does (a fitted initial
+    /// state that moved across a switching surface starts on its far side), else `preferred`.
+    pub fn start_mode(&self, preferred: Mode, t: f64, x: &[f64]) -> Mode {
+        if self.admits(preferred, t, x) {
+            return preferred;
+        }
+        (0..self.def.modes.len())
+            .map(|i| Mode(i as u32))
+            .find(|&m| self.admits(m, t, x))
+            .unwrap_or(preferred)
+    }
+
     /// The name of a mode.
     pub fn mode_name(&self, mode: Mode) -> &str {
         &self.def.modes[mode.index()]

@@ -430,6 +430,9 @@ fn options(s: &DiagnoseSettings, n: usize) -> Result<DiagnoseOptions> {
     if let Some(v) = t.min_explained {
         opts.min_explained = v;
     }
+    if let Some(v) = t.fit_tolerance {
+        opts.fit_tolerance = v;
+    }
     Ok(opts)
 }
 

@@ -64,6 +64,7 @@ pub struct RawDiagnoseOptions {
     pub bic_margin: OptNum,
     pub unexplained_ratio: OptNum,
     pub min_explained: OptNum,
+    pub fit_tolerance: OptNum,
 }
 
 /// Where the measured data are and how to read them.
@@ -110,6 +111,7 @@ pub struct Thresholds {
     pub bic_margin: Option<f64>,
     pub unexplained_ratio: Option<f64>,
     pub min_explained: Option<f64>,
+    pub fit_tolerance: Option<f64>,
 }
 
 fn ranges(
@@ -358,6 +360,12 @@ impl DiagnoseSettings {
                     "diagnose.min_explained",
                     "in [0, 1]",
                     |v| (0.0..=1.0).contains(&v),
+                )?,
+                fit_tolerance: opt(
+                    o.map(|o| &o.fit_tolerance),
+                    "diagnose.fit_tolerance",
+                    "> 0",
+                    |v| v > 0.0,
                 )?,
             },
         })
