@@ -487,6 +487,15 @@ pub fn diagnose_model(
         d["model"].as_str().unwrap_or("")
     ));
     t.row("cause", d["cause"].as_str().unwrap_or("?"));
+    let causes: Vec<&str> = d["causes"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(Value::as_str)
+        .collect();
+    if causes.len() > 1 {
+        t.row("causes", causes.join(", "));
+    }
     t.row(
         "gain",
         format!(
@@ -517,6 +526,33 @@ pub fn diagnose_model(
             .map(|v| pct(f(v)))
             .collect();
         t.row(label, format!("held-out NRMSE {}", per_output.join(", ")));
+    }
+    // The chosen effects' fit: every parameter of it, the refitted free ones included.
+    let extended = &d["extended"];
+    if let Some(effect) = extended["effect"].as_str() {
+        t.row(
+            "extended",
+            format!(
+                "{effect}: held-out NRMSE {} (mean over the outputs)",
+                pct(f(&extended["nrmse_validation"]))
+            ),
+        );
+        let lines = extended["parameters"]
+            .as_object()
+            .into_iter()
+            .flatten()
+            .map(|(name, v)| {
+                format!(
+                    "{name} = {}",
+                    pm(
+                        f(v),
+                        f(&extended["stderr"][name.as_str()]),
+                        unit(name).as_deref()
+                    )
+                )
+            })
+            .collect();
+        t.rows("  fitted", lines);
     }
     t.row("results", location(dir, files));
     t.print();

@@ -219,7 +219,15 @@ pub struct ModelDiagnosis {
     pub stop: String,
     /// Every effect tried (on the boundary and inside the model), best held-out score first.
     pub candidates: Vec<ModelCandidate>,
-    /// The chosen effect's fit, when the cause is an effect.
+    /// Every effect named, strongest first: the best single effect, then a second one that
+    /// passes beside it (empty when no effect is named).
+    pub causes: Vec<String>,
+    /// Every other candidate refitted jointly with the best one (named `first + second`),
+    /// best held-out score first; empty when nothing passes or the best one leaves the
+    /// held-out residual within 1.2 times the noise floor.
+    pub pairs: Vec<ModelCandidate>,
+    /// The chosen effects' fit, when the cause is an effect: the pair's when a second effect
+    /// passed.
     pub extended: Option<ModelCandidate>,
     /// With `ambiguous`: the effects that fit equally well, the best first.
     pub alternatives: Vec<String>,
@@ -273,6 +281,10 @@ fn start_state(
         None => Ok((model.initial_mode(), model.initial_state().to_vec())),
     }
 }
+
+/// A second effect is tried beside the best one while the best one's held-out NRMSE is above
+/// this many times the noise floor: below it a second effect could not gain `min_gain`.
+pub const SECOND_EFFECT_FLOOR_RATIO: f64 = 1.2;
 
 /// Share of the scored samples on which the initial state is fitted first
 /// ([`Prepared::fit_state`]).
@@ -811,7 +823,7 @@ pub fn diagnose_model(
             }
         })
         .collect();
-    for (trial, fitted) in trials.iter().zip(fits) {
+    for (ti, (trial, fitted)) in trials.iter().zip(fits).enumerate() {
         let names_e = trial.parameter_names(&outputs);
         let (f, score, sim) = match fitted {
             Ok(v) => v,
@@ -820,6 +832,10 @@ pub fn diagnose_model(
                     candidate: ModelCandidate::failed(trial, format!("fit failed: {e}")),
                     simulated: None,
                     residuals: Vec::new(),
+                    trial: ti,
+                    state: Vec::new(),
+                    rss: f64::NAN,
+                    first: None,
                 });
                 continue;
             }
@@ -875,6 +891,10 @@ pub fn diagnose_model(
             },
             simulated: Some(sim),
             residuals: f.residuals,
+            trial: ti,
+            state: f.state,
+            rss: f.rss,
+            first: None,
         });
     }
     candidates
@@ -910,33 +930,261 @@ pub fn diagnose_model(
     let best_score = best.map_or(refitted.validation(), |b| {
         candidates[b].candidate.nrmse_validation
     });
+
+    // A second effect beside the best one, while its held-out residual is clearly above the
+    // noise floor: every other candidate refitted jointly with it (all their parameters, the
+    // free ones and the start together, the best one's from its fit), and tested against the
+    // best one's fit as that was against the refit. Two effects on the boundary together are
+    // not tried.
+    // The best effect's rivals (within `rival_margin` held out) are tried as the first effect
+    // too: beside a second effect, the right one of two look-alikes fits clearly better.
+    let mut pairs: Vec<Tried> = Vec::new();
+    let firsts: Vec<usize> = match best {
+        Some(b)
+            if noise_floor.is_finite() && best_score > SECOND_EFFECT_FLOOR_RATIO * noise_floor =>
+        {
+            std::iter::once(b)
+                .chain(
+                    (0..candidates.len()).filter(|&i| {
+                        i != b && alternatives.contains(&candidates[i].candidate.effect)
+                    }),
+                )
+                .collect()
+        }
+        _ => Vec::new(),
+    };
+    for &b in &firsts {
+        let first = &candidates[b];
+        let t1 = &trials[first.trial];
+        let p1 = &first.candidate.parameters;
+        let x1 = &first.state;
+        let fit_pair = |t2: &Trial| -> Result<PairFit, DiagnoseError> {
+            let to_err = |e: htfid_lang::ModelError| DiagnoseError::NominalFit {
+                reason: e.to_string(),
+            };
+            let terms: Vec<&TermEffect> = [t1, t2]
+                .into_iter()
+                .filter_map(|t| match t {
+                    Trial::Term(term) => Some(term),
+                    Trial::Boundary(_) => None,
+                })
+                .collect();
+            let boundary = [t1, t2].into_iter().find_map(|t| match t {
+                Trial::Boundary(e) => Some(*e),
+                Trial::Term(_) => None,
+            });
+            let mut m = refitted_model.clone();
+            for term in &terms {
+                m = m.with_extension(&term.extension).map_err(to_err)?;
+            }
+            // The free parameters and the first effect's terms at the first fit's values.
+            let mut all: Vec<String> = names.iter().map(|n| (*n).to_string()).collect();
+            if let Trial::Term(term) = t1 {
+                all.extend(term.parameter_names());
+            }
+            let known: Vec<(&str, f64)> = all
+                .iter()
+                .filter_map(|n| p1.get(n).map(|v| (n.as_str(), *v)))
+                .collect();
+            m = m.with_parameters(&known).map_err(to_err)?;
+            let mut scales = joint.scales.clone();
+            for term in &terms {
+                if !matches!(t1, Trial::Term(t) if std::ptr::eq(t, *term)) {
+                    all.extend(term.parameter_names());
+                }
+                scales.extend(samples.term_scales(&m, &est.signal, term));
+            }
+            // The second term's first parameter starts from the best of a grid across its
+            // scale, zero included: beside the first effect the free parameters have
+            // compensated for it, and from zero its fit can stay in that basin (drag beside a
+            // sensor lag, taken up by the linear dampers).
+            if let Trial::Term(term) = t2 {
+                let name = &term.parameter_names()[0];
+                if let Some(j) = all.iter().position(|a| a == name) {
+                    m = est.best_shift(&m, name, scales[j], x1);
+                }
+            }
+            let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+            let index_x: Vec<usize> = refs
+                .iter()
+                .map(|n| {
+                    m.parameter_index(n)
+                        .ok_or_else(|| DiagnoseError::NominalFit {
+                            reason: format!("no parameter {n} in the extended model"),
+                        })
+                })
+                .collect::<Result<_, _>>()?;
+            let joint_x = Joint {
+                est: &est,
+                model: &m,
+                names: &refs,
+                index: &index_x,
+                scales,
+                max_iter: CANDIDATE_MAX_ITER,
+            };
+            let start: Vec<f64> = match (boundary, t1) {
+                (Some(e), Trial::Boundary(_)) => e
+                    .parameter_names(&outputs)
+                    .iter()
+                    .map(|n| p1.get(n).copied().unwrap_or(0.0))
+                    .collect(),
+                (Some(e), Trial::Term(_)) => joint.effect_start(e, &base, &outputs),
+                (None, _) => Vec::new(),
+            };
+            let f = joint_x.fit(boundary, &start, x1)?;
+            let kx = index_x.len();
+            let fitted = joint_x.model_at(&f.params[..kx])?;
+            let bd = match boundary {
+                Some(e) => Boundary::with(e, &f.params[kx..], outputs.len()),
+                None => Boundary::default(),
+            };
+            let (score, sim) = score_of(&fitted, &f.state, &bd)?;
+            if let Some(e) = boundary {
+                all.extend(e.parameter_names(&outputs));
+            }
+            Ok((f, score, sim, all))
+        };
+        let seconds: Vec<usize> = (0..trials.len())
+            .filter(|&i| {
+                i != first.trial
+                    && !(matches!(t1, Trial::Boundary(_))
+                        && matches!(trials[i], Trial::Boundary(_)))
+            })
+            .collect();
+        let fits: Vec<_> = seconds.par_iter().map(|&i| fit_pair(&trials[i])).collect();
+        for (&i, fitted) in seconds.iter().zip(fits) {
+            let t2 = &trials[i];
+            let name = format!("{} + {}", t1.name(), t2.name());
+            let (f, score, sim, all) = match fitted {
+                Ok(v) => v,
+                Err(e) => {
+                    let mut c = ModelCandidate::failed(t2, format!("fit failed: {e}"));
+                    c.effect = name;
+                    pairs.push(Tried {
+                        candidate: c,
+                        simulated: None,
+                        residuals: Vec::new(),
+                        trial: i,
+                        state: Vec::new(),
+                        rss: f64::NAN,
+                        first: Some(first.trial),
+                    });
+                    continue;
+                }
+            };
+            let kappa = correlation_inflation(&f.residuals).powi(2);
+            let ratio = first.rss / f.rss.max(f64::MIN_POSITIVE);
+            let lr = if ratio.is_finite() && ratio > 0.0 {
+                n as f64 * ratio.ln() / kappa
+            } else {
+                0.0
+            };
+            let critical =
+                crate::select::chi2_quantile(t2.parameter_names(&outputs).len(), opts.alpha);
+            let gain_e = 1.0 - score.validation() / first.candidate.nrmse_validation;
+            let significant = lr >= critical && gain_e >= opts.min_gain;
+            let infl = kappa.sqrt();
+            let parameters = all.iter().cloned().zip(f.params.iter().copied()).collect();
+            let stderr = all
+                .iter()
+                .cloned()
+                .zip(f.stderr.iter().map(|s| s * infl))
+                .collect();
+            pairs.push(Tried {
+                candidate: ModelCandidate {
+                    effect: name,
+                    term: t2.describe(),
+                    parameters,
+                    stderr,
+                    nrmse_validation: score.validation(),
+                    gain: gain_e,
+                    likelihood_ratio: lr,
+                    critical,
+                    significant,
+                    iterations: f.iterations,
+                    note: format!(
+                        "beside {}: likelihood ratio {lr:.1} (critical {critical:.1}), held-out \
+                         gain {:.1} % over {} alone (at least {:.1} %)",
+                        t1.name(),
+                        100.0 * gain_e,
+                        t1.name(),
+                        100.0 * opts.min_gain
+                    ),
+                },
+                simulated: Some(sim),
+                residuals: f.residuals,
+                trial: i,
+                state: f.state,
+                rss: f.rss,
+                first: Some(first.trial),
+            });
+        }
+    }
+    pairs.sort_by(|a, b| {
+        a.candidate
+            .nrmse_validation
+            .total_cmp(&b.candidate.nrmse_validation)
+    });
+    let second = pairs.iter().position(|p| p.candidate.significant);
+    let final_score = second.map_or(best_score, |s| pairs[s].candidate.nrmse_validation);
     let floor2 = noise_floor * noise_floor;
     let explained = if best.is_some() {
-        1.0 - (best_score.powi(2) - floor2).max(0.0)
+        1.0 - (final_score.powi(2) - floor2).max(0.0)
             / (refitted.validation().powi(2) - floor2).max(f64::MIN_POSITIVE)
     } else {
         0.0
     };
     let structure_left = noise_floor.is_finite()
-        && best_score > opts.unexplained_ratio * noise_floor
-        && best_score > opts.resolution;
-    let cause = match best {
+        && final_score > opts.unexplained_ratio * noise_floor
+        && final_score > opts.resolution;
+    // With a pair, its first effect is the cause, and the first effects of other passing pairs
+    // within `rival_margin` of it are its rivals.
+    let alternatives: Vec<String> = match second {
+        Some(s) => {
+            let lead = pairs[s].first.map(|f| trials[f].name()).unwrap_or_default();
+            let limit = final_score * (1.0 + opts.rival_margin);
+            let mut rivals: Vec<String> = Vec::new();
+            for p in &pairs {
+                let name = p.first.map(|f| trials[f].name()).unwrap_or_default();
+                if p.candidate.significant
+                    && p.candidate.nrmse_validation <= limit
+                    && name != lead
+                    && !rivals.contains(&name)
+                {
+                    rivals.push(name);
+                }
+            }
+            rivals
+        }
+        None => alternatives,
+    };
+    let lead = match (second, best) {
+        (Some(s), _) => pairs[s].first.map(|f| trials[f].name()),
+        (None, Some(b)) => Some(candidates[b].candidate.effect.clone()),
+        (None, None) => None,
+    };
+    let cause = match &lead {
         _ if structure_left && explained < opts.min_explained => ModelCause::Unexplained,
         Some(_) if !alternatives.is_empty() => ModelCause::Ambiguous,
-        Some(b) => ModelCause::Effect(candidates[b].candidate.effect.clone()),
+        Some(name) => ModelCause::Effect(name.clone()),
         None if moved && gain >= opts.min_gain => ModelCause::ParameterError,
         None => ModelCause::None,
     };
     let mut alternatives = alternatives;
-    if let (ModelCause::Ambiguous, Some(b)) = (&cause, best) {
-        alternatives.insert(0, candidates[b].candidate.effect.clone());
+    if let (ModelCause::Ambiguous, Some(name)) = (&cause, &lead) {
+        alternatives.insert(0, name.clone());
     }
-    let (extended, simulated_extended) = match best {
-        Some(b) => (
+    let mut causes: Vec<String> = lead.iter().cloned().collect();
+    if let Some(s) = second {
+        causes.push(trials[pairs[s].trial].name());
+    }
+    let (extended, simulated_extended) = match (best, second) {
+        (_, Some(s)) => (Some(pairs[s].candidate.clone()), pairs[s].simulated.take()),
+        (Some(b), None) => (
             Some(candidates[b].candidate.clone()),
             candidates[b].simulated.take(),
         ),
-        None => (None, None),
+        (None, None) => (None, None),
     };
     Ok(ModelDiagnosis {
         cause,
@@ -948,6 +1196,8 @@ pub fn diagnose_model(
         iterations: base.iterations,
         stop: base.stop,
         candidates: candidates.into_iter().map(|c| c.candidate).collect(),
+        causes,
+        pairs: pairs.into_iter().map(|c| c.candidate).collect(),
         extended,
         alternatives,
         noise_floor,
@@ -1080,7 +1330,18 @@ struct Tried {
     candidate: ModelCandidate,
     simulated: Option<Vec<Vec<f64>>>,
     residuals: Vec<f64>,
+    /// Its index among the trials.
+    trial: usize,
+    /// The fitted initial state and the fit's sum of squares (empty and NaN when it failed).
+    state: Vec<f64>,
+    rss: f64,
+    /// In a pair, the trial of the first effect (`trial` is the second's).
+    first: Option<usize>,
 }
+
+/// A pair's joint fit, its held-out score, its simulated outputs and the names of its fitted
+/// parameters (in the fit's order).
+type PairFit = (JointFit, ModelScore, Vec<Vec<f64>>, Vec<String>);
 
 /// One joint output-error fit: free parameters, effect parameters and the initial state.
 struct JointFit {
