@@ -75,6 +75,7 @@ drag+sensor-lag         d = 2.0, and both outputs through the lag tau_s = 0.03 s
 guard-shift+stiffer-k2  both switching surfaces at v1 = 0.05, and k2 = 110
 drag+input-delay        d = 2.0, and the model reads u(t - 0.02)
 input-delay+stiffer-k2  u(t - 0.02), and k2 = 110
+input-delay+sensor-lag  u(t - 0.02), and both outputs through the lag tau_s = 0.03 s
 
 In the pairs with drag, the drag is evaluated as -d v1^2 in mode up and +d v1^2 in mode down,
 which is -d |v1| v1 on each mode's side of v1 = 0 (the surface when there is drag).  This
@@ -230,6 +231,7 @@ PAIRS = [
     _pair("guard-shift", "stiffer-k2"),
     _pair("drag", "input-delay"),
     _pair("input-delay", "stiffer-k2"),
+    _pair("input-delay", "sensor-lag"),
 ]
 
 

@@ -69,6 +69,14 @@ impl BoundaryEffect {
         }
     }
 
+    /// How many parameters the effect has for a model with `outputs` outputs.
+    pub(crate) fn parameter_count(self, outputs: usize) -> usize {
+        match self {
+            BoundaryEffect::SensorOffsetGain => 2 * outputs,
+            _ => 1,
+        }
+    }
+
     /// Whether the parameters are time constants or delays (`>= 0`, searched across decades).
     pub(crate) fn is_lag(self) -> bool {
         matches!(
@@ -150,6 +158,36 @@ impl Boundary {
                         g: bg[1],
                     })
                     .collect();
+            }
+        }
+        b
+    }
+
+    /// The boundary with several effects at once, their parameters one after another in
+    /// `effects`' order (each in [`BoundaryEffect::parameter_names`] order). A sensor's lag
+    /// and its offset and gain combine in one [`Sensor`] per output.
+    pub(crate) fn with_all(effects: &[BoundaryEffect], p: &[f64], outputs: usize) -> Boundary {
+        let mut b = Boundary::default();
+        let mut at = 0;
+        for &effect in effects {
+            let n = effect.parameter_count(outputs);
+            let one = Boundary::with(effect, &p[at..at + n], outputs);
+            at += n;
+            match effect {
+                BoundaryEffect::InputOffset => b.offset = one.offset,
+                BoundaryEffect::InputDelay => b.delay = one.delay,
+                BoundaryEffect::ActuatorLag => b.tau = one.tau,
+                BoundaryEffect::SensorLag | BoundaryEffect::SensorOffsetGain => {
+                    b.sensors.resize(outputs, Sensor::default());
+                    for (mine, theirs) in b.sensors.iter_mut().zip(&one.sensors) {
+                        if effect == BoundaryEffect::SensorLag {
+                            mine.tau_s = theirs.tau_s;
+                        } else {
+                            mine.b = theirs.b;
+                            mine.g = theirs.g;
+                        }
+                    }
+                }
             }
         }
         b

@@ -341,6 +341,20 @@ fn simulate_outputs(
     Ok(out)
 }
 
+/// The likelihood ratio of the fit `big` against a nested fit of sum of squares `small_rss`
+/// on `n` residuals, divided by the variance inflation `kappa` of `big`'s correlated
+/// residuals; and `kappa`.
+fn nested_ratio(small_rss: f64, big: &JointFit, n: usize) -> (f64, f64) {
+    let kappa = correlation_inflation(&big.residuals).powi(2);
+    let ratio = small_rss / big.rss.max(f64::MIN_POSITIVE);
+    let lr = if ratio.is_finite() && ratio > 0.0 {
+        n as f64 * ratio.ln() / kappa
+    } else {
+        0.0
+    };
+    (lr, kappa)
+}
+
 /// Inflation of least-squares standard errors for residuals correlated in time:
 /// `sqrt(1 + 2 sum_k (1 - k/L) rho_k)` with Bartlett weights up to lag `L = 4 n^(1/3)`.
 fn correlation_inflation(r: &[f64]) -> f64 {
@@ -714,7 +728,7 @@ pub fn diagnose_model(
         max_iter: LmOptions::default().max_iter,
     };
     // The refit of the free parameters (and the initial state) alone.
-    let base = joint.fit(None, &[], &x_configured)?;
+    let base = joint.fit(&[], &[], &x_configured)?;
     let k = index.len();
     let refitted_model = joint.model_at(&base.params[..k])?;
     let (refitted, refitted_sim) = score_of(&refitted_model, &base.state, &ideal)?;
@@ -776,14 +790,12 @@ pub fn diagnose_model(
                     max_iter: CANDIDATE_MAX_ITER,
                     ..joint
                 };
-                joint_b
-                    .fit(Some(effect), &start, &base.state)
-                    .and_then(|f| {
-                        let m = joint_b.model_at(&f.params[..k])?;
-                        let b = Boundary::with(effect, &f.params[k..], outputs.len());
-                        let (score, sim) = score_of(&m, &f.state, &b)?;
-                        Ok((f, score, sim))
-                    })
+                joint_b.fit(&[effect], &start, &base.state).and_then(|f| {
+                    let m = joint_b.model_at(&f.params[..k])?;
+                    let b = Boundary::with(effect, &f.params[k..], outputs.len());
+                    let (score, sim) = score_of(&m, &f.state, &b)?;
+                    Ok((f, score, sim))
+                })
             }
             Trial::Term(term) => {
                 let extended = refitted_model
@@ -815,7 +827,7 @@ pub fn diagnose_model(
                     scales,
                     max_iter: CANDIDATE_MAX_ITER,
                 };
-                joint_t.fit(None, &[], &base.state).and_then(|f| {
+                joint_t.fit(&[], &[], &base.state).and_then(|f| {
                     let m = joint_t.model_at(&f.params)?;
                     let (score, sim) = score_of(&m, &f.state, &ideal)?;
                     Ok((f, score, sim))
@@ -840,13 +852,7 @@ pub fn diagnose_model(
                 continue;
             }
         };
-        let kappa = correlation_inflation(&f.residuals).powi(2);
-        let ratio = base.rss / f.rss.max(f64::MIN_POSITIVE);
-        let lr = if ratio.is_finite() && ratio > 0.0 {
-            n as f64 * ratio.ln() / kappa
-        } else {
-            0.0
-        };
+        let (lr, kappa) = nested_ratio(base.rss, &f, n);
         let critical = crate::select::chi2_quantile(names_e.len(), opts.alpha);
         let gain_e = 1.0 - score.validation() / refitted.validation();
         // Nothing is left to explain once the refit is within the resolution.
@@ -934,8 +940,7 @@ pub fn diagnose_model(
     // A second effect beside the best one, while its held-out residual is clearly above the
     // noise floor: every other candidate refitted jointly with it (all their parameters, the
     // free ones and the start together, the best one's from its fit), and tested against the
-    // best one's fit as that was against the refit. Two effects on the boundary together are
-    // not tried.
+    // best one's fit as that was against the refit.
     // The best effect's rivals (within `rival_margin` held out) are tried as the first effect
     // too: beside a second effect, the right one of two look-alikes fits clearly better.
     let mut pairs: Vec<Tried> = Vec::new();
@@ -969,10 +974,13 @@ pub fn diagnose_model(
                     Trial::Boundary(_) => None,
                 })
                 .collect();
-            let boundary = [t1, t2].into_iter().find_map(|t| match t {
-                Trial::Boundary(e) => Some(*e),
-                Trial::Term(_) => None,
-            });
+            let boundary: Vec<BoundaryEffect> = [t1, t2]
+                .into_iter()
+                .filter_map(|t| match t {
+                    Trial::Boundary(e) => Some(*e),
+                    Trial::Term(_) => None,
+                })
+                .collect();
             let mut m = refitted_model.clone();
             for term in &terms {
                 m = m.with_extension(&term.extension).map_err(to_err)?;
@@ -1022,35 +1030,31 @@ pub fn diagnose_model(
                 scales,
                 max_iter: CANDIDATE_MAX_ITER,
             };
-            let start: Vec<f64> = match (boundary, t1) {
-                (Some(e), Trial::Boundary(_)) => e
-                    .parameter_names(&outputs)
-                    .iter()
-                    .map(|n| p1.get(n).copied().unwrap_or(0.0))
-                    .collect(),
-                (Some(e), Trial::Term(_)) => joint.effect_start(e, &base, &outputs),
-                (None, _) => Vec::new(),
-            };
-            let f = joint_x.fit(boundary, &start, x1)?;
+            // The first effect's boundary parameters from its fit, a second one's from its
+            // own start.
+            let mut start: Vec<f64> = Vec::new();
+            for &e in &boundary {
+                if matches!(t1, Trial::Boundary(b1) if *b1 == e) {
+                    start.extend(
+                        e.parameter_names(&outputs)
+                            .iter()
+                            .map(|n| p1.get(n).copied().unwrap_or(0.0)),
+                    );
+                } else {
+                    start.extend(joint.effect_start(e, &base, &outputs));
+                }
+            }
+            let f = joint_x.fit(&boundary, &start, x1)?;
             let kx = index_x.len();
             let fitted = joint_x.model_at(&f.params[..kx])?;
-            let bd = match boundary {
-                Some(e) => Boundary::with(e, &f.params[kx..], outputs.len()),
-                None => Boundary::default(),
-            };
+            let bd = Boundary::with_all(&boundary, &f.params[kx..], outputs.len());
             let (score, sim) = score_of(&fitted, &f.state, &bd)?;
-            if let Some(e) = boundary {
+            for e in &boundary {
                 all.extend(e.parameter_names(&outputs));
             }
             Ok((f, score, sim, all))
         };
-        let seconds: Vec<usize> = (0..trials.len())
-            .filter(|&i| {
-                i != first.trial
-                    && !(matches!(t1, Trial::Boundary(_))
-                        && matches!(trials[i], Trial::Boundary(_)))
-            })
-            .collect();
+        let seconds: Vec<usize> = (0..trials.len()).filter(|&i| i != first.trial).collect();
         let fits: Vec<_> = seconds.par_iter().map(|&i| fit_pair(&trials[i])).collect();
         for (&i, fitted) in seconds.iter().zip(fits) {
             let t2 = &trials[i];
@@ -1072,13 +1076,7 @@ pub fn diagnose_model(
                     continue;
                 }
             };
-            let kappa = correlation_inflation(&f.residuals).powi(2);
-            let ratio = first.rss / f.rss.max(f64::MIN_POSITIVE);
-            let lr = if ratio.is_finite() && ratio > 0.0 {
-                n as f64 * ratio.ln() / kappa
-            } else {
-                0.0
-            };
+            let (lr, kappa) = nested_ratio(first.rss, &f, n);
             let critical =
                 crate::select::chi2_quantile(t2.parameter_names(&outputs).len(), opts.alpha);
             let gain_e = 1.0 - score.validation() / first.candidate.nrmse_validation;
@@ -1428,11 +1426,11 @@ impl Joint<'_, '_> {
         vec![best.1]
     }
 
-    /// Fits the free parameters, `effect`'s parameters (from `effect_start`) and the initial
-    /// state (from `x0`) together.
+    /// Fits the free parameters, the parameters of the boundary `effects` (from
+    /// `effect_start`, one effect's after another) and the initial state (from `x0`) together.
     fn fit(
         &self,
-        effect: Option<BoundaryEffect>,
+        effects: &[BoundaryEffect],
         effect_start: &[f64],
         x0: &[f64],
     ) -> Result<JointFit, DiagnoseError> {
@@ -1445,10 +1443,7 @@ impl Joint<'_, '_> {
         p0.extend_from_slice(x0);
         let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
             let trial = self.model_at(&p[..k]).map_err(|e| e.to_string())?;
-            let b = match effect {
-                Some(effect) => Boundary::with(effect, &p[k..k + e], outputs),
-                None => Boundary::default(),
-            };
+            let b = Boundary::with_all(effects, &p[k..k + e], outputs);
             let sim = est
                 .simulate(&trial, &p[k + e..], &b)
                 .map_err(|e| e.to_string())?;
@@ -1461,28 +1456,35 @@ impl Joint<'_, '_> {
             .iter()
             .map(|&i| (params[i].min, params[i].max))
             .collect();
-        let lag = effect.is_some_and(BoundaryEffect::is_lag);
-        bounds.extend(
-            std::iter::repeat(if lag {
-                (0.0, self.longest_lag())
-            } else {
-                (f64::NEG_INFINITY, f64::INFINITY)
-            })
-            .take(e),
-        );
-        bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(x0.len()));
+        let counted: usize = effects.iter().map(|x| x.parameter_count(outputs)).sum();
+        if counted != e {
+            return Err(DiagnoseError::NominalFit {
+                reason: format!(
+                    "{e} starting values for boundary effects with {counted} parameters"
+                ),
+            });
+        }
         let mut scales: Vec<f64> = self.scales.clone();
-        scales.extend(effect_start.iter().enumerate().map(|(j, v)| {
-            if lag {
-                v.abs().max(est.dt)
-            } else if effect == Some(BoundaryEffect::InputOffset) {
-                input_scale(est.rec)
-            } else if j % 2 == 0 {
-                est.scale[j / 2]
-            } else {
-                0.1
+        let mut at = 0;
+        for &effect in effects {
+            let n = effect.parameter_count(outputs);
+            let start = &effect_start[at..at + n];
+            at += n;
+            for (j, v) in start.iter().enumerate() {
+                if effect.is_lag() {
+                    bounds.push((0.0, self.longest_lag()));
+                    scales.push(v.abs().max(est.dt));
+                } else {
+                    bounds.push((f64::NEG_INFINITY, f64::INFINITY));
+                    scales.push(match effect {
+                        BoundaryEffect::InputOffset => input_scale(est.rec),
+                        _ if j % 2 == 0 => est.scale[j / 2],
+                        _ => 0.1,
+                    });
+                }
             }
-        }));
+        }
+        bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(x0.len()));
         scales.extend(x0.iter().map(|v| v.abs().max(1e-3)));
         let lm = LmOptions {
             scales: Some(scales),

@@ -29,14 +29,18 @@ fn model() -> Model {
 
 /// Both outputs of one record, joined into one record of two outputs.
 fn record(file: &str) -> TimeSeries {
-    let path = fixtures().join(file);
+    read_two_outputs(&fixtures().join(file))
+}
+
+/// Both outputs of the CSV at `path` (`t,u,x1,x2`), joined into one record of two outputs.
+fn read_two_outputs(path: &Path) -> TimeSeries {
     let parts = ["x1", "x2"]
         .into_iter()
         .map(|y| {
             let spec = CsvSpec::default()
                 .with_columns("u", y)
                 .with_time_column("t");
-            read_csv(&path, &spec).unwrap()
+            read_csv(path, &spec).unwrap()
         })
         .collect();
     TimeSeries::join_outputs(parts).unwrap()
@@ -53,6 +57,11 @@ fn truth(file: &str, key: &str) -> f64 {
 }
 
 fn diagnose(file: &str) -> ModelDiagnosis {
+    diagnose_record(&record(file))
+}
+
+/// The diagnosis of a record with the model's own free parameters and the default options.
+fn diagnose_record(rec: &TimeSeries) -> ModelDiagnosis {
     let model = model();
     let free: Vec<String> = model
         .parameters()
@@ -64,7 +73,7 @@ fn diagnose(file: &str) -> ModelDiagnosis {
         free,
         ..ModelFitOptions::default()
     };
-    diagnose_model(&model, &record(file), None, &opts).unwrap()
+    diagnose_model(&model, rec, None, &opts).unwrap()
 }
 
 /// Every candidate's name, score, parameters and note, a line each (for failure messages).
@@ -168,36 +177,15 @@ fn friction_the_library_cannot_write_is_not_claimed() {
     );
 }
 
-/// Both records of a pair directory's record, joined into one record of two outputs.
+/// A record of the pairs' directory, its two outputs joined.
 fn pair_record(file: &str) -> TimeSeries {
-    let path = fixtures().join("../two-dof-pairs").join(file);
-    let parts = ["x1", "x2"]
-        .into_iter()
-        .map(|y| {
-            let spec = CsvSpec::default()
-                .with_columns("u", y)
-                .with_time_column("t");
-            read_csv(&path, &spec).unwrap()
-        })
-        .collect();
-    TimeSeries::join_outputs(parts).unwrap()
+    read_two_outputs(&fixtures().join("../two-dof-pairs").join(file))
 }
 
 /// Two effects at once (`tests/fixtures/two-dof-pairs/`, the same generator): both are named,
 /// the stronger first, each beside the other with its parameter within 10 % of the truth.
 fn pair_named(file: &str, want: [(&str, &str, f64); 2]) {
-    let model = model();
-    let free: Vec<String> = model
-        .parameters()
-        .iter()
-        .filter(|p| p.free)
-        .map(|p| p.name.clone())
-        .collect();
-    let opts = ModelFitOptions {
-        free,
-        ..ModelFitOptions::default()
-    };
-    let d = diagnose_model(&model, &pair_record(file), None, &opts).unwrap();
+    let d = diagnose_record(&pair_record(file));
     let t = table(&d);
     for (effect, _, _) in want {
         assert!(
@@ -241,18 +229,7 @@ fn drag_and_a_delayed_input_are_both_named() {
 /// An effect beside a wrong configured parameter (`k2` 10 % stiff, free): the effect is named
 /// with its parameter within 10 %, and its fit refits `k2` to within 1 % of the truth.
 fn effect_beside_a_parameter_error(file: &str, effect: &str, parameter: &str, truth: f64) {
-    let model = model();
-    let free: Vec<String> = model
-        .parameters()
-        .iter()
-        .filter(|p| p.free)
-        .map(|p| p.name.clone())
-        .collect();
-    let opts = ModelFitOptions {
-        free,
-        ..ModelFitOptions::default()
-    };
-    let d = diagnose_model(&model, &pair_record(file), None, &opts).unwrap();
+    let d = diagnose_record(&pair_record(file));
     let t = table(&d);
     assert!(names(&d, effect), "{file}: {effect} not named\n{t}");
     let extended = d.extended.as_ref().expect("an extended model");
@@ -277,5 +254,16 @@ fn a_moved_switch_beside_a_stiff_coupling_is_named() {
         "guard_shift(v1)",
         "shift_1",
         0.05,
+    );
+}
+
+#[test]
+fn a_delayed_input_and_a_lag_of_the_readings_are_both_named() {
+    pair_named(
+        "input-delay+sensor-lag.csv",
+        [
+            ("sensor_lag", "tau_s", 0.03),
+            ("input_delay", "delay", 0.02),
+        ],
     );
 }
