@@ -4,14 +4,14 @@
 use std::ops::Range;
 use std::sync::Arc;
 
-use htfid_estimate::{levenberg_marquardt_parallel, FdScheme, LmOptions};
+use htfid_estimate::{levenberg_marquardt_batch, FdScheme, LmOptions};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
 use nalgebra::DMatrix;
 
 use crate::effect::Slot;
 use crate::sim::{
-    simulate_positions_with, Extent, ExtraForce, Force, MeasuredForce, SimFailure, SimMethod,
-    Stepping,
+    simulate_positions_batch, simulate_positions_with, Extent, ExtraForce, Force, MeasuredForce,
+    SimFailure, SimLane, SimMethod, Stepping,
 };
 use crate::{Sensor, TimeSeries};
 
@@ -220,19 +220,62 @@ impl Context<'_> {
         stepping: &Stepping,
         r: &mut [f64],
     ) -> Result<(), SimFailure> {
+        self.residuals_batch(&[hopper], segs, &[init], stepping, &mut [r])
+            .pop()
+            .unwrap_or(Ok(()))
+    }
+
+    /// [`Context::residuals`] for several models at once (one result per model), simulated in
+    /// lockstep: the same residuals as one by one.
+    pub(crate) fn residuals_batch(
+        &self,
+        models: &[&Driven],
+        segs: &[Segment],
+        inits: &[&[[f64; 2]]],
+        stepping: &Stepping,
+        outs: &mut [&mut [f64]],
+    ) -> Vec<Result<(), SimFailure>> {
         let x = self.record.output();
-        let mut buf = Vec::new();
+        let dt = self.record.dt();
+        let mut results: Vec<Result<(), SimFailure>> = models.iter().map(|_| Ok(())).collect();
+        let mut bufs = vec![Vec::new(); models.len()];
         let mut at = 0;
-        for (seg, &xv) in segs.iter().zip(init) {
-            self.simulate(hopper, seg, xv, stepping, &mut buf)?;
+        for (k, seg) in segs.iter().enumerate() {
+            let live: Vec<usize> = (0..models.len()).filter(|&i| results[i].is_ok()).collect();
+            let mut lanes: Vec<SimLane<'_>> = Vec::with_capacity(live.len());
+            for (i, buf) in bufs.iter_mut().enumerate() {
+                if results[i].is_err() {
+                    continue;
+                }
+                buf.resize(seg.range.len(), 0.0);
+                let m = models[i];
+                lanes.push(SimLane {
+                    hopper: &m.hopper,
+                    force: m.force.as_ref(),
+                    extra: m.extra.as_deref(),
+                    xv0: inits[i][k],
+                    out: buf,
+                });
+            }
+            let t0 = self.record.time()[seg.range.start];
+            let done = simulate_positions_batch(&mut lanes, t0, dt, stepping);
+            drop(lanes);
             let scored = seg.scored();
             let n = scored.len();
-            for (k, ri) in r[at..at + n].iter_mut().enumerate() {
-                *ri = buf[seg.skip + k] - x[scored.start + k];
+            for (&i, result) in live.iter().zip(done) {
+                if let Err(e) = result {
+                    results[i] = Err(e);
+                    continue;
+                }
+                let buf = &mut bufs[i];
+                models[i].sensor.apply(dt, buf);
+                for (j, ri) in outs[i][at..at + n].iter_mut().enumerate() {
+                    *ri = buf[seg.skip + j] - x[scored.start + j];
+                }
             }
             at += n;
         }
-        Ok(())
+        results
     }
 
     /// Sum of squared fit residuals with initial states from the data; `None` when the model
@@ -354,12 +397,35 @@ impl Context<'_> {
                  fewer parameters"
             ));
         }
-        let residual_fn = |u: &[f64], r: &mut [f64]| -> Result<(), String> {
-            let p = layout.point(start, u);
-            let hopper = self.hopper(&p)?;
-            let init = layout.init(&self.fit, u);
-            self.residuals(&hopper, &self.fit, &init, stepping, r)
-                .map_err(|e| format!("t = {} s: {}", e.time, e.reason))
+        // The points of a Jacobian are simulated together ([`Context::residuals_batch`]).
+        let residual_fn = |points: &[&[f64]], outs: &mut [&mut [f64]]| {
+            let models: Vec<Result<Driven, String>> = points
+                .iter()
+                .map(|u| self.hopper(&layout.point(start, u)))
+                .collect();
+            let inits: Vec<Vec<[f64; 2]>> =
+                points.iter().map(|u| layout.init(&self.fit, u)).collect();
+            let ready: Vec<usize> = (0..points.len()).filter(|&i| models[i].is_ok()).collect();
+            let driven: Vec<&Driven> = ready
+                .iter()
+                .filter_map(|&i| models[i].as_ref().ok())
+                .collect();
+            let init: Vec<&[[f64; 2]]> = ready.iter().map(|&i| inits[i].as_slice()).collect();
+            let mut results: Vec<Result<(), String>> = models
+                .iter()
+                .map(|m| m.as_ref().map(|_| ()).map_err(Clone::clone))
+                .collect();
+            let mut out: Vec<&mut [f64]> = outs
+                .iter_mut()
+                .enumerate()
+                .filter(|(i, _)| models[*i].is_ok())
+                .map(|(_, o)| &mut **o)
+                .collect();
+            let done = self.residuals_batch(&driven, &self.fit, &init, stepping, &mut out);
+            for (&i, d) in ready.iter().zip(done) {
+                results[i] = d.map_err(|e| format!("t = {} s: {}", e.time, e.reason));
+            }
+            results
         };
         let opts = LmOptions {
             max_iter: self.max_iterations,
@@ -372,7 +438,7 @@ impl Context<'_> {
             bounds: Some(bounds.clone()),
             lambda0: 1e-3,
         };
-        let lm = levenberg_marquardt_parallel(residual_fn, &u0, n, &opts).map_err(|e| {
+        let lm = levenberg_marquardt_batch(residual_fn, &u0, n, &opts).map_err(|e| {
             let names: Vec<&str> = slots.iter().map(|s| s.name()).collect();
             format!("{e}; {}", fit_advice(&e, &names))
         })?;

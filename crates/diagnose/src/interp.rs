@@ -71,7 +71,7 @@ impl SampledSignal {
         ]
     }
 
-    #[inline]
+    #[inline(always)]
     pub(crate) fn eval(&self, t: f64) -> f64 {
         match self.locate(t) {
             Some((i, a)) => {

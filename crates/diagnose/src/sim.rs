@@ -3,7 +3,7 @@
 use std::cell::Cell;
 use std::sync::Arc;
 
-use htfid_hybrid::{Crossing, HybridSystem, Method, Options};
+use htfid_hybrid::{Crossing, FixedStepLane, HybridSystem, Method, Options};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperMode, HopperParams, InputFn, ModelError};
 use serde::{Deserialize, Serialize};
 
@@ -253,6 +253,22 @@ impl<'a> Located<'a> {
         }
     }
 
+    /// The hopper's own vector field (with a lag state of its own) at the first `n` entries
+    /// of `x`.
+    #[inline(never)]
+    fn hopper_field(&self, mode: HopperMode, t: f64, x: [f64; 3], n: usize) -> [f64; 3] {
+        let mut d = [0.0; 3];
+        self.hopper.vector_field(mode, t, &x[..n], &mut d[..n]);
+        d
+    }
+
+    /// The extra force's acceleration.
+    #[inline(never)]
+    fn extra_acceleration(&self, t: f64, pos: f64, vel: f64) -> f64 {
+        self.extra
+            .map_or(0.0, |extra| extra(t, pos, vel) / self.hopper.params().m)
+    }
+
     /// The extra guard's value: contact first, then friction.
     fn extra(&self, k: usize, x: &[f64]) -> f64 {
         match (k, self.contact) {
@@ -269,7 +285,9 @@ impl HybridSystem for Located<'_> {
         self.hopper.dim()
     }
 
-    #[inline]
+    // Inlined into the integrator's stages, which then keep the state in registers; the
+    // rarer paths are functions of their own.
+    #[inline(always)]
     fn vector_field(&self, mode: HopperMode, t: f64, x: &[f64], dxdt: &mut [f64]) {
         match self.force {
             // `Hopper::vector_field` without a lag state, reading the force directly.
@@ -285,13 +303,23 @@ impl HybridSystem for Located<'_> {
                     u
                 };
                 let f = h.commanded_force_with(td, u);
-                dxdt[0] = x[1];
-                dxdt[1] = self.field.acceleration(mode, x[0], x[1], f);
+                // Written as one pair: the integrator reads the derivative back whole.
+                let d = [x[1], self.field.acceleration(mode, x[0], x[1], f)];
+                dxdt[..2].copy_from_slice(&d);
             }
-            None => self.hopper.vector_field(mode, t, x, dxdt),
+            None => {
+                // By value: a state or derivative whose address reached a call could not stay
+                // in registers on the direct path either.
+                let mut state = [0.0; 3];
+                let n = x.len().min(3);
+                state[..n].copy_from_slice(&x[..n]);
+                let d = self.hopper_field(mode, t, state, n);
+                let n = dxdt.len().min(3);
+                dxdt[..n].copy_from_slice(&d[..n]);
+            }
         }
-        if let Some(extra) = self.extra {
-            dxdt[1] += extra(t, x[0], x[1]) / self.hopper.params().m;
+        if self.extra.is_some() {
+            dxdt[1] += self.extra_acceleration(t, x[0], x[1]);
         }
     }
 
@@ -442,10 +470,7 @@ pub(crate) fn simulate_positions_with(
     stepping: &Stepping,
     out: &mut [f64],
 ) -> Result<(), SimFailure> {
-    let mut state = vec![xv0[0], xv0[1]];
-    if hopper.effects().has_lag() {
-        state.push(hopper.commanded_force(t0 - hopper.effects().delay));
-    }
+    let state = initial_state(hopper, t0, xv0);
     let mode0 = hopper.mode_of(xv0[1]);
     let sys = Located::new(hopper, extra, force);
     match stepping {
@@ -471,6 +496,74 @@ pub(crate) fn simulate_positions_with(
             Ok(())
         }
     }
+}
+
+/// The state at `t0` from position and velocity `xv0`: a lag state starts at the commanded
+/// force.
+fn initial_state(hopper: &Hopper, t0: f64, xv0: [f64; 2]) -> Vec<f64> {
+    let mut state = vec![xv0[0], xv0[1]];
+    if hopper.effects().has_lag() {
+        state.push(hopper.commanded_force(t0 - hopper.effects().delay));
+    }
+    state
+}
+
+/// One simulation of a batch ([`simulate_positions_batch`]): the arguments of
+/// [`simulate_positions_with`] that differ between lanes.
+pub(crate) struct SimLane<'a> {
+    pub hopper: &'a Hopper,
+    pub force: Option<&'a Force>,
+    pub extra: Option<&'a ExtraForce>,
+    pub xv0: [f64; 2],
+    pub out: &'a mut [f64],
+}
+
+/// [`simulate_positions_with`] for several models on the same grid, one result per lane. With
+/// fixed steps the lanes are stepped in lockstep ([`htfid_hybrid::simulate_fixed_step_batch`]):
+/// each lane's samples are those of its own simulation, bit for bit, in about half the time
+/// for three lanes or more.
+pub(crate) fn simulate_positions_batch(
+    lanes: &mut [SimLane<'_>],
+    t0: f64,
+    dt: f64,
+    stepping: &Stepping,
+) -> Vec<Result<(), SimFailure>> {
+    let Stepping::Fixed { substeps } = stepping else {
+        return lanes
+            .iter_mut()
+            .map(|l| {
+                simulate_positions_with(l.hopper, l.force, l.extra, t0, l.xv0, dt, stepping, l.out)
+            })
+            .collect();
+    };
+    let states: Vec<Vec<f64>> = lanes
+        .iter()
+        .map(|l| initial_state(l.hopper, t0, l.xv0))
+        .collect();
+    let systems: Vec<Located<'_>> = lanes
+        .iter()
+        .map(|l| Located::new(l.hopper, l.extra, l.force))
+        .collect();
+    let mut fixed: Vec<FixedStepLane<'_, Located<'_>>> = lanes
+        .iter_mut()
+        .zip(&systems)
+        .zip(&states)
+        .map(|((l, system), x0)| FixedStepLane {
+            system,
+            mode0: l.hopper.mode_of(l.xv0[1]),
+            x0,
+            out: &mut *l.out,
+        })
+        .collect();
+    htfid_hybrid::simulate_fixed_step_batch(&mut fixed, t0, dt, *substeps, 0)
+        .into_iter()
+        .map(|r| {
+            r.map_err(|e| SimFailure {
+                time: t0,
+                reason: e.to_string(),
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]

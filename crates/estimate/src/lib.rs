@@ -112,7 +112,8 @@ pub use experiment::{estimate_experiment, Estimator, Layout, LineWindows, Reques
 pub use htfid_data::TimeSeries;
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
 pub use lm::{
-    levenberg_marquardt, levenberg_marquardt_parallel, FdScheme, LmFit, LmOptions, LmStop,
+    levenberg_marquardt, levenberg_marquardt_batch, levenberg_marquardt_parallel, FdScheme, LmFit,
+    LmOptions, LmStop,
 };
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};

@@ -198,21 +198,66 @@ where
     }
 }
 
-/// A residual function that may be called from several threads: the Jacobian's columns are
-/// formed in parallel (the same differences as column by column).
-struct ParallelProblem<F> {
+/// A residual function that takes several points at once and may be called from several
+/// threads: the points of each finite-difference Jacobian are split into one chunk per thread,
+/// and each chunk is one call (the same differences as column by column).
+struct BatchProblem<F> {
     f: F,
     evaluations: usize,
 }
 
-impl<F, E> Residuals for ParallelProblem<F>
+impl<F, E> BatchProblem<F>
 where
-    F: Fn(&[f64], &mut [f64]) -> std::result::Result<(), E> + Sync,
+    F: Fn(&[&[f64]], &mut [&mut [f64]]) -> Vec<std::result::Result<(), E>> + Sync,
+    E: Display,
+{
+    /// Evaluates every point of `points` into `outs`, in one chunk per thread; whether each
+    /// succeeded with finite residuals.
+    fn run(&mut self, points: &[Vec<f64>], outs: &mut [Vec<f64>]) -> Vec<bool> {
+        self.evaluations += points.len();
+        let chunk = points
+            .len()
+            .div_ceil(rayon::current_num_threads().max(1))
+            .max(1);
+        let f = &self.f;
+        points
+            .par_chunks(chunk)
+            .zip(outs.par_chunks_mut(chunk))
+            .flat_map_iter(|(pts, outs)| {
+                let p: Vec<&[f64]> = pts.iter().map(Vec::as_slice).collect();
+                let mut o: Vec<&mut [f64]> = outs.iter_mut().map(Vec::as_mut_slice).collect();
+                let results = f(&p, &mut o);
+                let ok: Vec<bool> = o
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| {
+                        matches!(results.get(i), Some(Ok(()))) && r.iter().all(|v| v.is_finite())
+                    })
+                    .collect();
+                ok
+            })
+            .collect()
+    }
+}
+
+impl<F, E> Residuals for BatchProblem<F>
+where
+    F: Fn(&[&[f64]], &mut [&mut [f64]]) -> Vec<std::result::Result<(), E>> + Sync,
     E: Display,
 {
     fn eval(&mut self, x: &[f64], r: &mut [f64]) -> Result<()> {
         self.evaluations += 1;
-        checked(&self.f, x, r)
+        let f = &self.f;
+        checked(
+            |x: &[f64], r: &mut [f64]| -> std::result::Result<(), String> {
+                match f(&[x], &mut [r]).into_iter().next() {
+                    Some(result) => result.map_err(|e| e.to_string()),
+                    None => Err("the residual function returned no result".to_string()),
+                }
+            },
+            x,
+            r,
+        )
     }
 
     fn jacobian(
@@ -225,30 +270,66 @@ where
         typical: &[f64],
         bounds: &[(f64, f64)],
     ) -> Result<()> {
-        let m = r.len();
-        let f = &self.f;
-        let columns: Vec<(Result<()>, usize)> = jac
-            .as_mut_slice()
-            .par_chunks_mut(m)
-            .enumerate()
-            .map(|(j, col)| {
-                let mut evaluations = 0;
-                let mut eval = |v: &[f64], out: &mut [f64]| {
-                    evaluations += 1;
-                    checked(f, v, out).is_ok()
-                };
-                let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
-                let mut xp = x.to_vec();
-                let result = fd_column(
-                    &mut eval, &mut xp, x, r, j, col, scheme, step, typical[j], bounds[j], &mut rp,
-                    &mut rm,
-                );
-                (result, evaluations)
+        // `fd_column`'s rule, in two rounds: first `x + h e_j` wherever the box allows it, then
+        // `x - h e_j` where the scheme needs both sides or the first side failed.
+        let (np, m) = (x.len(), r.len());
+        let h: Vec<f64> = (0..np).map(|j| step * x[j].abs().max(typical[j])).collect();
+        let shifted = |j: usize, v: f64| {
+            let mut p = x.to_vec();
+            p[j] = v;
+            p
+        };
+        let ups: Vec<usize> = (0..np).filter(|&j| x[j] + h[j] <= bounds[j].1).collect();
+        let points: Vec<Vec<f64>> = ups.iter().map(|&j| shifted(j, x[j] + h[j])).collect();
+        let mut rp = vec![vec![0.0; m]; ups.len()];
+        let ok = self.run(&points, &mut rp);
+        // Per column: the realised step and the residuals on each side.
+        let mut plus: Vec<Option<(f64, usize)>> = vec![None; np];
+        for (k, &j) in ups.iter().enumerate() {
+            if ok[k] {
+                plus[j] = Some((points[k][j] - x[j], k));
+            }
+        }
+        let downs: Vec<usize> = (0..np)
+            .filter(|&j| {
+                (scheme == FdScheme::Central || plus[j].is_none()) && x[j] - h[j] >= bounds[j].0
             })
             .collect();
-        self.evaluations += columns.iter().map(|c| c.1).sum::<usize>();
-        // The first failing column, as column by column would report it.
-        columns.into_iter().try_for_each(|c| c.0)
+        let points: Vec<Vec<f64>> = downs.iter().map(|&j| shifted(j, x[j] - h[j])).collect();
+        let mut rm = vec![vec![0.0; m]; downs.len()];
+        let ok = self.run(&points, &mut rm);
+        let mut minus: Vec<Option<(f64, usize)>> = vec![None; np];
+        for (k, &j) in downs.iter().enumerate() {
+            if ok[k] {
+                minus[j] = Some((points[k][j] - x[j], k));
+            }
+        }
+        for (j, col) in jac.as_mut_slice().chunks_mut(m).enumerate() {
+            match (plus[j], minus[j]) {
+                (Some((hp, a)), Some((hm, b))) => {
+                    for (i, c) in col.iter_mut().enumerate() {
+                        *c = (rp[a][i] - rm[b][i]) / (hp - hm);
+                    }
+                }
+                (Some((hp, a)), None) => {
+                    for (i, c) in col.iter_mut().enumerate() {
+                        *c = (rp[a][i] - r[i]) / hp;
+                    }
+                }
+                (None, Some((hm, b))) => {
+                    for (i, c) in col.iter_mut().enumerate() {
+                        *c = (rm[b][i] - r[i]) / hm;
+                    }
+                }
+                (None, None) => {
+                    return Err(Error::JacobianFailed {
+                        index: j,
+                        value: x[j],
+                    })
+                }
+            }
+        }
+        Ok(())
     }
 
     fn evaluations(&self) -> usize {
@@ -300,8 +381,39 @@ where
     F: Fn(&[f64], &mut [f64]) -> std::result::Result<(), E> + Sync,
     E: Display,
 {
+    levenberg_marquardt_batch(
+        |points: &[&[f64]], outs: &mut [&mut [f64]]| {
+            points
+                .iter()
+                .zip(outs.iter_mut())
+                .map(|(p, r)| residuals(p, r))
+                .collect()
+        },
+        p0,
+        m,
+        options,
+    )
+}
+
+/// [`levenberg_marquardt`] for a residual function that evaluates several points in one call,
+/// `residuals(points, outs)` filling `outs[i]` for `points[i]` and returning one result per
+/// point (a missing result counts as a failure). The points of each finite-difference Jacobian
+/// are split into one chunk per rayon thread, each chunk one call: a function that works on
+/// its points together (simulations stepped in lockstep, say) gains beyond the threads. The
+/// iterates, the result and the count of evaluations are those of [`levenberg_marquardt`]
+/// when each point's residuals are those of a single evaluation.
+pub fn levenberg_marquardt_batch<F, E>(
+    residuals: F,
+    p0: &[f64],
+    m: usize,
+    options: &LmOptions,
+) -> Result<LmFit>
+where
+    F: Fn(&[&[f64]], &mut [&mut [f64]]) -> Vec<std::result::Result<(), E>> + Sync,
+    E: Display,
+{
     solve(
-        ParallelProblem {
+        BatchProblem {
             f: residuals,
             evaluations: 0,
         },

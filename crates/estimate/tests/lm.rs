@@ -1,7 +1,8 @@
 //! Levenberg-Marquardt against problems with known answers.
 
 use htfid_estimate::{
-    levenberg_marquardt, levenberg_marquardt_parallel, Error, FdScheme, LmOptions, LmStop,
+    levenberg_marquardt, levenberg_marquardt_batch, levenberg_marquardt_parallel, Error, FdScheme,
+    LmOptions, LmStop,
 };
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
@@ -266,5 +267,48 @@ fn parallel_jacobians_give_the_same_iterates() {
         assert_eq!(serial.iterations, parallel.iterations);
         assert_eq!(serial.evaluations, parallel.evaluations);
         assert_eq!(serial.stop, parallel.stop);
+        // The batch variant, its points evaluated together in reverse order (a batch function
+        // is free to order its work): the same iterates again.
+        let batch = |points: &[&[f64]], outs: &mut [&mut [f64]]| {
+            let mut results: Vec<Result<(), String>> = Vec::with_capacity(points.len());
+            for (p, r) in points.iter().zip(outs.iter_mut()).rev() {
+                results.push(f(p, r));
+            }
+            results.reverse();
+            results
+        };
+        let batched = levenberg_marquardt_batch(batch, &[1.0, 0.2, 0.3], t.len(), &opts).unwrap();
+        assert_eq!(serial.params, batched.params, "{scheme:?}");
+        assert_eq!(serial.cost.to_bits(), batched.cost.to_bits());
+        assert_eq!(serial.jacobian, batched.jacobian);
+        assert_eq!(serial.iterations, batched.iterations);
+        assert_eq!(serial.evaluations, batched.evaluations);
+        assert_eq!(serial.stop, batched.stop);
     }
+}
+
+#[test]
+fn a_batch_that_fails_a_column_names_the_first_such_column() {
+    // Every point off the start fails: the first column's difference fails on both sides, and
+    // the error names it, as the serial iteration does.
+    let f = |points: &[&[f64]], outs: &mut [&mut [f64]]| -> Vec<Result<(), String>> {
+        points
+            .iter()
+            .zip(outs.iter_mut())
+            .map(|(p, r)| {
+                if p[0].to_bits() != 1.0f64.to_bits() || p[1].to_bits() != 2.0f64.to_bits() {
+                    return Err("off the start".to_string());
+                }
+                r[0] = p[0] - 3.0;
+                r[1] = p[1] - 1.0;
+                r[2] = p[0] * p[1];
+                Ok(())
+            })
+            .collect()
+    };
+    let err = levenberg_marquardt_batch(f, &[1.0, 2.0], 3, &LmOptions::default()).unwrap_err();
+    assert!(
+        matches!(err, Error::JacobianFailed { index: 0, value } if value.to_bits() == 1.0f64.to_bits()),
+        "{err:?}"
+    );
 }

@@ -231,7 +231,9 @@ mod tableau;
 mod trajectory;
 
 pub use error::HybridError;
-pub use fixed::{simulate_fixed_step, FIXED_STEP_MAX_DIM};
+pub use fixed::{
+    simulate_fixed_step, simulate_fixed_step_batch, FixedStepLane, FIXED_STEP_MAX_DIM,
+};
 pub use integrator::{simulate, Integrator, StopReason};
 pub use options::{Method, Options};
 pub use size::{min_steps, trajectory_bytes, MIN_STEPS_PER_PERIOD};
