@@ -11,11 +11,14 @@ Writes ``tests/fixtures/two-dof-effects/``:
 
 With ``--pairs`` it writes ``tests/fixtures/two-dof-pairs/`` instead: records with two of the
 effects below at once (list ``PAIRS``), in the same format, with their own ``truth.json``.
+With ``--triples`` it writes ``tests/fixtures/two-dof-triples/``: records with three of the
+effects at once (list ``TRIPLES``), likewise.
 
 Run from the repository root (or anywhere)::
 
-    python3 tests/oracle/two_dof_effects.py          # single effects, runs the self-checks
-    python3 tests/oracle/two_dof_effects.py --pairs  # pairs of effects, with their self-checks
+    python3 tests/oracle/two_dof_effects.py            # single effects, runs the self-checks
+    python3 tests/oracle/two_dof_effects.py --pairs    # pairs of effects, with their self-checks
+    python3 tests/oracle/two_dof_effects.py --triples  # triples of effects, likewise
 
 The generator is written from the model file ``models/two-dof.toml`` alone and shares no code
 with htfid.  Dependencies: Python 3, numpy, scipy.
@@ -81,10 +84,27 @@ In the pairs with drag, the drag is evaluated as -d v1^2 in mode up and +d v1^2 
 which is -d |v1| v1 on each mode's side of v1 = 0 (the surface when there is drag).  This
 keeps the kink of |v1| out of the step that crosses the surface (see ``Effect.smooth_drag``
 and self-check (c)).  Noise seeds 7200 + i, in the order of ``PAIRS``.
+
+Triples (``--triples``, one file each; every effect defined exactly as above)
+-----------------------------------------------------------------------------
+drag+input-delay+stiffer-k2  d = 2.0, the model reads u(t - 0.02), and k2 = 110
+drag+sensor-lag+stiffer-k2   d = 2.0, both outputs through the lag tau_s = 0.03 s, and k2 = 110
+drag+input-delay+sensor-lag  d = 2.0, the model reads u(t - 0.02), and both outputs through
+                             the lag tau_s = 0.03 s
+
+Written to ``tests/fixtures/two-dof-triples/``, in the same format, with their own
+``truth.json``.  The drag is evaluated in the same smooth per-mode form as in the pairs.  Noise
+seeds 7300 + i, in the order of ``TRIPLES``.  The self-checks are those of the pairs ((a)
+convergence at rtol 1e-12, (b) the lag states against the exact lag of the finely sampled
+output of the other two effects, (c) the drag as written) plus (d): the record must differ from
+each of its constituents simulated alone (the three pairs, each without one of the effects,
+and the three singles) by at least 10 noise std RMS on both outputs, so that every effect is
+visible; the script exits non-zero if it does not.
 """
 
 import argparse
 import copy
+import itertools
 import json
 import math
 import os
@@ -99,6 +119,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 OUT = os.path.join(ROOT, "tests", "fixtures", "two-dof-effects")
 OUT_PAIRS = os.path.join(ROOT, "tests", "fixtures", "two-dof-pairs")
+OUT_TRIPLES = os.path.join(ROOT, "tests", "fixtures", "two-dof-triples")
 
 # --------------------------------------------------------------------------------------------
 # Fixed settings
@@ -128,6 +149,7 @@ NOISE_STD = 2e-5
 EPS = np.finfo(float).eps
 NOISE_SEED_BASE = 7100   # file i (0-based, order of EFFECTS) uses seed NOISE_SEED_BASE + i
 PAIR_SEED_BASE = 7200    # pair file i (0-based, order of PAIRS) uses seed PAIR_SEED_BASE + i
+TRIPLE_SEED_BASE = 7300  # triple file i (0-based, order of TRIPLES) uses TRIPLE_SEED_BASE + i
 
 _rng = np.random.default_rng(INPUT_SEED)
 U_FREQS = np.geomspace(F_LO, F_HI, N_SINES)
@@ -170,9 +192,10 @@ class Effect:
         # smooth_drag: evaluate the drag as -d v1^2 in mode up and +d v1^2 in mode down.  On
         # each mode's own side of the surface v1 = 0 this is -d |v1| v1 exactly, but it has no
         # kink inside the integration step that crosses the surface, so DOP853's dense output
-        # (and with it the located crossing) keeps its accuracy there.  Used by the pair records
-        # only; the single-effect records keep the form as written (their error from the kink,
-        # self_checks.a_*: ~1.7e-10 m, is left as it is so that they stay byte-identical).
+        # (and with it the located crossing) keeps its accuracy there.  Used by the pair and
+        # triple records only; the single-effect records keep the form as written (their error
+        # from the kink, self_checks.a_*: ~1.7e-10 m, is left as it is so that they stay
+        # byte-identical).
         self.smooth_drag = kw.pop("smooth_drag", False)
         if self.smooth_drag:
             assert self.v_switch == 0.0 and self.friction2 == 0.0
@@ -204,34 +227,46 @@ def _single(name):
     return next(e for e in EFFECTS if e.name == name)
 
 
-def _pair(name_a, name_b):
-    """The model with two of the single effects at once, each exactly as in its own record."""
-    a, b = _single(name_a), _single(name_b)
+def _combine(*names):
+    """The model with several of the single effects at once, each exactly as in its own record.
+
+    The effects must be disjoint (each extra setting comes from at most one of them).  With
+    drag, the drag is evaluated in the smooth per-mode form (``Effect.smooth_drag``)."""
+    parts = [_single(n) for n in names]
     kw = {"params": {}}
-    for e in (a, b):
+    for e in parts:
         kw["params"].update({k: v for k, v in e.params.items() if v != PARAMS[k]})
     for attr, default in (("drag", 0.0), ("tau_s", None), ("delay", 0.0),
                           ("v_switch", 0.0), ("friction2", 0.0)):
-        va, vb = getattr(a, attr), getattr(b, attr)
-        assert va == default or vb == default, attr      # the two effects are disjoint
-        kw[attr] = va if va != default else vb
+        vals = [getattr(e, attr) for e in parts if getattr(e, attr) != default]
+        assert len(vals) <= 1, attr                       # the effects are disjoint
+        kw[attr] = vals[0] if vals else default
     kw["smooth_drag"] = kw["drag"] != 0.0
-    tv = dict(a.true_values)
-    tv.update(b.true_values)
-    eff = Effect(name_a + "+" + name_b,
-                 "%s: %s; and %s: %s" % (name_a, a.description, name_b, b.description),
-                 true_values=tv, **kw)
-    eff.parts = (name_a, name_b)
+    tv = {}
+    for e in parts:
+        tv.update(e.true_values)
+    descs = ["%s: %s" % (e.name, e.description) for e in parts]
+    desc = descs[0] if len(descs) == 1 else "; ".join(descs[:-1]) + "; and " + descs[-1]
+    eff = Effect("+".join(names), desc, true_values=tv, **kw)
+    eff.parts = tuple(names)
     return eff
 
 
 # Records with two hidden effects at once (written with --pairs to tests/fixtures/two-dof-pairs)
 PAIRS = [
-    _pair("drag", "sensor-lag"),
-    _pair("guard-shift", "stiffer-k2"),
-    _pair("drag", "input-delay"),
-    _pair("input-delay", "stiffer-k2"),
-    _pair("input-delay", "sensor-lag"),
+    _combine("drag", "sensor-lag"),
+    _combine("guard-shift", "stiffer-k2"),
+    _combine("drag", "input-delay"),
+    _combine("input-delay", "stiffer-k2"),
+    _combine("input-delay", "sensor-lag"),
+]
+
+# Records with three hidden effects at once (written with --triples to
+# tests/fixtures/two-dof-triples)
+TRIPLES = [
+    _combine("drag", "input-delay", "stiffer-k2"),
+    _combine("drag", "sensor-lag", "stiffer-k2"),
+    _combine("drag", "input-delay", "sensor-lag"),
 ]
 
 
@@ -598,14 +633,23 @@ def truth_header(t_start, u, regenerate):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=None,
-                    help="output directory (default: %s, or %s with --pairs)" % (
-                        os.path.relpath(OUT, ROOT), os.path.relpath(OUT_PAIRS, ROOT)))
+                    help="output directory (default: %s, %s with --pairs, %s with --triples)"
+                    % (os.path.relpath(OUT, ROOT), os.path.relpath(OUT_PAIRS, ROOT),
+                       os.path.relpath(OUT_TRIPLES, ROOT)))
     ap.add_argument("--t-start", type=float, default=T_START,
                     help="simulation start time, s (default: %(default)s)")
-    ap.add_argument("--pairs", action="store_true",
-                    help="write the records with two effects at once (PAIRS) instead of the "
-                         "single-effect records")
+    group = ap.add_mutually_exclusive_group()
+    group.add_argument("--pairs", action="store_true",
+                       help="write the records with two effects at once (PAIRS) instead of "
+                            "the single-effect records")
+    group.add_argument("--triples", action="store_true",
+                       help="write the records with three effects at once (TRIPLES) instead "
+                            "of the single-effect records")
     args = ap.parse_args()
+    if args.triples:
+        if args.out is None:
+            args.out = OUT_TRIPLES
+        return main_triples(args)
     if args.pairs:
         if args.out is None:
             args.out = OUT_PAIRS
@@ -746,64 +790,94 @@ def main():
     print("fixtures total size: %d bytes" % total)
 
 
-def main_pairs(args):
-    """Write the two-effect records, their truth.json, and run their self-checks."""
+# Threshold of the triples' visibility self-check (d): the record without each effect (the
+# constituent pair or single simulated alone) must differ from the triple's noiseless output
+# by at least this many noise std (RMS over the 6001 samples), on both outputs.
+VISIBLE_MIN_SD = 10.0
+
+
+def _sub_label(names):
+    """Label of a constituent (a proper sub-combination) in the rms_over_noise_std keys."""
+    return names[0] + "_alone" if len(names) == 1 else "+".join(names) + "_pair"
+
+
+def _sub_effect(names):
+    """The constituent simulated alone: a single effect as in its own record, or a pair."""
+    return _single(names[0]) if len(names) == 1 else _combine(*names)
+
+
+def main_combos(args, combos, seed_base, label, regenerate, references):
+    """Write records with several effects at once (PAIRS or TRIPLES), their truth.json, and run
+    their self-checks.  label is "pair" or "triple"; references are extra truth.json entries
+    pointing to the records of the constituents."""
     t_start = args.t_start
     os.makedirs(args.out, exist_ok=True)
     t = sample_times()
     u = u_vec(t)
-    truth = truth_header(t_start, u, "python3 tests/oracle/two_dof_effects.py --pairs")
+    truth = truth_header(t_start, u, regenerate)
     truth["start_transient"] = (
         "the simulations start from rest at t_start; the transient has not fully decayed at "
         "t = 0 (for the clean model: up to ~6e-4 m (x1) and ~1.3e-3 m (x2) at t in [0,5) "
         "against a run started 40 s earlier, below the noise std only from t ~ 15-20 s on; "
         "see self_checks.d_* in ../two-dof-effects/truth.json). This is part of the true "
         "trajectory from the stated initial condition.")
-    truth["single_effect_records"] = "../two-dof-effects/ (same input, same definitions)"
+    truth.update(references)
     truth["files"] = {}
     checks = {}
 
-    # noiseless outputs of the clean model and of every single effect used in a pair
-    needed = ["clean"] + sorted({n for e in PAIRS for n in e.parts},
-                                key=[e.name for e in EFFECTS].index)
-    single = {}
-    trajs = {}
-    for name in needed:
-        eff = _single(name)
+    # the proper non-empty sub-combinations of each record, smallest first, each in the
+    # record's order of effects (for a pair: its two single effects)
+    subsets = {eff.name: [c for r in range(1, len(eff.parts))
+                          for c in itertools.combinations(eff.parts, r)]
+               for eff in combos}
+
+    # noiseless outputs of the clean model and of every constituent (single effects as in their
+    # own records, pairs as in PAIRS), each simulated alone
+    order = [e.name for e in EFFECTS]
+    needed = [("clean",)] + sorted({c for eff in combos for c in subsets[eff.name]},
+                                   key=lambda c: (len(c), [order.index(n) for n in c]))
+    alone = {}
+    for names in needed:
+        eff = _sub_effect(names)
         tr = Sim(eff).run(t0=t_start)
-        trajs[name] = tr
-        single[name] = np.vstack(outputs(eff, tr, t))
-    clean = single["clean"]
+        alone[names] = np.vstack(outputs(eff, tr, t))
+    clean = alone[("clean",)]
+
+    def sz(d):
+        return {"x1": rms(d[0]), "x2": rms(d[1])}
+
+    def sd(d):
+        return {k: v / NOISE_STD for k, v in sz(d).items()}
 
     noiseless = {}
     sizes = {}
-    for i, eff in enumerate(PAIRS):
+    for i, eff in enumerate(combos):
         traj = Sim(eff).run(t0=t_start)
         y = np.vstack(outputs(eff, traj, t))
         noiseless[eff.name] = (y, traj)
-        seed = PAIR_SEED_BASE + i
+        seed = seed_base + i
         noise = np.random.default_rng(seed).normal(0.0, NOISE_STD, size=(N_SAMPLES, 2))
         n1 = y[0] + noise[:, 0]
         n2 = y[1] + noise[:, 1]
         fname = eff.name + ".csv"
         write_csv(os.path.join(args.out, fname), t, u, n1, n2)
 
-        pa, pb = eff.parts
-        ya, yb = single[pa], single[pb]
-
-        def sz(d):
-            return {"x1": rms(d[0]), "x2": rms(d[1])}
-
-        def sd(d):
-            return {k: v / NOISE_STD for k, v in sz(d).items()}
-        size = {
-            "pair_minus_clean": sd(y - clean),
-            pa + "_alone_minus_clean": sd(ya - clean),
-            pb + "_alone_minus_clean": sd(yb - clean),
-            "pair_minus_" + pa + "_alone": sd(y - ya),
-            "pair_minus_" + pb + "_alone": sd(y - yb),
-            "interaction_pair_minus_both_alone_plus_clean": sd(y - ya - yb + clean),
-        }
+        subs = subsets[eff.name]
+        size = {label + "_minus_clean": sd(y - clean)}
+        for c in subs:
+            size[_sub_label(c) + "_minus_clean"] = sd(alone[c] - clean)
+        for c in subs:
+            size[label + "_minus_" + _sub_label(c)] = sd(y - alone[c])
+        # the part that is not additive: the alternating sum over all sub-combinations
+        # (pair: y - A - B + clean; triple: y - AB - AC - BC + A + B + C - clean)
+        inter = y
+        n = len(eff.parts)
+        for r in range(n - 1, -1, -1):
+            for c in (itertools.combinations(eff.parts, r) if r else [("clean",)]):
+                inter = inter - alone[c] if (n - r) % 2 else inter + alone[c]
+        size[{"pair": "interaction_pair_minus_both_alone_plus_clean",
+              "triple": "interaction_triple_minus_pairs_plus_singles_minus_clean"}[label]] = \
+            sd(inter)
         sizes[fname] = size
         entry = {
             "effects": list(eff.parts),
@@ -825,31 +899,30 @@ def main_pairs(args):
         truth["files"][fname] = entry
         print("%s  %s" % (fname, traj.summary()), flush=True)
         for k, v in size.items():
-            print("    RMS/noise %-46s x1 %9.2f  x2 %9.2f" % (k, v["x1"], v["x2"]), flush=True)
+            print("    RMS/noise %-58s x1 %9.2f  x2 %9.2f" % (k, v["x1"], v["x2"]), flush=True)
     checks["rms_over_noise_std"] = sizes
 
-    # (a) convergence: every pair again at rtol 1e-12, atol 1e-14
+    # (a) convergence: every record again at rtol 1e-12, atol 1e-14
     conv = {}
-    for eff in PAIRS:
+    for eff in combos:
         tr = Sim(eff).run(t0=t_start, rtol=1e-12, atol=1e-14)
         f = np.vstack(outputs(eff, tr, t))
         y = noiseless[eff.name][0]
         conv[eff.name] = {"x1": float(np.max(np.abs(f[0] - y[0]))),
                           "x2": float(np.max(np.abs(f[1] - y[1])))}
-        print("(a) %-26s rtol 1e-12 vs 1e-10: max |dx1| %.3e  max |dx2| %.3e" % (
+        print("(a) %-30s rtol 1e-12 vs 1e-10: max |dx1| %.3e  max |dx2| %.3e" % (
             eff.name, conv[eff.name]["x1"], conv[eff.name]["x2"]), flush=True)
     checks["a_rtol1e-12_max_abs_diff"] = conv
 
-    # (b) the pair with a sensor lag: its lag states against the exact first-order-hold
-    # lag of the other effect's finely sampled output (h and h/2, and their Richardson
+    # (b) the records with a sensor lag: their lag states against the exact first-order-hold
+    # lag of the other effects' finely sampled output (h and h/2, and their Richardson
     # extrapolation), as for sensor-lag.csv
     bchk = {}
-    for eff in PAIRS:
+    for eff in combos:
         if eff.tau_s is None:
             continue
-        other = [n for n in eff.parts if _single(n).tau_s is None][0]
-        ref_eff = copy.copy(_single(other))
-        ref_eff.smooth_drag = eff.smooth_drag
+        others = [n for n in eff.parts if _single(n).tau_s is None]
+        ref_eff = _combine(*others)          # with drag: the same smooth form as the record
         ref = Sim(ref_eff).run(t0=t_start, rtol=1e-12, atol=1e-14)
         y = noiseless[eff.name][0]
         s_h = {}
@@ -863,15 +936,16 @@ def main_pairs(args):
                              "x2": float(np.max(np.abs(s_r[1] - y[1])))}
         for k, v in res.items():
             print("(b) %s lag states vs exact FOH lag of the finely sampled %s output, %s: "
-                  "max |ds1| %.3e  max |ds2| %.3e" % (eff.name, other, k, v["x1"], v["x2"]),
-                  flush=True)
+                  "max |ds1| %.3e  max |ds2| %.3e" % (eff.name, ref_eff.name, k, v["x1"],
+                                                      v["x2"]), flush=True)
         bchk[eff.name] = res
     checks["b_sensor_lag_vs_discrete_exact_lag_max_abs_diff"] = bchk
 
-    # (c) the drag pairs with the drag evaluated as written, -d |v1| v1 (kink inside the step
-    # that crosses v1 = 0), at rtol 1e-12: the same records up to that form's integration error
+    # (c) the records with drag, with the drag evaluated as written, -d |v1| v1 (kink inside
+    # the step that crosses v1 = 0), at rtol 1e-12: the same records up to that form's
+    # integration error
     cchk = {}
-    for eff in PAIRS:
+    for eff in combos:
         if not eff.smooth_drag:
             continue
         kinked = copy.copy(eff)
@@ -881,10 +955,35 @@ def main_pairs(args):
         y = noiseless[eff.name][0]
         cchk[eff.name] = {"x1": float(np.max(np.abs(f[0] - y[0]))),
                           "x2": float(np.max(np.abs(f[1] - y[1])))}
-        print("(c) %-26s drag as -d|v1|v1 at rtol 1e-12 vs record: max |dx1| %.3e  "
+        print("(c) %-30s drag as -d|v1|v1 at rtol 1e-12 vs record: max |dx1| %.3e  "
               "max |dx2| %.3e" % (eff.name, cchk[eff.name]["x1"], cchk[eff.name]["x2"]),
               flush=True)
     checks["c_drag_as_written_rtol1e-12_max_abs_diff"] = cchk
+
+    # (d) triples only: every effect is visible, i.e. the record differs from each of its
+    # constituents simulated alone (the pair without one effect, the single without two) by
+    # clearly more than the noise
+    if label == "triple":
+        dchk = {"threshold_rms_over_noise_std": VISIBLE_MIN_SD, "files": {}}
+        ok_all = True
+        for eff in combos:
+            size = sizes[eff.name + ".csv"]
+            res = {}
+            for c in sorted(subsets[eff.name], key=len, reverse=True):
+                v = size[label + "_minus_" + _sub_label(c)]
+                m = min(v["x1"], v["x2"])
+                missing = [n for n in eff.parts if n not in c]
+                res[_sub_label(c)] = {"missing_effects": missing, "min_over_outputs": m,
+                                      "pass": bool(m >= VISIBLE_MIN_SD)}
+                ok_all = ok_all and m >= VISIBLE_MIN_SD
+                print("(d) %-30s minus %-28s (without %s): min RMS/noise %9.2f  %s" % (
+                    eff.name, _sub_label(c), "+".join(missing), m,
+                    "ok" if m >= VISIBLE_MIN_SD else "FAIL"), flush=True)
+            dchk["files"][eff.name] = res
+        dchk["all_pass"] = bool(ok_all)
+        print("(d) every effect visible (>= %g noise std RMS on both outputs): %s" % (
+            VISIBLE_MIN_SD, "yes" if ok_all else "NO"), flush=True)
+        checks["d_every_effect_visible"] = dchk
 
     truth["self_checks"] = checks
     with open(os.path.join(args.out, "truth.json"), "w") as f:
@@ -892,6 +991,31 @@ def main_pairs(args):
         f.write("\n")
     total = sum(os.path.getsize(os.path.join(args.out, n)) for n in os.listdir(args.out))
     print("fixtures total size: %d bytes" % total)
+    if label == "triple" and not checks["d_every_effect_visible"]["all_pass"]:
+        return 1
+    return 0
+
+
+def main_pairs(args):
+    """Write the two-effect records, their truth.json, and run their self-checks."""
+    return main_combos(args, PAIRS, PAIR_SEED_BASE, "pair",
+                       "python3 tests/oracle/two_dof_effects.py --pairs",
+                       {"single_effect_records": "../two-dof-effects/ (same input, same "
+                                                 "definitions)"})
+
+
+def main_triples(args):
+    """Write the three-effect records, their truth.json, and run their self-checks."""
+    return main_combos(args, TRIPLES, TRIPLE_SEED_BASE, "triple",
+                       "python3 tests/oracle/two_dof_effects.py --triples",
+                       {"single_effect_records": "../two-dof-effects/ (same input, same "
+                                                 "definitions)",
+                        "pair_records": "../two-dof-pairs/ (same input, same definitions; "
+                                        "the constituent pairs drag+input-delay, "
+                                        "input-delay+stiffer-k2, drag+sensor-lag and "
+                                        "input-delay+sensor-lag are records there, "
+                                        "drag+stiffer-k2 and sensor-lag+stiffer-k2 are "
+                                        "not)"})
 
 
 if __name__ == "__main__":

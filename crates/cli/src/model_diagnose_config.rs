@@ -55,6 +55,7 @@ struct RawOptions {
     rival_margin: Option<Spanned<f64>>,
     unexplained_ratio: Option<Spanned<f64>>,
     min_explained: Option<Spanned<f64>>,
+    max_effects: Option<Spanned<f64>>,
     terms: Option<Vec<Spanned<RawTerm>>>,
 }
 
@@ -225,6 +226,14 @@ impl ModelDiagnoseSettings {
             options.min_explained = src.number(v, "diagnose.min_explained", "in [0, 1]", |x| {
                 (0.0..=1.0).contains(&x)
             })?;
+        }
+        if let Some(v) = o.and_then(|o| o.max_effects.as_ref()) {
+            options.max_effects = src.number(
+                v,
+                "diagnose.max_effects",
+                "a whole number from 1 to 10",
+                |x| x.fract() == 0.0 && (1.0..=10.0).contains(&x),
+            )? as usize;
         }
         if let Some(list) = o.and_then(|o| o.effects.as_ref()) {
             let (mut effects, mut terms) = (Vec::new(), Vec::new());

@@ -58,6 +58,8 @@ pub struct ModelFitOptions {
     /// tolerance): no effect is claimed and nothing is unexplained below it. Default 1e-4, as
     /// the built-in diagnosis's `resolution`.
     pub resolution: f64,
+    /// Most effects named together (forward selection stops there); at least 1.
+    pub max_effects: usize,
 }
 
 impl Default for ModelFitOptions {
@@ -77,6 +79,7 @@ impl Default for ModelFitOptions {
             unexplained_ratio: 5.0,
             min_explained: 0.999,
             resolution: 1e-4,
+            max_effects: 3,
         }
     }
 }
@@ -226,6 +229,13 @@ pub struct ModelDiagnosis {
     /// best held-out score first; empty when nothing passes or the best one leaves the
     /// held-out residual within 1.2 times the noise floor.
     pub pairs: Vec<ModelCandidate>,
+    /// The rounds after the pairs, one list per round: every candidate fitted beside the
+    /// effects chosen before it (named `a + b + c`), best held-out score first.
+    pub later_rounds: Vec<Vec<ModelCandidate>>,
+    /// The backward pass over two or more chosen effects: each tested against the fit
+    /// without it (its held-out score there, the likelihood ratio and the gain with it);
+    /// `significant` false marks one that no longer passed (the weakest such was dropped).
+    pub backward: Vec<ModelCandidate>,
     /// The chosen effects' fit, when the cause is an effect: the pair's when a second effect
     /// passed.
     pub extended: Option<ModelCandidate>,
@@ -345,8 +355,13 @@ fn simulate_outputs(
 /// on `n` residuals, divided by the variance inflation `kappa` of `big`'s correlated
 /// residuals; and `kappa`.
 fn nested_ratio(small_rss: f64, big: &JointFit, n: usize) -> (f64, f64) {
-    let kappa = correlation_inflation(&big.residuals).powi(2);
-    let ratio = small_rss / big.rss.max(f64::MIN_POSITIVE);
+    nested_ratio_of(small_rss, big.rss, &big.residuals, n)
+}
+
+/// [`nested_ratio`] of a bigger fit given by its sum of squares and its residuals.
+fn nested_ratio_of(small_rss: f64, big_rss: f64, big_residuals: &[f64], n: usize) -> (f64, f64) {
+    let kappa = correlation_inflation(big_residuals).powi(2);
+    let ratio = small_rss / big_rss.max(f64::MIN_POSITIVE);
     let lr = if ratio.is_finite() && ratio > 0.0 {
         n as f64 * ratio.ln() / kappa
     } else {
@@ -644,6 +659,13 @@ pub fn diagnose_model(
             value: opts.fit_fraction,
         });
     }
+    if opts.max_effects == 0 {
+        return Err(DiagnoseError::InvalidOption {
+            name: "max_effects",
+            expected: ">= 1",
+            value: 0.0,
+        });
+    }
     let n = rec.len();
     let cut = match validation {
         Some(_) => n,
@@ -844,10 +866,9 @@ pub fn diagnose_model(
                     candidate: ModelCandidate::failed(trial, format!("fit failed: {e}")),
                     simulated: None,
                     residuals: Vec::new(),
-                    trial: ti,
                     state: Vec::new(),
                     rss: f64::NAN,
-                    first: None,
+                    set: vec![ti],
                 });
                 continue;
             }
@@ -897,10 +918,9 @@ pub fn diagnose_model(
             },
             simulated: Some(sim),
             residuals: f.residuals,
-            trial: ti,
             state: f.state,
             rss: f.rss,
-            first: None,
+            set: vec![ti],
         });
     }
     candidates
@@ -937,213 +957,222 @@ pub fn diagnose_model(
         candidates[b].candidate.nrmse_validation
     });
 
-    // A second effect beside the best one, while its held-out residual is clearly above the
-    // noise floor: every other candidate refitted jointly with it (all their parameters, the
-    // free ones and the start together, the best one's from its fit), and tested against the
-    // best one's fit as that was against the refit.
-    // The best effect's rivals (within `rival_margin` held out) are tried as the first effect
-    // too: beside a second effect, the right one of two look-alikes fits clearly better.
-    let mut pairs: Vec<Tried> = Vec::new();
-    let firsts: Vec<usize> = match best {
-        Some(b)
-            if noise_floor.is_finite() && best_score > SECOND_EFFECT_FLOOR_RATIO * noise_floor =>
-        {
-            std::iter::once(b)
-                .chain(
-                    (0..candidates.len()).filter(|&i| {
-                        i != b && alternatives.contains(&candidates[i].candidate.effect)
-                    }),
-                )
-                .collect()
-        }
-        _ => Vec::new(),
-    };
-    for &b in &firsts {
-        let first = &candidates[b];
-        let t1 = &trials[first.trial];
-        let p1 = &first.candidate.parameters;
-        let x1 = &first.state;
-        let fit_pair = |t2: &Trial| -> Result<PairFit, DiagnoseError> {
-            let to_err = |e: htfid_lang::ModelError| DiagnoseError::NominalFit {
-                reason: e.to_string(),
-            };
-            let terms: Vec<&TermEffect> = [t1, t2]
-                .into_iter()
-                .filter_map(|t| match t {
-                    Trial::Term(term) => Some(term),
-                    Trial::Boundary(_) => None,
-                })
-                .collect();
-            let boundary: Vec<BoundaryEffect> = [t1, t2]
-                .into_iter()
-                .filter_map(|t| match t {
-                    Trial::Boundary(e) => Some(*e),
-                    Trial::Term(_) => None,
-                })
-                .collect();
-            let mut m = refitted_model.clone();
-            for term in &terms {
-                m = m.with_extension(&term.extension).map_err(to_err)?;
-            }
-            // The free parameters and the first effect's terms at the first fit's values.
-            let mut all: Vec<String> = names.iter().map(|n| (*n).to_string()).collect();
-            if let Trial::Term(term) = t1 {
-                all.extend(term.parameter_names());
-            }
-            let known: Vec<(&str, f64)> = all
-                .iter()
-                .filter_map(|n| p1.get(n).map(|v| (n.as_str(), *v)))
-                .collect();
-            m = m.with_parameters(&known).map_err(to_err)?;
-            let mut scales = joint.scales.clone();
-            for term in &terms {
-                if !matches!(t1, Trial::Term(t) if std::ptr::eq(t, *term)) {
-                    all.extend(term.parameter_names());
-                }
-                scales.extend(samples.term_scales(&m, &est.signal, term));
-            }
-            // The second term's first parameter starts from the best of a grid across its
-            // scale, zero included: beside the first effect the free parameters have
-            // compensated for it, and from zero its fit can stay in that basin (drag beside a
-            // sensor lag, taken up by the linear dampers).
-            if let Trial::Term(term) = t2 {
-                let name = &term.parameter_names()[0];
-                if let Some(j) = all.iter().position(|a| a == name) {
-                    m = est.best_shift(&m, name, scales[j], x1);
-                }
-            }
-            let refs: Vec<&str> = all.iter().map(String::as_str).collect();
-            let index_x: Vec<usize> = refs
-                .iter()
-                .map(|n| {
-                    m.parameter_index(n)
-                        .ok_or_else(|| DiagnoseError::NominalFit {
-                            reason: format!("no parameter {n} in the extended model"),
-                        })
-                })
-                .collect::<Result<_, _>>()?;
-            let joint_x = Joint {
-                est: &est,
-                model: &m,
-                names: &refs,
-                index: &index_x,
-                scales,
-                max_iter: CANDIDATE_MAX_ITER,
-            };
-            // The first effect's boundary parameters from its fit, a second one's from its
-            // own start.
-            let mut start: Vec<f64> = Vec::new();
-            for &e in &boundary {
-                if matches!(t1, Trial::Boundary(b1) if *b1 == e) {
-                    start.extend(
-                        e.parameter_names(&outputs)
-                            .iter()
-                            .map(|n| p1.get(n).copied().unwrap_or(0.0)),
-                    );
-                } else {
-                    start.extend(joint.effect_start(e, &base, &outputs));
-                }
-            }
-            let f = joint_x.fit(&boundary, &start, x1)?;
-            let kx = index_x.len();
-            let fitted = joint_x.model_at(&f.params[..kx])?;
-            let bd = Boundary::with_all(&boundary, &f.params[kx..], outputs.len());
-            let (score, sim) = score_of(&fitted, &f.state, &bd)?;
-            for e in &boundary {
-                all.extend(e.parameter_names(&outputs));
-            }
-            Ok((f, score, sim, all))
+    // Further effects beside the best one (forward selection), while the chosen effects leave
+    // the held-out residual clearly above the noise floor: every other candidate refitted
+    // jointly with them (all their parameters, the free ones and the start together, the
+    // chosen ones' from their fit), and tested against their fit as the first was against the
+    // refit. In the second round the best effect's rivals (within `rival_margin` held out) are
+    // tried as the first effect too: beside a second effect, the right one of two look-alikes
+    // fits clearly better.
+    let fit_set = |set: &[usize],
+                   known: &std::collections::BTreeMap<String, f64>,
+                   x0: &[f64]|
+     -> Result<SetFit, DiagnoseError> {
+        let to_err = |e: htfid_lang::ModelError| DiagnoseError::NominalFit {
+            reason: e.to_string(),
         };
-        let seconds: Vec<usize> = (0..trials.len()).filter(|&i| i != first.trial).collect();
-        let fits: Vec<_> = seconds.par_iter().map(|&i| fit_pair(&trials[i])).collect();
-        for (&i, fitted) in seconds.iter().zip(fits) {
-            let t2 = &trials[i];
-            let name = format!("{} + {}", t1.name(), t2.name());
-            let (f, score, sim, all) = match fitted {
-                Ok(v) => v,
-                Err(e) => {
-                    let mut c = ModelCandidate::failed(t2, format!("fit failed: {e}"));
-                    c.effect = name;
-                    pairs.push(Tried {
-                        candidate: c,
-                        simulated: None,
-                        residuals: Vec::new(),
-                        trial: i,
-                        state: Vec::new(),
-                        rss: f64::NAN,
-                        first: Some(first.trial),
-                    });
-                    continue;
-                }
-            };
-            let (lr, kappa) = nested_ratio(first.rss, &f, n);
-            let critical =
-                crate::select::chi2_quantile(t2.parameter_names(&outputs).len(), opts.alpha);
-            let gain_e = 1.0 - score.validation() / first.candidate.nrmse_validation;
-            let significant = lr >= critical && gain_e >= opts.min_gain;
-            let infl = kappa.sqrt();
-            let parameters = all.iter().cloned().zip(f.params.iter().copied()).collect();
-            let stderr = all
-                .iter()
-                .cloned()
-                .zip(f.stderr.iter().map(|s| s * infl))
-                .collect();
-            pairs.push(Tried {
-                candidate: ModelCandidate {
-                    effect: name,
-                    term: t2.describe(),
-                    parameters,
-                    stderr,
-                    nrmse_validation: score.validation(),
-                    gain: gain_e,
-                    likelihood_ratio: lr,
-                    critical,
-                    significant,
-                    iterations: f.iterations,
-                    note: format!(
-                        "beside {}: likelihood ratio {lr:.1} (critical {critical:.1}), held-out \
-                         gain {:.1} % over {} alone (at least {:.1} %)",
-                        t1.name(),
-                        100.0 * gain_e,
-                        t1.name(),
-                        100.0 * opts.min_gain
-                    ),
-                },
-                simulated: Some(sim),
-                residuals: f.residuals,
-                trial: i,
-                state: f.state,
-                rss: f.rss,
-                first: Some(first.trial),
-            });
+        let chosen: Vec<&Trial> = set.iter().map(|&i| &trials[i]).collect();
+        let terms: Vec<&TermEffect> = chosen
+            .iter()
+            .filter_map(|t| match t {
+                Trial::Term(term) => Some(term),
+                Trial::Boundary(_) => None,
+            })
+            .collect();
+        let boundary: Vec<BoundaryEffect> = chosen
+            .iter()
+            .filter_map(|t| match t {
+                Trial::Boundary(e) => Some(*e),
+                Trial::Term(_) => None,
+            })
+            .collect();
+        let mut m = refitted_model.clone();
+        for term in &terms {
+            m = m.with_extension(&term.extension).map_err(to_err)?;
         }
-    }
-    pairs.sort_by(|a, b| {
+        // The free parameters and the terms' parameters, those fitted before at their values.
+        let mut all: Vec<String> = names.iter().map(|n| (*n).to_string()).collect();
+        for term in &terms {
+            all.extend(term.parameter_names());
+        }
+        let values: Vec<(&str, f64)> = all
+            .iter()
+            .filter_map(|n| known.get(n).map(|v| (n.as_str(), *v)))
+            .collect();
+        m = m.with_parameters(&values).map_err(to_err)?;
+        let mut scales = joint.scales.clone();
+        for term in &terms {
+            scales.extend(samples.term_scales(&m, &est.signal, term));
+        }
+        // A term not fitted before starts its first parameter from the best of a grid across
+        // its scale, zero included: beside the chosen effects the free parameters have
+        // compensated for them, and from zero its fit can stay in that basin (drag beside a
+        // sensor lag, taken up by the linear dampers).
+        for term in &terms {
+            let name = &term.parameter_names()[0];
+            if !known.contains_key(name) {
+                if let Some(j) = all.iter().position(|a| a == name) {
+                    m = est.best_shift(&m, name, scales[j], x0);
+                }
+            }
+        }
+        let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+        let index_x: Vec<usize> = refs
+            .iter()
+            .map(|n| {
+                m.parameter_index(n)
+                    .ok_or_else(|| DiagnoseError::NominalFit {
+                        reason: format!("no parameter {n} in the extended model"),
+                    })
+            })
+            .collect::<Result<_, _>>()?;
+        let joint_x = Joint {
+            est: &est,
+            model: &m,
+            names: &refs,
+            index: &index_x,
+            scales,
+            max_iter: CANDIDATE_MAX_ITER,
+        };
+        // Boundary parameters fitted before from their values, a new effect's from its start.
+        let mut start: Vec<f64> = Vec::new();
+        for &e in &boundary {
+            let pn = e.parameter_names(&outputs);
+            match pn.iter().map(|n| known.get(n).copied()).collect() {
+                Some(v) => start.extend::<Vec<f64>>(v),
+                None => start.extend(joint.effect_start(e, &base, &outputs)),
+            }
+        }
+        let f = joint_x.fit(&boundary, &start, x0)?;
+        let kx = index_x.len();
+        let fitted = joint_x.model_at(&f.params[..kx])?;
+        let bd = Boundary::with_all(&boundary, &f.params[kx..], outputs.len());
+        let (score, sim) = score_of(&fitted, &f.state, &bd)?;
+        for e in &boundary {
+            all.extend(e.parameter_names(&outputs));
+        }
+        Ok((f, score, sim, all))
+    };
+    // The fit of `set` (its last trial added beside the others) as a tried candidate, tested
+    // against the fit without that trial (`rss`, held-out `score`).
+    let judge = |set: &[usize],
+                 fitted: Result<SetFit, DiagnoseError>,
+                 rss: f64,
+                 score_without: f64|
+     -> Tried {
+        let (&added, beside) = set.split_last().expect("a set holds its added trial");
+        let t2 = &trials[added];
+        let name = set
+            .iter()
+            .map(|&i| trials[i].name())
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let without = beside
+            .iter()
+            .map(|&i| trials[i].name())
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let (f, score, sim, all) = match fitted {
+            Ok(v) => v,
+            Err(e) => {
+                let mut c = ModelCandidate::failed(t2, format!("fit failed: {e}"));
+                c.effect = name;
+                return Tried {
+                    candidate: c,
+                    simulated: None,
+                    residuals: Vec::new(),
+                    state: Vec::new(),
+                    rss: f64::NAN,
+                    set: set.to_vec(),
+                };
+            }
+        };
+        let (lr, kappa) = nested_ratio(rss, &f, n);
+        let critical = crate::select::chi2_quantile(t2.parameter_names(&outputs).len(), opts.alpha);
+        let gain_e = 1.0 - score.validation() / score_without;
+        let significant = lr >= critical && gain_e >= opts.min_gain;
+        let infl = kappa.sqrt();
+        let parameters = all.iter().cloned().zip(f.params.iter().copied()).collect();
+        let stderr = all
+            .iter()
+            .cloned()
+            .zip(f.stderr.iter().map(|s| s * infl))
+            .collect();
+        Tried {
+            candidate: ModelCandidate {
+                effect: name,
+                term: t2.describe(),
+                parameters,
+                stderr,
+                nrmse_validation: score.validation(),
+                gain: gain_e,
+                likelihood_ratio: lr,
+                critical,
+                significant,
+                iterations: f.iterations,
+                note: format!(
+                    "beside {without}: likelihood ratio {lr:.1} (critical {critical:.1}), \
+                     held-out gain {:.1} % over {without} alone (at least {:.1} %)",
+                    100.0 * gain_e,
+                    100.0 * opts.min_gain
+                ),
+            },
+            simulated: Some(sim),
+            residuals: f.residuals,
+            state: f.state,
+            rss: f.rss,
+            set: set.to_vec(),
+        }
+    };
+    // One round: every trial outside `chosen` (the effects of `current`) fitted beside them.
+    let round = |current: &Tried| -> Vec<Tried> {
+        let outside: Vec<usize> = (0..trials.len())
+            .filter(|i| !current.set.contains(i))
+            .collect();
+        let fits: Vec<_> = outside
+            .par_iter()
+            .map(|&i| {
+                let mut set = current.set.clone();
+                set.push(i);
+                let f = fit_set(&set, &current.candidate.parameters, &current.state);
+                (set, f)
+            })
+            .collect();
+        fits.into_iter()
+            .map(|(set, f)| judge(&set, f, current.rss, current.candidate.nrmse_validation))
+            .collect()
+    };
+    let by_score = |a: &Tried, b: &Tried| {
         a.candidate
             .nrmse_validation
             .total_cmp(&b.candidate.nrmse_validation)
-    });
-    let second = pairs.iter().position(|p| p.candidate.significant);
-    let final_score = second.map_or(best_score, |s| pairs[s].candidate.nrmse_validation);
-    let floor2 = noise_floor * noise_floor;
-    let explained = if best.is_some() {
-        1.0 - (final_score.powi(2) - floor2).max(0.0)
-            / (refitted.validation().powi(2) - floor2).max(f64::MIN_POSITIVE)
-    } else {
-        0.0
     };
-    let structure_left = noise_floor.is_finite()
-        && final_score > opts.unexplained_ratio * noise_floor
-        && final_score > opts.resolution;
+    let room =
+        |score: f64| noise_floor.is_finite() && score > SECOND_EFFECT_FLOOR_RATIO * noise_floor;
+    let mut pairs: Vec<Tried> = Vec::new();
+    let firsts: Vec<usize> = match best {
+        Some(b) if room(best_score) && opts.max_effects >= 2 => std::iter::once(b)
+            .chain(
+                (0..candidates.len())
+                    .filter(|&i| i != b && alternatives.contains(&candidates[i].candidate.effect)),
+            )
+            .collect(),
+        _ => Vec::new(),
+    };
+    for &b in &firsts {
+        pairs.extend(round(&candidates[b]));
+    }
+    pairs.sort_by(by_score);
+    let second = pairs.iter().position(|p| p.candidate.significant);
     // With a pair, its first effect is the cause, and the first effects of other passing pairs
     // within `rival_margin` of it are its rivals.
-    let alternatives: Vec<String> = match second {
+    let mut alternatives: Vec<String> = match second {
         Some(s) => {
-            let lead = pairs[s].first.map(|f| trials[f].name()).unwrap_or_default();
-            let limit = final_score * (1.0 + opts.rival_margin);
+            let lead = trials[pairs[s].set[0]].name();
+            let limit = pairs[s].candidate.nrmse_validation * (1.0 + opts.rival_margin);
             let mut rivals: Vec<String> = Vec::new();
             for p in &pairs {
-                let name = p.first.map(|f| trials[f].name()).unwrap_or_default();
+                let name = trials[p.set[0]].name();
                 if p.candidate.significant
                     && p.candidate.nrmse_validation <= limit
                     && name != lead
@@ -1156,11 +1185,130 @@ pub fn diagnose_model(
         }
         None => alternatives,
     };
-    let lead = match (second, best) {
-        (Some(s), _) => pairs[s].first.map(|f| trials[f].name()),
-        (None, Some(b)) => Some(candidates[b].candidate.effect.clone()),
+    // The effects chosen so far and their joint fit (an index into `candidates` or `pairs`,
+    // or a later round's fit).
+    let mut current: Option<Tried> = match (second, best) {
+        (Some(s), _) => Some(pairs[s].clone()),
+        (None, Some(b)) => Some(candidates[b].clone()),
         (None, None) => None,
     };
+    let lead_before = current.as_ref().map(|c| c.set[0]);
+    // Rounds three onwards.
+    let mut later_rounds: Vec<Vec<Tried>> = Vec::new();
+    if second.is_some() {
+        while let Some(cur) = current
+            .as_ref()
+            .filter(|c| c.set.len() < opts.max_effects && room(c.candidate.nrmse_validation))
+        {
+            let mut tried = round(cur);
+            tried.sort_by(by_score);
+            let next = tried.iter().position(|t| t.candidate.significant);
+            let chosen = next.map(|i| tried[i].clone());
+            later_rounds.push(tried);
+            match chosen {
+                Some(c) => current = Some(c),
+                None => break,
+            }
+        }
+    }
+    // The backward pass: each chosen effect (of two or more) tested against the fit without
+    // it; the weakest that no longer passes is dropped, and the pass repeats.
+    let mut backward: Vec<ModelCandidate> = Vec::new();
+    while let Some(cur) = current.as_ref().filter(|c| c.set.len() >= 2) {
+        let reduced: Vec<(usize, Vec<usize>)> = (0..cur.set.len())
+            .map(|j| {
+                let mut r = cur.set.clone();
+                let e = r.remove(j);
+                (e, r)
+            })
+            .collect();
+        let fits: Vec<Result<Tried, DiagnoseError>> = reduced
+            .par_iter()
+            .map(|(_, r)| {
+                // A set fitted in an earlier round (the same effects in any order) is taken as
+                // it was fitted; another is fitted from the chosen set's values.
+                let same = |c: &&Tried| {
+                    let (mut a, mut b) = (c.set.clone(), r.clone());
+                    a.sort_unstable();
+                    b.sort_unstable();
+                    a == b && c.rss.is_finite()
+                };
+                if let Some(earlier) = candidates
+                    .iter()
+                    .chain(pairs.iter())
+                    .chain(later_rounds.iter().flatten())
+                    .find(same)
+                {
+                    return Ok(earlier.clone());
+                }
+                // Only its fit is used: tested against nothing.
+                let f = fit_set(r, &cur.candidate.parameters, &cur.state)?;
+                let score = f.1.validation();
+                Ok(judge(r, Ok(f), f64::NAN, score))
+            })
+            .collect();
+        // The test of each effect: the chosen set against the set without it.
+        let mut weakest: Option<(f64, usize, Tried)> = None;
+        for ((e, _), fit) in reduced.iter().zip(fits) {
+            let Ok(without) = fit else { continue };
+            let critical = crate::select::chi2_quantile(
+                trials[*e].parameter_names(&outputs).len(),
+                opts.alpha,
+            );
+            let (lr, _) = nested_ratio_of(without.rss, cur.rss, &cur.residuals, n);
+            let gain_e = 1.0 - cur.candidate.nrmse_validation / without.candidate.nrmse_validation;
+            let passes = lr >= critical && gain_e >= opts.min_gain;
+            if !passes && weakest.as_ref().map_or(true, |w| lr < w.0) {
+                weakest = Some((lr, backward.len(), without.clone()));
+            }
+            backward.push(ModelCandidate {
+                effect: trials[*e].name(),
+                term: trials[*e].describe(),
+                parameters: cur.candidate.parameters.clone(),
+                stderr: cur.candidate.stderr.clone(),
+                nrmse_validation: without.candidate.nrmse_validation,
+                gain: gain_e,
+                likelihood_ratio: lr,
+                critical,
+                significant: passes,
+                iterations: without.candidate.iterations,
+                note: format!(
+                    "beside {}: without it the held-out NRMSE is {:.3e}; likelihood ratio \
+                     {lr:.1} (critical {critical:.1}), held-out gain {:.1} % with it (at least \
+                     {:.1} %)",
+                    cur.candidate.effect,
+                    without.candidate.nrmse_validation,
+                    100.0 * gain_e,
+                    100.0 * opts.min_gain
+                ),
+            });
+        }
+        match weakest {
+            Some((_, at, without)) => {
+                backward[at].note.push_str("; no longer needed: dropped");
+                current = Some(without);
+            }
+            None => break,
+        }
+    }
+    let final_score = current
+        .as_ref()
+        .map_or(best_score, |c| c.candidate.nrmse_validation);
+    let floor2 = noise_floor * noise_floor;
+    let explained = if current.is_some() {
+        1.0 - (final_score.powi(2) - floor2).max(0.0)
+            / (refitted.validation().powi(2) - floor2).max(f64::MIN_POSITIVE)
+    } else {
+        0.0
+    };
+    let structure_left = noise_floor.is_finite()
+        && final_score > opts.unexplained_ratio * noise_floor
+        && final_score > opts.resolution;
+    let lead = current.as_ref().map(|c| trials[c.set[0]].name());
+    // The rivals were those of the first effect: gone with it when the backward pass dropped it.
+    if current.as_ref().map(|c| c.set[0]) != lead_before {
+        alternatives.clear();
+    }
     let cause = match &lead {
         _ if structure_left && explained < opts.min_explained => ModelCause::Unexplained,
         Some(_) if !alternatives.is_empty() => ModelCause::Ambiguous,
@@ -1168,21 +1316,19 @@ pub fn diagnose_model(
         None if moved && gain >= opts.min_gain => ModelCause::ParameterError,
         None => ModelCause::None,
     };
-    let mut alternatives = alternatives;
     if let (ModelCause::Ambiguous, Some(name)) = (&cause, &lead) {
         alternatives.insert(0, name.clone());
     }
-    let mut causes: Vec<String> = lead.iter().cloned().collect();
-    if let Some(s) = second {
-        causes.push(trials[pairs[s].trial].name());
-    }
-    let (extended, simulated_extended) = match (best, second) {
-        (_, Some(s)) => (Some(pairs[s].candidate.clone()), pairs[s].simulated.take()),
-        (Some(b), None) => (
-            Some(candidates[b].candidate.clone()),
-            candidates[b].simulated.take(),
-        ),
-        (None, None) => (None, None),
+    let causes: Vec<String> = current
+        .as_ref()
+        .map(|c| c.set.iter().map(|&i| trials[i].name()).collect())
+        .unwrap_or_default();
+    let (extended, simulated_extended) = match current {
+        Some(mut c) => {
+            let sim = c.simulated.take();
+            (Some(c.candidate), sim)
+        }
+        None => (None, None),
     };
     Ok(ModelDiagnosis {
         cause,
@@ -1196,6 +1342,11 @@ pub fn diagnose_model(
         candidates: candidates.into_iter().map(|c| c.candidate).collect(),
         causes,
         pairs: pairs.into_iter().map(|c| c.candidate).collect(),
+        later_rounds: later_rounds
+            .into_iter()
+            .map(|r| r.into_iter().map(|c| c.candidate).collect())
+            .collect(),
+        backward,
         extended,
         alternatives,
         noise_floor,
@@ -1324,22 +1475,21 @@ impl Trial {
 
 /// An effect tried: its result, its simulated outputs (when fitted) and its scaled residuals
 /// on the fit data (outputs one after another).
+#[derive(Clone)]
 struct Tried {
     candidate: ModelCandidate,
     simulated: Option<Vec<Vec<f64>>>,
     residuals: Vec<f64>,
-    /// Its index among the trials.
-    trial: usize,
     /// The fitted initial state and the fit's sum of squares (empty and NaN when it failed).
     state: Vec<f64>,
     rss: f64,
-    /// In a pair, the trial of the first effect (`trial` is the second's).
-    first: Option<usize>,
+    /// The trials fitted together, in the order they were chosen (`trial` last).
+    set: Vec<usize>,
 }
 
-/// A pair's joint fit, its held-out score, its simulated outputs and the names of its fitted
-/// parameters (in the fit's order).
-type PairFit = (JointFit, ModelScore, Vec<Vec<f64>>, Vec<String>);
+/// The joint fit of several effects, its held-out score, its simulated outputs and the names
+/// of its fitted parameters (in the fit's order).
+type SetFit = (JointFit, ModelScore, Vec<Vec<f64>>, Vec<String>);
 
 /// One joint output-error fit: free parameters, effect parameters and the initial state.
 struct JointFit {

@@ -85,7 +85,13 @@ fn table(d: &ModelDiagnosis) -> String {
         d.refitted.validation(),
         d.noise_floor
     );
-    for c in d.candidates.iter().chain(&d.pairs) {
+    for c in d
+        .candidates
+        .iter()
+        .chain(&d.pairs)
+        .chain(d.later_rounds.iter().flatten())
+        .chain(&d.backward)
+    {
         s += &format!(
             "  {} {:.4e} LR {:.1} ({:.1}) it {} {:?} {}\n",
             c.effect,
@@ -265,5 +271,91 @@ fn a_delayed_input_and_a_lag_of_the_readings_are_both_named() {
             ("sensor_lag", "tau_s", 0.03),
             ("input_delay", "delay", 0.02),
         ],
+    );
+}
+
+/// Both outputs of a record of three effects (`tests/fixtures/two-dof-triples/`, the same
+/// generator with `--triples`).
+fn triple_record(file: &str) -> TimeSeries {
+    read_two_outputs(&fixtures().join("../two-dof-triples").join(file))
+}
+
+/// Two effects beside a wrong configured parameter (`k2` 10 % stiff, free): both effects are
+/// named with their parameters within 10 % of the truth, and their joint fit refits `k2` to
+/// within 1 % of 110.
+fn two_effects_beside_a_parameter_error(file: &str, want: [(&str, &str, f64); 2]) {
+    let d = diagnose_record(&triple_record(file));
+    let t = table(&d);
+    for (effect, _, _) in want {
+        assert!(
+            d.causes.iter().any(|c| c == effect),
+            "{file}: {effect} not among the causes {:?}\n{t}",
+            d.causes
+        );
+    }
+    let extended = d.extended.as_ref().expect("an extended model");
+    for (_, parameter, truth) in want {
+        let fitted = extended.parameters[parameter];
+        assert!(
+            (fitted / truth - 1.0).abs() < 0.1,
+            "{file}: {parameter} = {fitted}, true {truth}\n{t}"
+        );
+    }
+    let k2 = extended.parameters["k2"];
+    assert!((k2 / 110.0 - 1.0).abs() < 0.01, "{file}: k2 = {k2}\n{t}");
+}
+
+#[test]
+fn drag_and_a_delay_beside_a_stiff_coupling_are_named() {
+    two_effects_beside_a_parameter_error(
+        "drag+input-delay+stiffer-k2.csv",
+        [
+            ("input_delay", "delay", 0.02),
+            ("quadratic_drag(v1)", "drag_v1", 2.0),
+        ],
+    );
+}
+
+#[test]
+fn drag_and_a_lag_of_the_readings_beside_a_stiff_coupling_are_named() {
+    two_effects_beside_a_parameter_error(
+        "drag+sensor-lag+stiffer-k2.csv",
+        [
+            ("sensor_lag", "tau_s", 0.03),
+            ("quadratic_drag(v1)", "drag_v1", 2.0),
+        ],
+    );
+}
+
+/// Three effects at once, all in the library: the forward selection names every one (a third
+/// round beside the pair), each with its parameter within 10 % of the truth, and the backward
+/// pass keeps them all.
+#[test]
+fn drag_a_delay_and_a_lag_of_the_readings_are_all_named() {
+    let file = "drag+input-delay+sensor-lag.csv";
+    let d = diagnose_record(&triple_record(file));
+    let t = table(&d);
+    let want = [
+        ("input_delay", "delay", 0.02),
+        ("sensor_lag", "tau_s", 0.03),
+        ("quadratic_drag(v1)", "drag_v1", 2.0),
+    ];
+    assert_eq!(d.causes.len(), 3, "{file}: causes {:?}\n{t}", d.causes);
+    let extended = d.extended.as_ref().expect("an extended model");
+    for (effect, parameter, truth) in want {
+        assert!(
+            d.causes.iter().any(|c| c == effect),
+            "{file}: {effect} not among the causes {:?}\n{t}",
+            d.causes
+        );
+        let fitted = extended.parameters[parameter];
+        assert!(
+            (fitted / truth - 1.0).abs() < 0.1,
+            "{file}: {parameter} = {fitted}, true {truth}\n{t}"
+        );
+    }
+    assert!(
+        d.backward.iter().all(|b| b.significant),
+        "{file}: the backward pass dropped an effect\n{t}"
     );
 }

@@ -128,6 +128,8 @@ pub fn run(
         "candidates": d.candidates,
         "causes": d.causes,
         "pairs": d.pairs,
+        "later_rounds": d.later_rounds,
+        "backward": d.backward,
         "extended": d.extended,
         "alternatives": d.alternatives,
         "noise_floor": d.noise_floor,
@@ -143,6 +145,7 @@ pub fn run(
             "rival_margin": s.options.rival_margin,
             "unexplained_ratio": s.options.unexplained_ratio,
             "min_explained": s.options.min_explained,
+            "max_effects": s.options.max_effects,
             "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
             "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
             "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({
@@ -237,7 +240,13 @@ pub fn run(
         }
         panels.push(panel);
     }
-    let fig = stacked_figure(format!("{}: {}", s.name, d.cause.name()), panels);
+    // Several effects named: all of them in the title.
+    let named = if d.causes.len() > 1 {
+        d.causes.join(" + ")
+    } else {
+        d.cause.name().to_string()
+    };
+    let fig = stacked_figure(format!("{}: {named}", s.name), panels);
     crate::plots::write(&mut outdir, "compare", &fig)?;
     if let Some(fig) = crate::validation::resid_figure(
         &format!(
@@ -401,8 +410,8 @@ fn report(
                 })
                 .unwrap_or_default();
             let overall = 1.0 - c.map_or(f64::NAN, |c| c.nrmse_validation) / after;
-            match d.causes.get(1) {
-                Some(second) => format!(
+            match d.causes.as_slice() {
+                [_, second] => format!(
                     "The configured model `{model}` misses two effects: `{e}` {} and \
                      `{second}` {}. Fitted together ({fitted}), they lower the held-out error \
                      by {:.1} % beyond the refit of the free parameters; beside `{e}`, \
@@ -415,7 +424,29 @@ fn report(
                     c.map_or(f64::NAN, |c| c.critical),
                     100.0 * c.map_or(f64::NAN, |c| c.gain),
                 ),
-                None => format!(
+                [_, .., last] => {
+                    let named: Vec<String> = d
+                        .causes
+                        .iter()
+                        .map(|n| format!("`{n}` {}", site(n)))
+                        .collect();
+                    let (init, tail) = named.split_at(named.len() - 1);
+                    format!(
+                        "The configured model `{model}` misses {} effects: {} and {}. Fitted \
+                         together ({fitted}), they lower the held-out error by {:.1} % beyond \
+                         the refit of the free parameters; beside the others, the last chosen, \
+                         `{last}`, passes with a likelihood ratio of {:.1} (at least {:.1} \
+                         needed) and lowers the held-out error by a further {:.1} %.",
+                        d.causes.len(),
+                        init.join(", "),
+                        tail[0],
+                        100.0 * overall,
+                        c.map_or(f64::NAN, |c| c.likelihood_ratio),
+                        c.map_or(f64::NAN, |c| c.critical),
+                        100.0 * c.map_or(f64::NAN, |c| c.gain),
+                    )
+                }
+                _ => format!(
                     "The configured model `{model}` misses an effect {}: `{e}` ({fitted}) \
                      lowers the held-out error by {:.1} % beyond the refit of the free \
                      parameters (likelihood ratio {:.1}, at least {:.1} needed).",
@@ -613,6 +644,65 @@ fn report(
                 "gain over the first alone",
                 "likelihood ratio (critical)",
                 "significant",
+            ],
+            &rows,
+        );
+    }
+
+    for (k, round) in d.later_rounds.iter().enumerate() {
+        r.section(&format!("Effect {} beside the others", k + 3));
+        r.para(
+            "The effects chosen so far still left the held-out residual above the noise floor, \
+             so every other candidate was refitted jointly with them and tested against their \
+             fit: the likelihood ratio is against the chosen effects alone, the gain over them.",
+        );
+        let rows = effect_rows(&mut r, round);
+        r.table(
+            &[
+                "effects",
+                "where the last acts",
+                "their parameters",
+                "held-out NRMSE",
+                "gain over the others",
+                "likelihood ratio (critical)",
+                "significant",
+            ],
+            &rows,
+        );
+    }
+    if !d.backward.is_empty() {
+        r.section("Is each effect still needed?");
+        r.para(
+            "A backward pass: each chosen effect tested against the fit of the others without \
+             it. The held-out NRMSE is that without it, the gain and the likelihood ratio \
+             those of adding it back; the weakest effect that no longer passes is dropped and \
+             the pass repeats.",
+        );
+        let rows: Vec<Vec<String>> = d
+            .backward
+            .iter()
+            .map(|c| {
+                vec![
+                    format!("`{}`", c.effect),
+                    percent(c.nrmse_validation, 3),
+                    percent(c.gain, 3),
+                    format!("{:.1} ({:.1})", c.likelihood_ratio, c.critical),
+                    if c.significant {
+                        "needed"
+                    } else {
+                        "not needed"
+                    }
+                    .to_string(),
+                ]
+            })
+            .collect();
+        r.table(
+            &[
+                "effect",
+                "held-out NRMSE without it",
+                "gain with it",
+                "likelihood ratio (critical)",
+                "verdict",
             ],
             &rows,
         );
