@@ -90,11 +90,20 @@ fn names_of(d: &Diagnosis) -> Vec<String> {
 fn judge(s: &Scenario, d: &Diagnosis) -> Result<(), String> {
     let label = s.label();
     let named = names_of(d);
+    // Coulomb friction named beside a constant force or a sensor offset (whose offset takes up
+    // the force's static deflection, whatever its gain) is asymmetric friction's force law:
+    // `mu_pos = mu - d`, `mu_neg = mu + d`.
+    let offset_named = named
+        .iter()
+        .any(|n| n == "input_offset" || n == "sensor_offset_gain");
     let has = |want: &EffectLabel| {
         named.contains(&want.name)
             || equivalents(want, &label.effects)
                 .iter()
                 .any(|e| named.iter().any(|n| n == e))
+            || (want.name == "asymmetric_friction"
+                && offset_named
+                && named.iter().any(|n| n == "coulomb_friction"))
     };
     match label.class {
         LabelClass::Clean => (d.cause == "none")
