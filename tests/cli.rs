@@ -3189,3 +3189,57 @@ fn a_record_without_motion_is_refused() {
         assert!(!dir.exists(), "{config}");
     }
 }
+
+/// The parameters of an effect on a model file's boundary carry their units on the terminal
+/// and in report.md: a delay in s (the record: a delayed input from the independent two-dof
+/// generator, only the delay tried).
+#[test]
+fn boundary_parameters_carry_their_units() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = format!(
+        "name = \"delay-units\"\n\n[data]\nfile = {:?}\ntime = \"t\"\ninput = \"u\"\n\
+         outputs = [\"x1\", \"x2\"]\n\n[model]\nfile = {:?}\nfree = [\"k2\"]\n\n[diagnose]\n\
+         effects = [\"input_delay\"]\n",
+        root()
+            .join("tests/fixtures/two-dof-effects/input-delay.csv")
+            .to_str()
+            .unwrap(),
+        root().join("models/two-dof.toml").to_str().unwrap(),
+    );
+    let path = tmp.path().join("delay.toml");
+    fs::write(&path, config).unwrap();
+    let out = tmp.path().join("d");
+    let o = htfid(&[
+        "diagnose",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let d = diagnosis(&out);
+    assert_eq!(d["cause"], "input_delay", "{}", d["candidates"]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let line = stdout
+        .lines()
+        .find(|l| {
+            l.trim_start()
+                .trim_start_matches("fitted")
+                .trim_start()
+                .starts_with("delay = ")
+        })
+        .unwrap_or_else(|| panic!("no fitted delay on the terminal:\n{stdout}"));
+    assert!(line.trim_end().ends_with(" s"), "{line}");
+    let report = fs::read_to_string(out.join("report.md")).unwrap();
+    let shown: Vec<&str> = report
+        .match_indices("delay = ")
+        .map(|(at, _)| {
+            let rest = &report[at..];
+            rest[..rest.find([',', ')', '|']).unwrap()].trim_end()
+        })
+        .collect();
+    // The decision in words and the table of effects tried.
+    assert!(shown.len() >= 2, "{report}");
+    for d in shown {
+        assert!(d.ends_with(" s"), "{d}");
+    }
+}

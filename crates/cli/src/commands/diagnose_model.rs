@@ -260,9 +260,34 @@ pub fn run(
         crate::plots::write(&mut outdir, "resid", &fig)?;
     }
     let written = outdir.commit()?;
-    let unit = |name: &str| s.model.parameter_unit(name).map(str::to_string);
+    let unit = |name: &str| parameter_unit(&s, name);
     crate::results::diagnose_model(&json, &unit, &dir, &written);
     Ok(())
+}
+
+/// The unit of a fitted parameter: the model's own parameters as declared (a term's are not
+/// declared); on the boundary, a delay or a lag in s, an input offset in the input's unit and a sensor offset
+/// `b_<output>` in that output's (the data's `data.units`, else the model's).
+fn parameter_unit(s: &ModelDiagnoseSettings, name: &str) -> Option<String> {
+    if s.model.parameter_index(name).is_some() {
+        return s.model.parameter_unit(name).map(str::to_string);
+    }
+    match name {
+        "delay" | "tau" | "tau_s" => Some("s".to_string()),
+        "input_offset" => s
+            .format
+            .unit(&s.input)
+            .or(s.model.input_unit())
+            .map(str::to_string),
+        _ => {
+            let output = name.strip_prefix("b_")?;
+            let o = s.outputs.iter().position(|n| n == output)?;
+            s.format
+                .unit(output)
+                .or(s.model.outputs()[o].unit.as_deref())
+                .map(str::to_string)
+        }
+    }
 }
 
 /// The configured and the refitted simulation of output `o`, the refitted last.
@@ -350,7 +375,7 @@ fn report(
     use htfid_number::{percent, sig, Quantity};
     let mut r = Report::new(&format!("Diagnosis: {}", s.name));
     let model = s.model.name();
-    let unit = |name: &str| s.model.parameter_unit(name).map(str::to_string);
+    let unit = |name: &str| parameter_unit(s, name);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let (before, after) = (
         mean(&d.configured.nrmse_validation),
@@ -571,7 +596,9 @@ fn report(
                     .map(|(k, v)| {
                         format!(
                             "{k} = {}",
-                            Quantity::new(*v).stderr(c.stderr.get(k).copied().unwrap_or(f64::NAN))
+                            Quantity::new(*v)
+                                .stderr(c.stderr.get(k).copied().unwrap_or(f64::NAN))
+                                .unit(parameter_unit(s, k).as_deref())
                         )
                     })
                     .collect();
