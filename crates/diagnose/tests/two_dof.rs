@@ -191,8 +191,13 @@ fn pair_record(file: &str) -> TimeSeries {
 /// Two effects at once (`tests/fixtures/two-dof-pairs/`, the same generator): both are named,
 /// the stronger first, each beside the other with its parameter within 10 % of the truth.
 fn pair_named(file: &str, want: [(&str, &str, f64); 2]) {
-    let d = diagnose_record(&pair_record(file));
-    let t = table(&d);
+    all_named(&diagnose_record(&pair_record(file)), file, &want);
+}
+
+/// Every `(effect, parameter, truth)` of `want` is among the causes of `d`, with the
+/// parameter of the final fit within 10 % of the truth.
+fn all_named(d: &ModelDiagnosis, file: &str, want: &[(&str, &str, f64)]) {
+    let t = table(d);
     for (effect, _, _) in want {
         assert!(
             d.causes.iter().any(|c| c == effect),
@@ -201,7 +206,7 @@ fn pair_named(file: &str, want: [(&str, &str, f64); 2]) {
         );
     }
     let extended = d.extended.as_ref().expect("an extended model");
-    for (_, parameter, truth) in want {
+    for &(_, parameter, truth) in want {
         let fitted = extended.parameters[parameter];
         assert!(
             (fitted / truth - 1.0).abs() < 0.1,
@@ -285,24 +290,13 @@ fn triple_record(file: &str) -> TimeSeries {
 /// within 1 % of 110.
 fn two_effects_beside_a_parameter_error(file: &str, want: [(&str, &str, f64); 2]) {
     let d = diagnose_record(&triple_record(file));
-    let t = table(&d);
-    for (effect, _, _) in want {
-        assert!(
-            d.causes.iter().any(|c| c == effect),
-            "{file}: {effect} not among the causes {:?}\n{t}",
-            d.causes
-        );
-    }
-    let extended = d.extended.as_ref().expect("an extended model");
-    for (_, parameter, truth) in want {
-        let fitted = extended.parameters[parameter];
-        assert!(
-            (fitted / truth - 1.0).abs() < 0.1,
-            "{file}: {parameter} = {fitted}, true {truth}\n{t}"
-        );
-    }
-    let k2 = extended.parameters["k2"];
-    assert!((k2 / 110.0 - 1.0).abs() < 0.01, "{file}: k2 = {k2}\n{t}");
+    all_named(&d, file, &want);
+    let k2 = d.extended.as_ref().expect("an extended model").parameters["k2"];
+    assert!(
+        (k2 / 110.0 - 1.0).abs() < 0.01,
+        "{file}: k2 = {k2}\n{}",
+        table(&d)
+    );
 }
 
 #[test]
@@ -341,19 +335,7 @@ fn drag_a_delay_and_a_lag_of_the_readings_are_all_named() {
         ("quadratic_drag(v1)", "drag_v1", 2.0),
     ];
     assert_eq!(d.causes.len(), 3, "{file}: causes {:?}\n{t}", d.causes);
-    let extended = d.extended.as_ref().expect("an extended model");
-    for (effect, parameter, truth) in want {
-        assert!(
-            d.causes.iter().any(|c| c == effect),
-            "{file}: {effect} not among the causes {:?}\n{t}",
-            d.causes
-        );
-        let fitted = extended.parameters[parameter];
-        assert!(
-            (fitted / truth - 1.0).abs() < 0.1,
-            "{file}: {parameter} = {fitted}, true {truth}\n{t}"
-        );
-    }
+    all_named(&d, file, &want);
     assert!(
         d.backward.iter().all(|b| b.significant),
         "{file}: the backward pass dropped an effect\n{t}"

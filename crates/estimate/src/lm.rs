@@ -274,59 +274,47 @@ where
         // `x - h e_j` where the scheme needs both sides or the first side failed.
         let (np, m) = (x.len(), r.len());
         let h: Vec<f64> = (0..np).map(|j| step * x[j].abs().max(typical[j])).collect();
-        let shifted = |j: usize, v: f64| {
-            let mut p = x.to_vec();
-            p[j] = v;
-            p
+        // One side's points evaluated together: per column, the realised step and the index
+        // of its residuals where the point succeeded.
+        let mut side = |cols: Vec<usize>, sign: f64| {
+            let points: Vec<Vec<f64>> = cols
+                .iter()
+                .map(|&j| {
+                    let mut p = x.to_vec();
+                    p[j] = x[j] + sign * h[j];
+                    p
+                })
+                .collect();
+            let mut rs = vec![vec![0.0; m]; cols.len()];
+            let ok = self.run(&points, &mut rs);
+            let mut at: Vec<Option<(f64, usize)>> = vec![None; np];
+            for (k, &j) in cols.iter().enumerate() {
+                if ok[k] {
+                    at[j] = Some((points[k][j] - x[j], k));
+                }
+            }
+            (at, rs)
         };
-        let ups: Vec<usize> = (0..np).filter(|&j| x[j] + h[j] <= bounds[j].1).collect();
-        let points: Vec<Vec<f64>> = ups.iter().map(|&j| shifted(j, x[j] + h[j])).collect();
-        let mut rp = vec![vec![0.0; m]; ups.len()];
-        let ok = self.run(&points, &mut rp);
-        // Per column: the realised step and the residuals on each side.
-        let mut plus: Vec<Option<(f64, usize)>> = vec![None; np];
-        for (k, &j) in ups.iter().enumerate() {
-            if ok[k] {
-                plus[j] = Some((points[k][j] - x[j], k));
-            }
-        }
-        let downs: Vec<usize> = (0..np)
-            .filter(|&j| {
-                (scheme == FdScheme::Central || plus[j].is_none()) && x[j] - h[j] >= bounds[j].0
-            })
-            .collect();
-        let points: Vec<Vec<f64>> = downs.iter().map(|&j| shifted(j, x[j] - h[j])).collect();
-        let mut rm = vec![vec![0.0; m]; downs.len()];
-        let ok = self.run(&points, &mut rm);
-        let mut minus: Vec<Option<(f64, usize)>> = vec![None; np];
-        for (k, &j) in downs.iter().enumerate() {
-            if ok[k] {
-                minus[j] = Some((points[k][j] - x[j], k));
-            }
-        }
+        let (plus, rp) = side(
+            (0..np).filter(|&j| x[j] + h[j] <= bounds[j].1).collect(),
+            1.0,
+        );
+        let (minus, rm) = side(
+            (0..np)
+                .filter(|&j| {
+                    (scheme == FdScheme::Central || plus[j].is_none()) && x[j] - h[j] >= bounds[j].0
+                })
+                .collect(),
+            -1.0,
+        );
         for (j, col) in jac.as_mut_slice().chunks_mut(m).enumerate() {
-            match (plus[j], minus[j]) {
-                (Some((hp, a)), Some((hm, b))) => {
-                    for (i, c) in col.iter_mut().enumerate() {
-                        *c = (rp[a][i] - rm[b][i]) / (hp - hm);
-                    }
-                }
-                (Some((hp, a)), None) => {
-                    for (i, c) in col.iter_mut().enumerate() {
-                        *c = (rp[a][i] - r[i]) / hp;
-                    }
-                }
-                (None, Some((hm, b))) => {
-                    for (i, c) in col.iter_mut().enumerate() {
-                        *c = (rm[b][i] - r[i]) / hm;
-                    }
-                }
-                (None, None) => {
-                    return Err(Error::JacobianFailed {
-                        index: j,
-                        value: x[j],
-                    })
-                }
+            let p = plus[j].map(|(h, k)| (h, rp[k].as_slice()));
+            let q = minus[j].map(|(h, k)| (h, rm[k].as_slice()));
+            if !difference(col, r, p, q) {
+                return Err(Error::JacobianFailed {
+                    index: j,
+                    value: x[j],
+                });
             }
         }
         Ok(())
@@ -716,30 +704,44 @@ fn fd_column(
         _ if down >= lo => eval_at(down, rm),
         _ => None,
     };
+    let (rp, rm) = (&*rp, &*rm);
+    if !difference(col, r, plus.map(|h| (h, rp)), minus.map(|h| (h, rm))) {
+        return Err(Error::JacobianFailed {
+            index: j,
+            value: x[j],
+        });
+    }
+    Ok(())
+}
+
+/// A Jacobian column from the residuals `r` at the point and those at the realised steps
+/// `plus` and `minus` (each `(step, residuals)` where it succeeded): central where both sides
+/// are there, one-sided otherwise. False when neither is.
+fn difference(
+    col: &mut [f64],
+    r: &[f64],
+    plus: Option<(f64, &[f64])>,
+    minus: Option<(f64, &[f64])>,
+) -> bool {
     match (plus, minus) {
-        (Some(hp), Some(hm)) => {
+        (Some((hp, rp)), Some((hm, rm))) => {
             for (i, c) in col.iter_mut().enumerate() {
                 *c = (rp[i] - rm[i]) / (hp - hm);
             }
         }
-        (Some(hp), None) => {
+        (Some((hp, rp)), None) => {
             for (i, c) in col.iter_mut().enumerate() {
                 *c = (rp[i] - r[i]) / hp;
             }
         }
-        (None, Some(hm)) => {
+        (None, Some((hm, rm))) => {
             for (i, c) in col.iter_mut().enumerate() {
                 *c = (rm[i] - r[i]) / hm;
             }
         }
-        (None, None) => {
-            return Err(Error::JacobianFailed {
-                index: j,
-                value: x[j],
-            })
-        }
+        (None, None) => return false,
     }
-    Ok(())
+    true
 }
 
 /// `s^2 (J^T J)^{-1}` through the SVD of `J`, or `None` if `m <= p` or `J` is rank deficient.
