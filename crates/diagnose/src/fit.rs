@@ -220,16 +220,18 @@ impl Context<'_> {
         stepping: &Stepping,
         r: &mut [f64],
     ) -> Result<(), SimFailure> {
-        self.residuals_batch(&[hopper], segs, &[init], stepping, &mut [r])
+        self.residuals_batch(&[Some(hopper)], segs, &[init], stepping, &mut [r])
             .pop()
             .unwrap_or(Ok(()))
     }
 
     /// [`Context::residuals`] for several models at once (one result per model), simulated in
-    /// lockstep: the same residuals as one by one.
+    /// lockstep: the same residuals as one by one. A model that is `None` (one that could not
+    /// be built) is skipped: its residuals stay as they were and its result is `Ok`, for the
+    /// caller to replace with the reason.
     pub(crate) fn residuals_batch(
         &self,
-        models: &[&Driven],
+        models: &[Option<&Driven>],
         segs: &[Segment],
         inits: &[&[[f64; 2]]],
         stepping: &Stepping,
@@ -241,14 +243,15 @@ impl Context<'_> {
         let mut bufs = vec![Vec::new(); models.len()];
         let mut at = 0;
         for (k, seg) in segs.iter().enumerate() {
-            let live: Vec<usize> = (0..models.len()).filter(|&i| results[i].is_ok()).collect();
+            let live: Vec<usize> = (0..models.len())
+                .filter(|&i| models[i].is_some() && results[i].is_ok())
+                .collect();
             let mut lanes: Vec<SimLane<'_>> = Vec::with_capacity(live.len());
             for (i, buf) in bufs.iter_mut().enumerate() {
-                if results[i].is_err() {
+                let Some(m) = models[i].filter(|_| results[i].is_ok()) else {
                     continue;
-                }
+                };
                 buf.resize(seg.range.len(), 0.0);
-                let m = models[i];
                 lanes.push(SimLane {
                     hopper: &m.hopper,
                     force: m.force.as_ref(),
@@ -268,7 +271,9 @@ impl Context<'_> {
                     continue;
                 }
                 let buf = &mut bufs[i];
-                models[i].sensor.apply(dt, buf);
+                if let Some(m) = models[i] {
+                    m.sensor.apply(dt, buf);
+                }
                 for (j, ri) in outs[i][at..at + n].iter_mut().enumerate() {
                     *ri = buf[seg.skip + j] - x[scored.start + j];
                 }
@@ -405,27 +410,17 @@ impl Context<'_> {
                 .collect();
             let inits: Vec<Vec<[f64; 2]>> =
                 points.iter().map(|u| layout.init(&self.fit, u)).collect();
-            let ready: Vec<usize> = (0..points.len()).filter(|&i| models[i].is_ok()).collect();
-            let driven: Vec<&Driven> = ready
+            let driven: Vec<Option<&Driven>> = models.iter().map(|m| m.as_ref().ok()).collect();
+            let init: Vec<&[[f64; 2]]> = inits.iter().map(Vec::as_slice).collect();
+            let done = self.residuals_batch(&driven, &self.fit, &init, stepping, outs);
+            models
                 .iter()
-                .filter_map(|&i| models[i].as_ref().ok())
-                .collect();
-            let init: Vec<&[[f64; 2]]> = ready.iter().map(|&i| inits[i].as_slice()).collect();
-            let mut results: Vec<Result<(), String>> = models
-                .iter()
-                .map(|m| m.as_ref().map(|_| ()).map_err(Clone::clone))
-                .collect();
-            let mut out: Vec<&mut [f64]> = outs
-                .iter_mut()
-                .enumerate()
-                .filter(|(i, _)| models[*i].is_ok())
-                .map(|(_, o)| &mut **o)
-                .collect();
-            let done = self.residuals_batch(&driven, &self.fit, &init, stepping, &mut out);
-            for (&i, d) in ready.iter().zip(done) {
-                results[i] = d.map_err(|e| format!("t = {} s: {}", e.time, e.reason));
-            }
-            results
+                .zip(done)
+                .map(|(m, d)| match m {
+                    Err(e) => Err(e.clone()),
+                    Ok(_) => d.map_err(|e| format!("t = {} s: {}", e.time, e.reason)),
+                })
+                .collect::<Vec<Result<(), String>>>()
         };
         let opts = LmOptions {
             max_iter: self.max_iterations,

@@ -351,15 +351,10 @@ fn simulate_outputs(
     Ok(out)
 }
 
-/// The likelihood ratio of the fit `big` against a nested fit of sum of squares `small_rss`
-/// on `n` residuals, divided by the variance inflation `kappa` of `big`'s correlated
-/// residuals; and `kappa`.
-fn nested_ratio(small_rss: f64, big: &JointFit, n: usize) -> (f64, f64) {
-    nested_ratio_of(small_rss, big.rss, &big.residuals, n)
-}
-
-/// [`nested_ratio`] of a bigger fit given by its sum of squares and its residuals.
-fn nested_ratio_of(small_rss: f64, big_rss: f64, big_residuals: &[f64], n: usize) -> (f64, f64) {
+/// The likelihood ratio of a fit (sum of squares `big_rss`, residuals `big_residuals`) against
+/// a nested fit of sum of squares `small_rss` on `n` residuals, divided by the variance
+/// inflation `kappa` of the bigger fit's correlated residuals; and `kappa`.
+fn nested_ratio(small_rss: f64, big_rss: f64, big_residuals: &[f64], n: usize) -> (f64, f64) {
     let kappa = correlation_inflation(big_residuals).powi(2);
     let ratio = small_rss / big_rss.max(f64::MIN_POSITIVE);
     let lr = if ratio.is_finite() && ratio > 0.0 {
@@ -873,7 +868,7 @@ pub fn diagnose_model(
                 continue;
             }
         };
-        let (lr, kappa) = nested_ratio(base.rss, &f, n);
+        let (lr, kappa) = nested_ratio(base.rss, f.rss, &f.residuals, n);
         let critical = crate::select::chi2_quantile(names_e.len(), opts.alpha);
         let gain_e = 1.0 - score.validation() / refitted.validation();
         // Nothing is left to explain once the refit is within the resolution.
@@ -1087,7 +1082,7 @@ pub fn diagnose_model(
                 };
             }
         };
-        let (lr, kappa) = nested_ratio(rss, &f, n);
+        let (lr, kappa) = nested_ratio(rss, f.rss, &f.residuals, n);
         let critical = crate::select::chi2_quantile(t2.parameter_names(&outputs).len(), opts.alpha);
         let gain_e = 1.0 - score.validation() / score_without;
         let significant = lr >= critical && gain_e >= opts.min_gain;
@@ -1255,7 +1250,7 @@ pub fn diagnose_model(
                 trials[*e].parameter_names(&outputs).len(),
                 opts.alpha,
             );
-            let (lr, _) = nested_ratio_of(without.rss, cur.rss, &cur.residuals, n);
+            let (lr, _) = nested_ratio(without.rss, cur.rss, &cur.residuals, n);
             let gain_e = 1.0 - cur.candidate.nrmse_validation / without.candidate.nrmse_validation;
             let passes = lr >= critical && gain_e >= opts.min_gain;
             if !passes && weakest.as_ref().map_or(true, |w| lr < w.0) {

@@ -436,36 +436,31 @@ fn report(
                 .unwrap_or_default();
             let overall = 1.0 - c.map_or(f64::NAN, |c| c.nrmse_validation) / after;
             match d.causes.as_slice() {
-                [_, second] => format!(
-                    "The configured model `{model}` misses two effects: `{e}` {} and \
-                     `{second}` {}. Fitted together ({fitted}), they lower the held-out error \
-                     by {:.1} % beyond the refit of the free parameters; beside `{e}`, \
-                     `{second}` passes with a likelihood ratio of {:.1} (at least {:.1} \
-                     needed) and lowers the held-out error by a further {:.1} %.",
-                    site(e),
-                    site(second),
-                    100.0 * overall,
-                    c.map_or(f64::NAN, |c| c.likelihood_ratio),
-                    c.map_or(f64::NAN, |c| c.critical),
-                    100.0 * c.map_or(f64::NAN, |c| c.gain),
-                ),
-                [_, .., last] => {
+                [.., last] if d.causes.len() >= 2 => {
                     let named: Vec<String> = d
                         .causes
                         .iter()
                         .map(|n| format!("`{n}` {}", site(n)))
                         .collect();
-                    let (init, tail) = named.split_at(named.len() - 1);
+                    let before: Vec<String> = d.causes[..d.causes.len() - 1]
+                        .iter()
+                        .map(|n| format!("`{n}`"))
+                        .collect();
+                    let count = match d.causes.len() {
+                        2 => "two".to_string(),
+                        3 => "three".to_string(),
+                        k => k.to_string(),
+                    };
                     format!(
-                        "The configured model `{model}` misses {} effects: {} and {}. Fitted \
-                         together ({fitted}), they lower the held-out error by {:.1} % beyond \
-                         the refit of the free parameters; beside the others, the last chosen, \
-                         `{last}`, passes with a likelihood ratio of {:.1} (at least {:.1} \
-                         needed) and lowers the held-out error by a further {:.1} %.",
-                        d.causes.len(),
-                        init.join(", "),
-                        tail[0],
+                        "The configured model `{model}` misses {count} effects: {} and {}. \
+                         Fitted together ({fitted}), they lower the held-out error by {:.1} % \
+                         beyond the refit of the free parameters; beside {}, `{last}` passes \
+                         with a likelihood ratio of {:.1} (at least {:.1} needed) and lowers \
+                         the held-out error by a further {:.1} %.",
+                        named[..named.len() - 1].join(", "),
+                        named[named.len() - 1],
                         100.0 * overall,
+                        before.join(" and "),
                         c.map_or(f64::NAN, |c| c.likelihood_ratio),
                         c.map_or(f64::NAN, |c| c.critical),
                         100.0 * c.map_or(f64::NAN, |c| c.gain),
