@@ -28,21 +28,24 @@ pub fn errors_against(
     band: (f64, f64),
 ) -> Vec<HarmonicError> {
     let (lo, hi) = band;
-    let overall = estimate
+    let in_band: Vec<_> = estimate
         .rows()
         .filter(|r| r.omega >= lo && r.omega <= hi)
-        .map(|r| truth.g(r.n, r.omega).norm())
-        .fold(0.0, f64::max);
+        .collect();
+    let points: Vec<(i32, f64)> = in_band.iter().map(|r| (r.n, r.omega)).collect();
+    let truths = truth.values(&points);
+    let overall = truths.iter().map(|g| g.norm()).fold(0.0, f64::max);
     let mut out = Vec::new();
     for &n in estimate.harmonics() {
-        let rows: Vec<_> = estimate
-            .rows()
-            .filter(|r| r.n == n && r.omega >= lo && r.omega <= hi)
-            .collect();
+        let (rows, exact): (Vec<_>, Vec<_>) = in_band
+            .iter()
+            .zip(&truths)
+            .filter(|(r, _)| r.n == n)
+            .map(|(r, g)| (*r, *g))
+            .unzip();
         if rows.is_empty() {
             continue;
         }
-        let exact: Vec<_> = rows.iter().map(|r| truth.g(n, r.omega)).collect();
         let scale = exact
             .iter()
             .map(|g| g.norm())

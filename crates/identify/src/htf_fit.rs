@@ -201,10 +201,19 @@ pub fn fit_to_htf<S: Parametric>(
             .map(|o| htf.channel(o))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| e.to_string())?;
-        for (i, &(o, n, w, value, weight)) in rows.iter().enumerate() {
-            let d = (value - channels[o].g(n, w)) * weight;
-            r[2 * i] = d.re;
-            r[2 * i + 1] = d.im;
+        for (o, channel) in channels.iter().enumerate() {
+            let (at, points): (Vec<usize>, Vec<(i32, f64)>) = rows
+                .iter()
+                .enumerate()
+                .filter(|(_, row)| row.0 == o)
+                .map(|(i, &(_, n, w, _, _))| (i, (n, w)))
+                .unzip();
+            for (i, g) in at.into_iter().zip(channel.values(&points)) {
+                let (_, _, _, value, weight) = rows[i];
+                let d = (value - g) * weight;
+                r[2 * i] = d.re;
+                r[2 * i + 1] = d.im;
+            }
         }
         Ok(())
     };

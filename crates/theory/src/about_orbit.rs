@@ -172,6 +172,13 @@ impl<S: InputOutput> HarmonicTransferFunction for HtfChannel<'_, '_, S> {
         }
     }
 
+    fn values(&self, points: &[(i32, f64)]) -> Vec<Complex64> {
+        match self {
+            HtfChannel::Exact(e) => e.values(points),
+            HtfChannel::Orbit(o) => o.values(points),
+        }
+    }
+
     fn grid(&self, harmonics: &[i32], omegas: &[f64]) -> HtfGrid {
         match self {
             HtfChannel::Exact(e) => e.grid(harmonics, omegas),

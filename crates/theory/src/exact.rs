@@ -526,6 +526,42 @@ impl HarmonicTransferFunction for ExactHtf {
         }
     }
 
+    /// Shares the factors of each harmonic among its points and those of each output
+    /// frequency among the points at that frequency (visited in order of frequency); every
+    /// value is computed as [`g`](Self::g) computes it.
+    fn values(&self, points: &[(i32, f64)]) -> Vec<Complex64> {
+        let mut scratch = Scratch::new(self.n, self.pieces.len());
+        let mut per_harmonic: Vec<(i32, Vec<HarmonicFactors>)> = Vec::new();
+        for &(n, _) in points {
+            if !per_harmonic.iter().any(|(k, _)| *k == n) {
+                per_harmonic.push((n, self.harmonic_factors(n)));
+            }
+        }
+        let mut order: Vec<usize> = (0..points.len()).collect();
+        order.sort_by(|&a, &b| points[a].1.total_cmp(&points[b].1));
+        let mut out = vec![ZERO; points.len()];
+        let mut factors_of: Option<u64> = None;
+        for i in order {
+            let (n, w) = points[i];
+            let hf = &per_harmonic
+                .iter()
+                .find(|(k, _)| *k == n)
+                .expect("every harmonic's factors were computed above")
+                .1;
+            out[i] = match &self.modal {
+                Some(modal) => {
+                    if factors_of != Some(w.to_bits()) {
+                        self.omega_factors(modal, w, &mut scratch);
+                        factors_of = Some(w.to_bits());
+                    }
+                    self.modal_value(modal, hf, &mut scratch)
+                }
+                None => self.block_value(w, n, hf, &mut scratch),
+            };
+        }
+        out
+    }
+
     /// Tabulates with cached factors: those of each output frequency
     /// (`exp((lambda - j w) h)`, its `phi1`) are shared by all harmonics and
     /// those of each harmonic by all frequencies, so on the modal path a

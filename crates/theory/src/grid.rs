@@ -11,6 +11,13 @@ pub trait HarmonicTransferFunction {
     /// `G_n(jw)` at output frequency `w` (rad per time unit).
     fn g(&self, n: i32, w: f64) -> Complex64;
 
+    /// `G_n(j w)` at each `(n, w)` of `points`, in their order: the values of
+    /// [`g`](Self::g), with the work shared between points of one harmonic or one frequency
+    /// where an implementation can (a fit's residuals, an estimate's errors).
+    fn values(&self, points: &[(i32, f64)]) -> Vec<Complex64> {
+        points.iter().map(|&(n, w)| self.g(n, w)).collect()
+    }
+
     /// `G_n(j w)` for every `w` in `omegas` and `n` in `harmonics`.
     fn grid(&self, harmonics: &[i32], omegas: &[f64]) -> HtfGrid {
         let mut values = Vec::with_capacity(harmonics.len() * omegas.len());

@@ -359,3 +359,33 @@ fn nearly_defective_piece_is_handled_by_either_path() {
     let auto = ExactHtf::new(&near_critical_lti(1e-6)).expect("htf");
     assert_eq!(auto.method(), ExactMethod::BlockExponential);
 }
+
+/// `values` shares factors between points but computes each as `g` does: the same bits, for
+/// points in no particular order, repeated harmonics and frequencies, on both paths.
+#[test]
+fn values_equal_g_bit_for_bit() {
+    let points: Vec<(i32, f64)> = [
+        (1, 7.5),
+        (-3, 0.2),
+        (0, 7.5),
+        (1, 7.5),
+        (2, 31.0),
+        (-1, 0.2),
+        (0, 12.25),
+        (3, 7.5),
+    ]
+    .to_vec();
+    for method in [ExactMethod::Modal, ExactMethod::BlockExponential] {
+        let htf = ExactHtf::with_method(&hopper_lti(), method).expect("htf");
+        let batch = htf.values(&points);
+        assert_eq!(batch.len(), points.len());
+        for (&(n, w), v) in points.iter().zip(&batch) {
+            let g = htf.g(n, w);
+            assert_eq!(
+                (v.re.to_bits(), v.im.to_bits()),
+                (g.re.to_bits(), g.im.to_bits()),
+                "{method:?}: G_{n}({w})"
+            );
+        }
+    }
+}

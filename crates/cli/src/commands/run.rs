@@ -16,8 +16,10 @@ use htfid_theory::HarmonicTransferFunction;
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use crate::commands::simulate::{base_summary, simulate_experiment, simulate_on, Simulated};
-use crate::commands::theory::{self, ltp_json, write_theory_csv};
+use crate::commands::simulate::{
+    base_summary, fill_limit_cycle, hopper_and_orbit, simulate_on, Simulated, LIMIT_CYCLE_HEADER,
+};
+use crate::commands::theory::{self, fill_theory_csv, ltp_json, THEORY_HEADER};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
@@ -63,18 +65,44 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     let mut outdir = open(&dir, force, &names)?;
     let mut stages = Stages::new();
 
-    let sim = simulate_experiment(&settings, &mut stages)?;
+    let (hopper, orbit) = hopper_and_orbit(&settings, &mut stages)?;
+    let theory = theory::from_orbit(&settings, hopper.clone(), orbit.clone(), &mut stages)?;
+    // The exact HTF's table and the sampled orbit need only the orbit: they are computed and
+    // written on the second core while the experiment is simulated.
+    let theory_csv = outdir.csv("theory.csv", THEORY_HEADER)?;
+    let cycle_csv = outdir.csv("limit_cycle.csv", LIMIT_CYCLE_HEADER)?;
+    let sampled = hopper.clone();
+    let (sim, side) = std::thread::scope(|scope| -> Result<_> {
+        let (settings, theory, sampled) = (&settings, &theory, &sampled);
+        let side = scope.spawn(move || -> Result<Stages> {
+            let mut local = Stages::silent();
+            let grid = local.run("exact HTF", || {
+                theory
+                    .exact
+                    .grid(&settings.theory.harmonics, &settings.theory.omegas)
+            });
+            local.run("write theory", || -> Result<()> {
+                fill_theory_csv(theory_csv, &grid)?;
+                fill_limit_cycle(cycle_csv, settings, sampled, &theory.orbit)
+            })?;
+            Ok(local)
+        });
+        let sim = simulate_on(settings, hopper, orbit, &mut stages);
+        let side = side.join().expect("the theory writer does not panic");
+        Ok((sim?, side?))
+    })?;
+    stages.absorb(side);
     let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
-    let theory = theory::from_orbit(
-        &settings,
-        sim.hopper.clone(),
-        sim.orbit.clone(),
-        &mut stages,
-    )?;
 
     // The time series is the largest file; it is written on the second core while the
-    // estimators and fits run.
+    // estimators and fits run, and each estimator's chain writes its own estimates.
     let ts_path = outdir.path_for("timeseries.csv")?;
+    let est_csvs = settings
+        .estimation
+        .estimators
+        .iter()
+        .map(|e| outdir.csv(&format!("estimate_{}.csv", e.name()), ESTIMATE_HEADER))
+        .collect::<Result<Vec<_>, _>>()?;
     let sim_ref = &sim;
     let (estimates, errors, fits, alpha) = std::thread::scope(|scope| -> Result<_> {
         let writer =
@@ -85,12 +113,19 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             .estimation
             .estimators
             .iter()
-            .map(|&est| {
+            .zip(est_csvs)
+            .map(|(&est, csv)| {
                 let (settings, sim, deviation, theory) = (&settings, sim_ref, &deviation, &theory);
                 scope.spawn(move || {
                     let mut local = Stages::silent();
                     let chain =
-                        estimator_chain(settings, sim, deviation, &theory.exact, est, &mut local);
+                        estimator_chain(settings, sim, deviation, &theory.exact, est, &mut local)
+                            .and_then(|chain| {
+                                local.run(&format!("write estimate ({})", est.name()), || {
+                                    fill_estimate_csv(csv, &chain.estimate)
+                                })?;
+                                Ok(chain)
+                            });
                     (local, chain)
                 })
             })
@@ -118,19 +153,6 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         Ok((estimates, errors, fits, alpha))
     })?;
 
-    let grid = stages.run("exact HTF", || {
-        theory
-            .exact
-            .grid(&settings.theory.harmonics, &settings.theory.omegas)
-    });
-    stages.run("write outputs", || -> Result<()> {
-        crate::commands::simulate::write_limit_cycle(&settings, &sim, &mut outdir)?;
-        write_theory_csv(&mut outdir, "theory.csv", &grid)?;
-        for (est, e) in &estimates {
-            write_estimate_csv(&mut outdir, &format!("estimate_{}.csv", est.name()), e)?;
-        }
-        Ok(())
-    })?;
     if !no_plots {
         stages.run("plots", || {
             run_plots(
@@ -323,12 +345,19 @@ pub(crate) fn estimate(
 }
 
 /// Writes an estimate CSV (`estimate_*.csv`): rows `omega,n,re,im,stderr`.
+/// The columns of `estimate_<estimator>.csv`.
+pub(crate) const ESTIMATE_HEADER: &[&str] = &["omega", "n", "re", "im", "stderr"];
+
 pub(crate) fn write_estimate_csv(
     out: &mut htfid_data::OutputDir,
     name: &str,
     e: &HtfEstimate,
 ) -> Result<()> {
-    let mut csv = out.csv(name, &["omega", "n", "re", "im", "stderr"])?;
+    fill_estimate_csv(out.csv(name, ESTIMATE_HEADER)?, e)
+}
+
+/// Writes the rows of `estimate_<estimator>.csv` into `csv` (opened with [`ESTIMATE_HEADER`]).
+pub(crate) fn fill_estimate_csv(mut csv: htfid_data::CsvWriter, e: &HtfEstimate) -> Result<()> {
     for r in e.rows() {
         csv.write_row(&[r.omega, f64::from(r.n), r.value.re, r.value.im, r.stderr])?;
     }

@@ -163,12 +163,27 @@ pub fn write_timeseries(path: &Path, sim: &Simulated) -> Result<()> {
     Ok(())
 }
 
+/// The columns of `limit_cycle.csv`.
+pub const LIMIT_CYCLE_HEADER: &[&str] = &["phase", "x", "xd", "s", "stick"];
+
 /// `limit_cycle.csv`.
 pub fn write_limit_cycle(settings: &Settings, sim: &Simulated, out: &mut OutputDir) -> Result<()> {
-    let samples = sim
-        .hopper
-        .sample_orbit(&sim.orbit, ORBIT_SAMPLES, &settings.integrator)?;
-    let mut csv = out.csv("limit_cycle.csv", &["phase", "x", "xd", "s", "stick"])?;
+    fill_limit_cycle(
+        out.csv("limit_cycle.csv", LIMIT_CYCLE_HEADER)?,
+        settings,
+        &sim.hopper,
+        &sim.orbit,
+    )
+}
+
+/// Writes the rows of `limit_cycle.csv` into `csv` (opened with [`LIMIT_CYCLE_HEADER`]).
+pub fn fill_limit_cycle(
+    mut csv: htfid_data::CsvWriter,
+    settings: &Settings,
+    hopper: &Hopper,
+    orbit: &HopperOrbit,
+) -> Result<()> {
+    let samples = hopper.sample_orbit(orbit, ORBIT_SAMPLES, &settings.integrator)?;
     for s in &samples {
         // While stuck the velocity is zero and `s` is the chart the mass arrived in; the
         // `stick` column marks those phases.

@@ -126,8 +126,15 @@ fn parse_omegas(list: &str) -> Result<Vec<f64>> {
 }
 
 /// Writes a theory CSV (`theory.csv`): rows `omega,n,re,im`.
+/// The columns of `theory.csv`.
+pub const THEORY_HEADER: &[&str] = &["omega", "n", "re", "im"];
+
 pub fn write_theory_csv(out: &mut htfid_data::OutputDir, name: &str, grid: &HtfGrid) -> Result<()> {
-    let mut csv = out.csv(name, &["omega", "n", "re", "im"])?;
+    fill_theory_csv(out.csv(name, THEORY_HEADER)?, grid)
+}
+
+/// Writes the rows of `theory.csv` into `csv` (opened with [`THEORY_HEADER`]).
+pub fn fill_theory_csv(mut csv: htfid_data::CsvWriter, grid: &HtfGrid) -> Result<()> {
     for (i, &w) in grid.omegas.iter().enumerate() {
         for (j, &n) in grid.harmonics.iter().enumerate() {
             let g = grid.values[i * grid.harmonics.len() + j];
