@@ -16,8 +16,10 @@ use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
-use crate::commands::run::{aliasing, estimate, harmonic_errors, run_plots, write_estimate_csv};
-use crate::commands::theory::{theory_plots, write_theory_csv};
+use crate::commands::run::{
+    aliasing, estimate, fill_estimate_csv, harmonic_errors, run_plots, ESTIMATE_HEADER,
+};
+use crate::commands::theory::{fill_theory_csv, theory_plots, write_theory_csv, THEORY_HEADER};
 use crate::output::{json_text, open, resolve_dir};
 use crate::progress::Stages;
 use crate::settings::{Estimator, Settings};
@@ -218,7 +220,32 @@ fn write_limit_cycle(
     cycle: &LimitCycle<Mode>,
     outdir: &mut htfid_data::OutputDir,
 ) -> Result<()> {
-    let state_names = state_columns(model);
+    let header = limit_cycle_header(model);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    fill_limit_cycle(
+        outdir.csv("limit_cycle.csv", &header)?,
+        settings,
+        model,
+        cycle,
+    )
+}
+
+/// The columns of `limit_cycle.csv` for `model`.
+fn limit_cycle_header(model: &Model) -> Vec<String> {
+    let mut header = vec!["phase".to_string()];
+    header.extend(state_columns(model));
+    header.push("mode".into());
+    header.push("sliding".into());
+    header
+}
+
+/// Writes the rows of `limit_cycle.csv` into `csv` (opened with [`limit_cycle_header`]).
+fn fill_limit_cycle(
+    mut csv: htfid_data::CsvWriter,
+    settings: &Settings,
+    model: &Model,
+    cycle: &LimitCycle<Mode>,
+) -> Result<()> {
     let period = settings.period;
     let phases: Vec<f64> = (0..ORBIT_SAMPLES)
         .map(|i| period * i as f64 / ORBIT_SAMPLES as f64)
@@ -232,11 +259,6 @@ fn write_limit_cycle(
         &phases,
         &settings.integrator,
     )?;
-    let mut header = vec!["phase"];
-    header.extend(state_names.iter().map(String::as_str));
-    header.push("mode");
-    header.push("sliding");
-    let mut csv = outdir.csv("limit_cycle.csv", &header)?;
     let mut row = Vec::with_capacity(model.dim() + 3);
     for i in 0..ORBIT_SAMPLES {
         row.clear();
@@ -415,10 +437,6 @@ pub fn run_model(
     let mut stages = Stages::new();
 
     let cycle = limit_cycle(settings, model, &mut stages)?;
-    let rec = simulate_record(settings, model, &cycle, &mut stages)?;
-    let deviation = stages.run("orbit deviation", || {
-        orbit_deviation(settings, model, &cycle, &rec)
-    })?;
     let htf = stages
         .run("linearise", || {
             LinearisedHtf::new(model, &cycle, &settings.integrator)
@@ -428,9 +446,65 @@ pub fn run_model(
         .map(|o| htf.channel(o))
         .collect::<Result<Vec<_>, _>>()?;
 
+    // The HTF's tables and the sampled orbit need only the orbit: they are computed and
+    // written on the second core while the experiment is simulated.
+    let mut theory_csvs = vec![outdir.csv("theory.csv", THEORY_HEADER)?];
+    if outputs.len() > 1 {
+        for o in &outputs {
+            theory_csvs.push(outdir.csv(&format!("theory_{o}.csv"), THEORY_HEADER)?);
+        }
+    }
+    let header = limit_cycle_header(model);
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    let cycle_csv = outdir.csv("limit_cycle.csv", &header)?;
+    let (rec, side) = std::thread::scope(|scope| -> Result<_> {
+        let (htf, cycle) = (&htf, &cycle);
+        let side = scope.spawn(move || -> Result<Stages> {
+            let mut local = Stages::silent();
+            let grids = local
+                .run("theory grid", || {
+                    htf.grids(&settings.theory.harmonics, &settings.theory.omegas)
+                })
+                .context("harmonic transfer functions")?;
+            local.run("write theory", || -> Result<()> {
+                // `theory.csv` is the first output's table; with several outputs each also
+                // has its own.
+                let mut csvs = theory_csvs.into_iter();
+                if let Some(first) = csvs.next() {
+                    fill_theory_csv(first, &grids[0])?;
+                }
+                for (csv, grid) in csvs.zip(&grids) {
+                    fill_theory_csv(csv, grid)?;
+                }
+                fill_limit_cycle(cycle_csv, settings, model, cycle)
+            })?;
+            Ok(local)
+        });
+        let rec = simulate_record(settings, model, cycle, &mut stages);
+        let side = side.join().expect("the theory writer does not panic");
+        Ok((rec?, side?))
+    })?;
+    stages.absorb(side);
+    let deviation = stages.run("orbit deviation", || {
+        orbit_deviation(settings, model, &cycle, &rec)
+    })?;
+
     // The time series is the largest file; it is written on the second core while the
-    // estimators and fits run.
+    // estimators and fits run, one thread per estimator.
     let ts_path = outdir.path_for("timeseries.csv")?;
+    let est_csvs = settings
+        .estimation
+        .estimators
+        .iter()
+        .map(|est| {
+            (0..outputs.len())
+                .map(|o| {
+                    let name = format!("estimate_{}{}.csv", est.name(), suffix(&outputs, o));
+                    outdir.csv(&name, ESTIMATE_HEADER)
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let rec_ref = &rec;
     let found = std::thread::scope(|scope| -> Result<_> {
         let writer = scope.spawn(move || write_timeseries(&ts_path, model, rec_ref));
@@ -441,33 +515,13 @@ pub fn run_model(
             &channels,
             rec_ref,
             &deviation,
+            est_csvs,
             &mut stages,
         );
         writer.join().expect("the CSV writer does not panic")?;
         found
     })?;
     let (estimates, errors, fits) = found;
-    let grids = stages
-        .run("theory grid", || {
-            htf.grids(&settings.theory.harmonics, &settings.theory.omegas)
-        })
-        .context("harmonic transfer functions")?;
-    stages.run("write outputs", || -> Result<()> {
-        write_limit_cycle(settings, model, &cycle, &mut outdir)?;
-        write_theory_csv(&mut outdir, "theory.csv", &grids[0])?;
-        if outputs.len() > 1 {
-            for (o, grid) in outputs.iter().zip(&grids) {
-                write_theory_csv(&mut outdir, &format!("theory_{o}.csv"), grid)?;
-            }
-        }
-        for (o, per) in estimates.iter().enumerate() {
-            for (est, e) in per {
-                let name = format!("estimate_{}{}.csv", est.name(), suffix(&outputs, o));
-                write_estimate_csv(&mut outdir, &name, e)?;
-            }
-        }
-        Ok(())
-    })?;
     if !no_plots {
         stages.run("plots", || {
             let unit = crate::plots::htf_unit(
@@ -570,7 +624,9 @@ type Estimates = Vec<Vec<(Estimator, HtfEstimate)>>;
 type JsonMap = serde_json::Map<String, Value>;
 
 /// Estimates per output and estimator, their errors against the theory, and the fits (one
-/// per estimator, to the estimates of every output together).
+/// per estimator, to the estimates of every output together), each estimator's on a thread
+/// of its own, which also writes its estimates into `csvs` (one per output).
+#[allow(clippy::too_many_arguments)]
 fn estimate_and_fit(
     settings: &Settings,
     model: &Model,
@@ -578,13 +634,13 @@ fn estimate_and_fit(
     channels: &[HtfChannel<'_, '_, Model>],
     rec: &ModelRun,
     deviation: &[Vec<f64>],
+    csvs: Vec<Vec<htfid_data::CsvWriter>>,
     stages: &mut Stages,
 ) -> Result<(Estimates, JsonMap, JsonMap)> {
     let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
-    let mut estimates: Estimates = Vec::new();
-    for (o, y) in deviation.iter().enumerate() {
-        let mut per = Vec::new();
-        for &est in &settings.estimation.estimators {
+    let chain = |est: Estimator, csvs: Vec<htfid_data::CsvWriter>, stages: &mut Stages| {
+        let mut per_output = Vec::new();
+        for (o, y) in deviation.iter().enumerate() {
             let e = stages
                 .run(
                     &format!("estimate ({}, {})", est.name(), outputs[o]),
@@ -599,26 +655,14 @@ fn estimate_and_fit(
                     },
                 )
                 .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
-            per.push((est, e));
+            per_output.push(e);
         }
-        estimates.push(per);
-    }
-    let mut errors = JsonMap::new();
-    for (o, per) in estimates.iter().enumerate() {
-        for (est, e) in per {
-            errors.insert(
-                format!("{}{}", est.name(), suffix(&outputs, o)),
-                harmonic_errors(settings, &channels[o], e),
-            );
-        }
-    }
-    let mut fits = JsonMap::new();
-    for (i, &est) in settings.estimation.estimators.iter().enumerate() {
-        let of_est: Vec<(usize, &HtfEstimate)> = estimates
+        let errors: Vec<Value> = per_output
             .iter()
             .enumerate()
-            .map(|(o, per)| (o, &per[i].1))
+            .map(|(o, e)| harmonic_errors(settings, &channels[o], e))
             .collect();
+        let of_est: Vec<(usize, &HtfEstimate)> = per_output.iter().enumerate().collect();
         let fit = stages
             .run(&format!("fit ({})", est.name()), || {
                 fit_model(settings, model, cycle, est, &of_est)
@@ -626,6 +670,43 @@ fn estimate_and_fit(
             .with_context(|| {
                 format!("parametric fit to the \"{}\" estimates failed", est.name())
             })?;
+        stages.run(&format!("write estimate ({})", est.name()), || {
+            csvs.into_iter()
+                .zip(&per_output)
+                .try_for_each(|(csv, e)| fill_estimate_csv(csv, e))
+        })?;
+        anyhow::Ok((per_output, errors, fit))
+    };
+    let chains = std::thread::scope(|scope| {
+        let handles: Vec<_> = settings
+            .estimation
+            .estimators
+            .iter()
+            .zip(csvs)
+            .map(|(&est, csvs)| {
+                let chain = &chain;
+                scope.spawn(move || {
+                    let mut local = Stages::silent();
+                    let found = chain(est, csvs, &mut local);
+                    (local, found)
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("an estimator chain does not panic"))
+            .collect::<Vec<_>>()
+    });
+    let mut estimates: Estimates = vec![Vec::new(); outputs.len()];
+    let mut errors = JsonMap::new();
+    let mut fits = JsonMap::new();
+    for ((local, found), &est) in chains.into_iter().zip(&settings.estimation.estimators) {
+        stages.absorb(local);
+        let (per_output, errs, fit) = found?;
+        for (o, (e, err)) in per_output.into_iter().zip(errs).enumerate() {
+            errors.insert(format!("{}{}", est.name(), suffix(&outputs, o)), err);
+            estimates[o].push((est, e));
+        }
         fits.insert(est.name().into(), fit);
     }
     Ok((estimates, errors, fits))

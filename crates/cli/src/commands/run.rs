@@ -531,11 +531,16 @@ pub(crate) fn aliasing(
     let map = alias_map(copies, h, 10)?;
     let (lo, hi) = settings.estimation.band;
     let omegas = crate::settings::log_grid(lo, hi, 200);
+    let mut harmonics: Vec<i32> = map
+        .iter()
+        .flat_map(|e| std::iter::once(e.harmonic).chain(e.aliases.iter().copied()))
+        .collect();
+    harmonics.sort_unstable();
+    harmonics.dedup();
+    let grid = exact.grid(&harmonics, &omegas);
     let peak = |n: i32| {
-        omegas
-            .iter()
-            .map(|&w| exact.g(n, w).norm())
-            .fold(0.0, f64::max)
+        grid.harmonic(n)
+            .map_or(0.0, |g| g.iter().map(|v| v.norm()).fold(0.0, f64::max))
     };
     let mut out = serde_json::Map::new();
     for entry in map {
@@ -565,9 +570,10 @@ pub(crate) fn run_plots(
     let (lo, hi) = settings.estimation.band;
     let omegas = crate::settings::log_grid(lo, hi, 600);
     let harmonics = &settings.estimation.harmonics;
+    let grid = theory.grid(harmonics, &omegas);
     let theory_vals: Vec<(i32, Vec<Complex64>)> = harmonics
         .iter()
-        .map(|&n| (n, omegas.iter().map(|&w| theory.g(n, w)).collect()))
+        .map(|&n| (n, grid.harmonic(n).unwrap_or_default()))
         .collect();
     type Series = (String, Vec<f64>, Vec<Complex64>, Vec<f64>);
     let est_vals: Vec<(i32, Vec<Series>)> = harmonics
