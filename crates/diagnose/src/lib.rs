@@ -197,7 +197,9 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod answer;
 mod boundary;
+mod decide;
 mod deriv;
 mod diagnose;
 mod discover;
@@ -210,6 +212,8 @@ mod interp;
 mod model_fit;
 mod noise;
 mod nominal;
+mod options;
+mod ranges;
 mod record;
 mod screen;
 mod select;
@@ -217,11 +221,9 @@ mod sensor;
 mod sim;
 mod term;
 
+pub use answer::{Candidate, Cause, Diagnosis, DiagnosisReport, FittedModel, Score};
 pub use boundary::{separating_experiment, BoundaryEffect};
-pub use diagnose::{
-    diagnose, diagnose_with_progress, score_on_record, simulate_record, Candidate, Cause,
-    DiagnoseOptions, Diagnosis, DiagnosisReport, FittedModel, Score,
-};
+pub use diagnose::{diagnose, diagnose_with_progress, score_on_record, simulate_record};
 pub use discover::{Discovered, DiscoveredTerm};
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
@@ -239,6 +241,7 @@ pub use model_fit::{
     ParameterChange,
 };
 pub use nominal::NominalModel;
+pub use options::DiagnoseOptions;
 pub use sensor::Sensor;
 pub use sim::SimMethod;
 pub use term::{term_library, velocity_pairs, TermEffect, TermKind};

@@ -1,0 +1,479 @@
+//! The decision: which effects the data demand, and the sentences that explain it.
+
+use htfid_number::{percent, sig, Quantity};
+use std::collections::BTreeMap;
+
+use crate::answer::{Candidate, Cause, Diagnosis, Score};
+use crate::diagnose::{evaluate, Evaluation};
+use crate::effect::Slot;
+use crate::fit::{Context, FitResult, ModelPoint};
+use crate::options::DiagnoseOptions;
+use crate::select;
+use crate::{Effect, NominalModel};
+
+/// What [`conclude`] decided: the diagnosis, the extended model's fit and the effort spent.
+pub(crate) struct Decision {
+    pub(crate) diagnosis: Diagnosis,
+    /// The extended model's fit, when an effect was kept.
+    pub(crate) extended: Option<FitResult>,
+    pub(crate) evaluations: usize,
+}
+
+/// Named parameters and standard errors of a fit; asymmetric friction also as `mu_pos` and
+/// `mu_neg` (from `mu` and the input offset; their errors combine the two as independent).
+fn named(fit: &FitResult) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+    let mut p = BTreeMap::new();
+    let mut s = BTreeMap::new();
+    for ((slot, v), e) in fit.slots.iter().zip(&fit.values).zip(&fit.stderr) {
+        p.insert(slot.name().to_string(), *v);
+        s.insert(slot.name().to_string(), *e);
+    }
+    (p, s)
+}
+
+fn effect_parameters(
+    effect: Effect,
+    fit: &FitResult,
+) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+    let (all, all_se) = named(fit);
+    let mut p = BTreeMap::new();
+    let mut s = BTreeMap::new();
+    if effect == Effect::AsymmetricFriction {
+        let mu = all.get("mu").copied().unwrap_or(0.0);
+        let d = all.get("input_offset").copied().unwrap_or(0.0);
+        let se = (all_se.get("mu").copied().unwrap_or(0.0).powi(2)
+            + all_se.get("input_offset").copied().unwrap_or(0.0).powi(2))
+        .sqrt();
+        for (name, v) in [("mu_pos", mu - d), ("mu_neg", mu + d)] {
+            p.insert(name.to_string(), v);
+            s.insert(name.to_string(), se);
+        }
+        return (p, s);
+    }
+    for name in effect.parameter_names() {
+        if let (Some(v), Some(e)) = (all.get(*name), all_se.get(*name)) {
+            p.insert(name.to_string(), *v);
+            s.insert(name.to_string(), *e);
+        }
+    }
+    (p, s)
+}
+
+/// Asymmetric friction read both ways: the same force law as Coulomb friction with a constant
+/// force beside it, which the data cannot tell apart from a true asymmetry of the contact.
+fn asymmetry_reading(c: &Cause) -> String {
+    let get = |k: &str| c.parameters.get(k).copied().unwrap_or(f64::NAN);
+    let (pos, neg) = (get("mu_pos"), get("mu_neg"));
+    format!(
+        "asymmetric friction mu_pos = {}, mu_neg = {} is the same force law as Coulomb friction \
+         mu = {} with a constant force {} (an input offset, or whatever else adds a constant \
+         force: a wrong weight, a preload): the record cannot tell a one-sided contact from a \
+         symmetric one beside a constant force; a static test with a known added weight \
+         separates them",
+        sig(pos, 4),
+        sig(neg, 4),
+        sig(0.5 * (pos + neg), 4),
+        sig(0.5 * (neg - pos), 4)
+    )
+}
+
+/// What an experiment would need to separate two effects the data cannot tell apart.
+fn separating_experiment(a: Effect, b: Effect) -> &'static str {
+    use Effect::*;
+    let pair = |x, y| (a == x && b == y) || (a == y && b == x);
+    if pair(ActuatorLag, InputDelay) || pair(SensorLag, InputDelay) {
+        "a lag and a delay agree to first order in omega tau: excite well above 1 / (2 pi tau), \
+         where a delay's phase keeps growing and a lag's gain falls"
+    } else if pair(ActuatorLag, SensorLag) {
+        "an input-side and an output-side lag act alike on the linearised response: measure the \
+         applied force itself (a load cell at the actuator), or excite at larger amplitude so the \
+         nonlinear response tells where the lag sits"
+    } else if pair(InputOffset, SensorOffsetGain) || pair(InputOffset, ParameterError) {
+        "a constant force and a constant shift of the reading move the equilibrium alike: a \
+         static test with a known added weight, or a second sensor, separates them"
+    } else {
+        "an experiment that excites the two effects differently (other amplitudes, frequencies or \
+         operating points)"
+    }
+}
+
+/// Checks whether the nominal model describes the data at all, before any effect is named.
+/// Returns the reasons it does not, each with the check that found it.
+pub(crate) fn mismatch_checks(
+    ctx: &Context<'_>,
+    nominal_val: &Evaluation,
+    nominal: &Score,
+) -> Vec<String> {
+    let x = ctx.record.output();
+    let (mut measured, mut simulated) = (Vec::new(), Vec::new());
+    for (seg, r) in ctx.validation.iter().zip(&nominal_val.residuals) {
+        for (k, ri) in seg.scored().zip(r) {
+            measured.push(x[k]);
+            simulated.push(x[k] + ri);
+        }
+    }
+    let n = measured.len() as f64;
+    if n < 2.0 {
+        return Vec::new();
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / n;
+    let (my, ms) = (mean(&measured), mean(&simulated));
+    let cov: f64 = measured
+        .iter()
+        .zip(&simulated)
+        .map(|(a, b)| (a - my) * (b - ms))
+        .sum::<f64>();
+    let var_s: f64 = simulated.iter().map(|b| (b - ms).powi(2)).sum::<f64>();
+    let var_y: f64 = measured.iter().map(|a| (a - my).powi(2)).sum::<f64>();
+    let gain = cov / var_s;
+    let scale = (var_y / var_s).sqrt();
+    let correlation = cov / (var_s * var_y).sqrt();
+    let mut reasons = Vec::new();
+    if gain.is_finite() && gain < -0.2 {
+        reasons.push(format!(
+            "sign: the measured output moves against the simulated one (regression gain {gain:.3}); \
+             check the sign of the output column or of the input"
+        ));
+    }
+    if scale.is_finite() && !(0.1..=10.0).contains(&scale) {
+        reasons.push(format!(
+            "scale: the measured output varies {scale:.3e} times as much as the simulated one; \
+             check the units of the output and input columns (mm against m, mN against N)"
+        ));
+    }
+    if !scale.is_finite() || !gain.is_finite() {
+        reasons.push(
+            "scale: the simulated output does not vary over the held-out data; check that the \
+             input column holds the applied force"
+                .to_string(),
+        );
+    }
+    if reasons.is_empty() && nominal.nrmse > 1.0 && correlation.abs() < 0.5 {
+        reasons.push(format!(
+            "fit: the nominal model's held-out NRMSE is {:.0} %, worse than the measured mean, \
+             and even with an offset and a scale its output explains only {:.0} % of the \
+             measured variance; check the columns (is the input the applied force, the output \
+             the position?), the time unit of the time column and the model's parameters",
+            100.0 * nominal.nrmse,
+            100.0 * correlation * correlation
+        ));
+    }
+    reasons
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn conclude(
+    nominal_fit: &FitResult,
+    nominal_score: &Score,
+    configured: &Score,
+    noise: Option<f64>,
+    selection: Option<select::Selection>,
+    parameter_check: Option<ParameterCheck>,
+    mismatch: Vec<String>,
+    opts: &DiagnoseOptions,
+    nominal: &NominalModel,
+) -> Decision {
+    let nominal_rmse = nominal_score.rmse;
+    let mut evidence = Vec::new();
+    let free_names: Vec<&str> = nominal.free.iter().map(|p| p.name()).collect();
+    let ratio = noise.map(|s| nominal_rmse / s);
+    evidence.push(format!(
+        "configured model: held-out RMSE {} (NRMSE {}); nominal model ({} refitted): \
+         held-out RMSE {} (NRMSE {}){}",
+        sig(configured.rmse, 4),
+        percent(configured.nrmse, 3),
+        if free_names.is_empty() {
+            "nothing".to_string()
+        } else {
+            free_names.join(", ")
+        },
+        sig(nominal_rmse, 4),
+        percent(nominal_score.nrmse, 3),
+        match (noise, ratio) {
+            (Some(s), Some(r)) => format!(
+                ", {} times the noise floor {} estimated from the residual spectrum \
+                 between {:.0} % and {:.0} % of the Nyquist frequency",
+                sig(r, 3),
+                sig(s, 3),
+                100.0 * opts.noise_band.0,
+                100.0 * opts.noise_band.1
+            ),
+            _ => ", noise floor unknown (ranges too short)".to_string(),
+        }
+    ));
+    let mut causes: Vec<Cause> = Vec::new();
+    let mut alternatives = Vec::new();
+    let mut extended_fit: Option<FitResult> = None;
+    let mut extended = *nominal_score;
+    let mut candidates = Vec::new();
+    let mut evaluations = 0;
+
+    // The configured free parameters are off when the final model's values of them differ
+    // significantly from the configured ones and resetting them costs held-out accuracy.
+    let (moved, reset_rmse) = match parameter_check {
+        Some((m, r)) => (m, r),
+        None => (Vec::new(), f64::NAN),
+    };
+    let final_rmse_for_check = selection
+        .as_ref()
+        .filter(|sel| !sel.chosen.is_empty())
+        .map_or(nominal_rmse, |sel| sel.held_out.rmse);
+    let refit_gain = 1.0 - final_rmse_for_check / reset_rmse;
+    let refit_is_finding = !moved.is_empty() && refit_gain >= opts.min_gain;
+
+    let cause: String;
+    if !mismatch.is_empty() {
+        cause = "model_mismatch".to_string();
+        evidence.push(
+            "the nominal model does not describe the data at all, so no effect is named; \
+             check, one by one:"
+                .to_string(),
+        );
+        evidence.extend(mismatch.iter().cloned());
+    } else {
+        let sel = selection.expect("a selection runs unless the model mismatches");
+        evaluations += sel.evaluations;
+        candidates = sel
+            .first_round
+            .iter()
+            .map(|j| {
+                let (parameters, stderr) = j.outcome.fit.as_ref().map(named).unwrap_or_default();
+                Candidate {
+                    effect: j.outcome.effect.name().to_string(),
+                    parameters,
+                    stderr,
+                    nrmse_validation: j.outcome.val_nrmse,
+                    rmse_validation: j.outcome.val_rmse,
+                    bic: j.outcome.fit.as_ref().map_or(f64::NAN, |f| f.bic),
+                    significant: j.passes,
+                    note: j.note.clone(),
+                    starts: j.outcome.starts,
+                    best_start: j.outcome.best_start.clone(),
+                }
+            })
+            .collect();
+        evidence.extend(sel.evidence.iter().cloned());
+        if refit_is_finding {
+            let mut parameters = BTreeMap::new();
+            let mut stderr = BTreeMap::new();
+            let mut words = Vec::new();
+            for (name, v, e, c) in &moved {
+                parameters.insert(name.to_string(), *v);
+                stderr.insert(name.to_string(), *e);
+                words.push(format!(
+                    "{name} = {} (configured {})",
+                    Quantity::new(*v).stderr(*e),
+                    sig(*c, 4)
+                ));
+            }
+            evidence.push(format!(
+                "the configured parameters are off: refitted {} ({:.1} % better held out)",
+                words.join(", "),
+                100.0 * refit_gain
+            ));
+            causes.push(Cause {
+                effect: "parameter_error".to_string(),
+                parameters,
+                stderr,
+                gain_share: 1.0,
+            });
+        }
+        if !sel.chosen.is_empty() {
+            let final_ms = sel.held_out.rmse.powi(2);
+            let refit_rise = if refit_is_finding {
+                (reset_rmse.powi(2) - final_ms).max(0.0)
+            } else {
+                0.0
+            };
+            let total: f64 = refit_rise + sel.chosen.iter().map(|c| c.rise).sum::<f64>();
+            let n_parts = sel.chosen.len() + usize::from(refit_is_finding);
+            let share = |rise: f64| {
+                if total > 0.0 {
+                    rise / total
+                } else {
+                    1.0 / n_parts as f64
+                }
+            };
+            if let Some(c) = causes.first_mut() {
+                c.gain_share = share(refit_rise);
+            }
+            for ch in &sel.chosen {
+                let (parameters, stderr) = effect_parameters(ch.effect, &sel.fit);
+                causes.push(Cause {
+                    effect: ch.effect.name().to_string(),
+                    parameters,
+                    stderr,
+                    gain_share: share(ch.rise),
+                });
+            }
+            causes.sort_by(|a, b| b.gain_share.total_cmp(&a.gain_share));
+            if let Some(c) = causes.iter().find(|c| c.effect == "asymmetric_friction") {
+                evidence.push(asymmetry_reading(c));
+            }
+            // And the other way: Coulomb friction beside a constant force no larger than it is
+            // asymmetric friction with both coefficients >= 0.
+            let value = |effect: &str, key: &str| {
+                causes
+                    .iter()
+                    .find(|c| c.effect == effect)
+                    .and_then(|c| c.parameters.get(key).copied())
+            };
+            if let (Some(mu), Some(d)) = (
+                value("coulomb_friction", "mu"),
+                value("input_offset", "input_offset"),
+            ) {
+                if d.abs() <= mu {
+                    evidence.push(format!(
+                        "Coulomb friction mu = {} beside a constant force {} is the same force law \
+                         as asymmetric friction mu_pos = {}, mu_neg = {}: the record cannot tell a \
+                         symmetric contact beside a constant force from a one-sided one; a static \
+                         test with a known added weight separates them",
+                        sig(mu, 4),
+                        sig(d, 4),
+                        sig(mu - d, 4),
+                        sig(mu + d, 4)
+                    ));
+                }
+            }
+            extended = sel.held_out;
+            extended_fit = Some(sel.fit.clone());
+        }
+        let final_rmse = extended.rmse;
+        let explained = match noise {
+            Some(s) if nominal_rmse > s => {
+                (nominal_rmse.powi(2) - final_rmse.powi(2)) / (nominal_rmse.powi(2) - s * s)
+            }
+            _ => 1.0,
+        };
+        let at_floor = noise.is_some_and(|s| final_rmse <= opts.unexplained_ratio * s);
+        let structured = noise.map_or(true, |s| final_rmse > opts.unexplained_ratio * s);
+        if sel.chosen.is_empty() {
+            if structured && !refit_is_finding {
+                cause = "unexplained".to_string();
+                evidence.push(format!(
+                    "no candidate is significant, yet the nominal residual is {} the noise \
+                     floor: structure remains that no library effect explains",
+                    ratio.map_or("of unknown size relative to".to_string(), |r| format!(
+                        "{r:.2} times"
+                    ))
+                ));
+            } else if refit_is_finding {
+                cause = "parameter_error".to_string();
+            } else {
+                cause = "none".to_string();
+                evidence.push(
+                    "no candidate is significant and the nominal residual is at the noise \
+                     floor: the nominal model explains the data"
+                        .to_string(),
+                );
+            }
+        } else if !at_floor && explained < opts.min_explained {
+            cause = "unexplained".to_string();
+            evidence.push(format!(
+                "the selected effects remove only {:.1} % of the nominal's error above the noise \
+                 floor (at least {:.1} % required) and the residual stays {:.2} times the floor: \
+                 something outside the library is at work as well",
+                100.0 * explained,
+                100.0 * opts.min_explained,
+                noise.map_or(f64::NAN, |s| final_rmse / s)
+            ));
+        } else if !sel.rivals.is_empty() {
+            cause = "ambiguous".to_string();
+            for &(chosen, r) in &sel.rivals {
+                for e in [chosen, r] {
+                    if !alternatives.iter().any(|a| a == e.name()) {
+                        alternatives.push(e.name().to_string());
+                    }
+                }
+                evidence.push(format!(
+                    "{} and {} explain the data equally well (fit BIC within {}); to separate \
+                     them: {}",
+                    chosen.name(),
+                    r.name(),
+                    opts.bic_margin,
+                    separating_experiment(chosen, r)
+                ));
+            }
+        } else {
+            // The strongest selected effect: a refit of the configured parameters beside it is
+            // reported in `causes`, but the cause names what the nominal model lacks.
+            cause = causes
+                .iter()
+                .find(|c| c.effect != "parameter_error")
+                .or(causes.first())
+                .map_or("none".to_string(), |c| c.effect.clone());
+            evidence.push(match noise {
+                Some(s) => format!(
+                    "the extended model's held-out residual is {:.2} times the noise floor and \
+                     removes {:.0} % of the nominal's excess error",
+                    final_rmse / s,
+                    100.0 * explained.min(1.0)
+                ),
+                None => "noise floor unknown; the decision rests on the tests alone".to_string(),
+            });
+        }
+    }
+    let (parameters, stderr) = named(extended_fit.as_ref().unwrap_or(nominal_fit));
+    let gain = 1.0 - extended.rmse / nominal_rmse;
+    Decision {
+        diagnosis: Diagnosis {
+            cause,
+            parameters,
+            stderr,
+            nominal: *nominal_score,
+            extended,
+            gain,
+            candidates,
+            evidence,
+            causes,
+            alternatives,
+            configured: *configured,
+            gain_vs_configured: 1.0 - extended.rmse / configured.rmse,
+            mismatch,
+            discovered: None,
+        },
+        extended: extended_fit,
+        evaluations,
+    }
+}
+
+/// Free parameters of the final model that lie more than `significance_sigma` standard errors
+/// from their configured values (name, value, standard error, configured value), and the final
+/// model's held-out RMSE with them reset to the configured values.
+type ParameterCheck = (Vec<(&'static str, f64, f64, f64)>, f64);
+
+pub(crate) fn check_parameters(
+    ctx: &Context<'_>,
+    fit: &FitResult,
+    nominal: &NominalModel,
+    opts: &DiagnoseOptions,
+) -> Option<ParameterCheck> {
+    let free = nominal.free_slots();
+    let mut moved = Vec::new();
+    let mut reset = fit.point;
+    for ((slot, v), e) in fit.slots.iter().zip(&fit.values).zip(&fit.stderr) {
+        if !free.contains(slot) {
+            continue;
+        }
+        let configured = slot_value(nominal, *slot);
+        if (v - configured).abs() > opts.significance_sigma * e {
+            moved.push((slot.name(), *v, *e, configured));
+            reset.set(*slot, configured);
+        }
+    }
+    if moved.is_empty() {
+        return None;
+    }
+    let rmse = evaluate(ctx, &reset, &fit.stepping).ok()?.score.rmse;
+    Some((moved, rmse))
+}
+
+/// The configured value of a nominal parameter.
+fn slot_value(nominal: &NominalModel, slot: Slot) -> f64 {
+    ModelPoint {
+        params: nominal.measured_params(),
+        effects: nominal.effects,
+        sensor: nominal.sensor,
+    }
+    .get(slot)
+}
