@@ -118,14 +118,14 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 let (settings, sim, deviation, theory) = (&settings, sim_ref, &deviation, &theory);
                 scope.spawn(move || {
                     let mut local = Stages::silent();
-                    let chain =
-                        estimator_chain(settings, sim, deviation, &theory.exact, est, &mut local)
-                            .and_then(|chain| {
-                                local.run(&format!("write estimate ({})", est.name()), || {
-                                    fill_estimate_csv(csv, &chain.estimate)
-                                })?;
-                                Ok(chain)
-                            });
+                    let chain = estimator_chain(
+                        settings,
+                        sim,
+                        deviation,
+                        &theory.exact,
+                        (est, csv),
+                        &mut local,
+                    );
                     (local, chain)
                 })
             })
@@ -235,13 +235,15 @@ struct Chain {
     fit: serde_json::Value,
 }
 
-/// Estimate, errors, fit and uncertainty of one estimator, timed in `stages`.
+/// Estimate, errors, fit and uncertainty of one estimator, timed in `stages`; the errors
+/// against the theory and the estimates' file (`csv`) are done on a thread of their own while
+/// the fit runs.
 fn estimator_chain(
     settings: &Settings,
     sim: &Simulated,
     deviation: &[f64],
-    exact: &dyn HarmonicTransferFunction,
-    est: Estimator,
+    exact: &(dyn HarmonicTransferFunction + Sync),
+    (est, csv): (Estimator, htfid_data::CsvWriter),
     stages: &mut Stages,
 ) -> Result<Chain> {
     let e = stages
@@ -249,12 +251,27 @@ fn estimator_chain(
             estimate(settings, (&sim.t, &sim.u), &sim.excitation, deviation, est)
         })
         .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
-    let errors = harmonic_errors(settings, exact, &e);
-    let fit = stages
-        .run(&format!("fit ({})", est.name()), || {
-            fit_parameters(settings, sim, &e)
-        })
-        .with_context(|| format!("parametric fit to the \"{}\" estimates failed", est.name()))?;
+    let (errors, fit) = std::thread::scope(|scope| -> Result<_> {
+        let e = &e;
+        let side = scope.spawn(move || -> Result<(Stages, Value)> {
+            let mut local = Stages::silent();
+            let errors = local.run(&format!("errors ({})", est.name()), || {
+                harmonic_errors(settings, exact, e)
+            });
+            local.run(&format!("write estimate ({})", est.name()), || {
+                fill_estimate_csv(csv, e)
+            })?;
+            Ok((local, errors))
+        });
+        let fit = stages
+            .run(&format!("fit ({})", est.name()), || {
+                fit_parameters(settings, sim, e)
+            })
+            .with_context(|| format!("parametric fit to the \"{}\" estimates failed", est.name()));
+        let (local, errors) = side.join().expect("the estimate writer does not panic")?;
+        stages.absorb(local);
+        Ok((errors, fit?))
+    })?;
     let mut json = fit_json(settings, &fit);
     json["uncertainty"] = stages.run(&format!("uncertainty ({})", est.name()), || {
         budget_json(&fit, e.method(), || {
