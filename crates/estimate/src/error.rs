@@ -77,6 +77,16 @@ pub enum Error {
     /// No records were given.
     #[error("no records given")]
     NoRecords,
+
+    /// An output was given to an estimator prepared from another input.
+    #[error(
+        "the record's input differs from the one the estimator was prepared from \
+         (at sample {index}); prepare it again from this record's input"
+    )]
+    InputDiffers {
+        /// The first sample that differs (or the length, when the lengths differ).
+        index: usize,
+    },
     /// Records do not share a DFT grid.
     #[error(
         "record {index} has {samples} samples at dt = {dt} s but record 0 has {expected_samples} \

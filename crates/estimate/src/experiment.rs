@@ -12,7 +12,7 @@ use crate::estimate::HtfEstimate;
 use crate::lines::{periodic_lines, periodic_lines_paired, LineSpec};
 use crate::multi::{multi_experiment, MultiOptions};
 use crate::record::deviation_record;
-use crate::siddiqi::siddiqi;
+use crate::siddiqi::{siddiqi, SiddiqiDesign};
 use crate::smooth::Alpha;
 use htfid_data::TimeSeries;
 
@@ -107,9 +107,9 @@ pub fn estimate_experiment(
     }
     match estimator {
         Estimator::Siddiqi(alpha) => {
-            let end = signal.t_start + signal.u.len() as f64 * signal.dt;
-            let periods = ((end - layout.excited_from) / period + 1e-9).floor();
-            let rec = window(signal, layout.excited_from, periods * period)?;
+            let (start, duration) =
+                siddiqi_window(signal.u.len(), signal.dt, signal.t_start, layout, request)?;
+            let rec = window(signal, start, duration)?;
             siddiqi(&rec, period, harmonics, band, *alpha)
         }
         Estimator::Multi(options) => {
@@ -147,6 +147,124 @@ pub fn estimate_experiment(
             e.within_band(band)
         }
     }
+}
+
+/// An experiment's estimator prepared from its input before the output is known (while the
+/// experiment runs, or once for several outputs of one input): what can be done with the
+/// input alone is done in [`Design::new`], the rest in [`Design::estimate`]. For Siddiqi's
+/// estimator at a fixed weight that is most of the work ([`SiddiqiDesign`]); the other
+/// estimators keep the input and do everything in [`Design::estimate`]. Either way
+/// `Design::new(..)?.estimate(y)` equals [`estimate_experiment`] on the same signal, bit for
+/// bit.
+#[derive(Debug)]
+pub struct Design {
+    u: Vec<f64>,
+    dt: f64,
+    t_start: f64,
+    layout: Layout,
+    period: f64,
+    harmonics: Vec<i32>,
+    band: (f64, f64),
+    estimator: Estimator,
+    /// Siddiqi's estimator prepared, with the start and length of its window.
+    siddiqi: Option<(SiddiqiDesign, f64, f64)>,
+}
+
+impl Design {
+    /// Prepares `estimator` for the input `u` sampled at `dt` from `t_start`, laid out as
+    /// `layout` says.
+    ///
+    /// # Errors
+    /// As [`estimate_experiment`], for what the input alone can tell.
+    pub fn new(
+        (u, dt, t_start): (&[f64], f64, f64),
+        layout: &Layout,
+        request: &Request<'_>,
+        estimator: &Estimator,
+    ) -> Result<Self> {
+        let siddiqi = match estimator {
+            Estimator::Siddiqi(Alpha::Fixed(alpha)) => {
+                let (start, duration) = siddiqi_window(u.len(), dt, t_start, layout, request)?;
+                // The output is not read: the input stands in for it.
+                let signal = Sampled {
+                    u,
+                    y: u,
+                    dt,
+                    t_start,
+                };
+                let rec = window(&signal, start, duration)?;
+                let design = SiddiqiDesign::new(
+                    &rec,
+                    request.period,
+                    request.harmonics,
+                    request.band,
+                    *alpha,
+                )?;
+                Some((design, start, duration))
+            }
+            _ => None,
+        };
+        Ok(Self {
+            u: u.to_vec(),
+            dt,
+            t_start,
+            layout: layout.clone(),
+            period: request.period,
+            harmonics: request.harmonics.to_vec(),
+            band: request.band,
+            estimator: estimator.clone(),
+            siddiqi,
+        })
+    }
+
+    /// The input it was prepared from.
+    pub fn input(&self) -> &[f64] {
+        &self.u
+    }
+
+    /// The estimate from the output `y` (a deviation from the orbit, sampled with the input).
+    ///
+    /// # Errors
+    /// As [`estimate_experiment`].
+    pub fn estimate(&self, y: &[f64]) -> Result<HtfEstimate> {
+        let signal = Sampled {
+            u: &self.u,
+            y,
+            dt: self.dt,
+            t_start: self.t_start,
+        };
+        match &self.siddiqi {
+            Some((design, start, duration)) => {
+                design.estimate(&window(&signal, *start, *duration)?)
+            }
+            None => {
+                let request = Request {
+                    period: self.period,
+                    harmonics: &self.harmonics,
+                    band: self.band,
+                };
+                estimate_experiment(&signal, &self.layout, &request, &self.estimator)
+            }
+        }
+    }
+}
+
+/// The window Siddiqi's estimator reads: whole periods from the start of the excitation to
+/// the end of the signal.
+fn siddiqi_window(
+    samples: usize,
+    dt: f64,
+    t_start: f64,
+    layout: &Layout,
+    request: &Request<'_>,
+) -> Result<(f64, f64)> {
+    let period = request.period;
+    if !(period.is_finite() && period > 0.0) {
+        return Err(Error::InvalidPeriod { period });
+    }
+    let end = t_start + samples as f64 * dt;
+    let periods = ((end - layout.excited_from) / period + 1e-9).floor();
+    Ok((layout.excited_from, periods * period))
 }
 
 /// The record of `duration` seconds (a whole number of samples) from the first sample at or

@@ -108,7 +108,9 @@ mod uncertainty;
 
 pub use error::{Error, Result};
 pub use estimate::{BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
-pub use experiment::{estimate_experiment, Estimator, Layout, LineWindows, Request, Sampled};
+pub use experiment::{
+    estimate_experiment, Design, Estimator, Layout, LineWindows, Request, Sampled,
+};
 pub use htfid_data::TimeSeries;
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
 pub use lm::{
@@ -118,7 +120,7 @@ pub use lm::{
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};
 pub use record::{deviation_record, dft};
-pub use siddiqi::siddiqi;
+pub use siddiqi::{siddiqi, SiddiqiDesign};
 pub use size::estimator_bytes;
 pub use smooth::Alpha;
 pub use uncertainty::{

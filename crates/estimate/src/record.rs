@@ -207,7 +207,7 @@ pub(crate) fn validate_harmonics(harmonics: &[i32]) -> Result<()> {
 }
 
 /// Records transformed onto one grid, with the output bins of a band.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct Prepared {
     pub grid: Grid,
     pub harmonics: Vec<i32>,
@@ -229,6 +229,31 @@ impl Prepared {
     /// `margin` extra bins on each side of the band must also stay below Nyquist (the local
     /// polynomial window reads them); `min_bins` is the smallest band accepted.
     pub(crate) fn new(
+        records: &[TimeSeries],
+        period: f64,
+        harmonics: &[i32],
+        band: (f64, f64),
+        margin: usize,
+        min_bins: usize,
+    ) -> Result<Self> {
+        let mut prepared = Self::inputs(records, period, harmonics, band, margin, min_bins)?;
+        prepared.set_outputs(records);
+        Ok(prepared)
+    }
+
+    /// Transforms the outputs of `records`: records of the length and sample interval of
+    /// those the inputs were prepared from, whose inputs are those inputs.
+    pub(crate) fn set_outputs(&mut self, records: &[TimeSeries]) {
+        let fft = FftPlanner::new().plan_fft_forward(self.grid.n);
+        self.y = records
+            .iter()
+            .map(|r| Spectrum::new(r.output(), r.dt(), r.time()[0], &fft))
+            .collect();
+    }
+
+    /// As [`Prepared::new`], but the outputs are not transformed (they are left empty until
+    /// [`Prepared::set_outputs`]).
+    pub(crate) fn inputs(
         records: &[TimeSeries],
         period: f64,
         harmonics: &[i32],
@@ -295,10 +320,6 @@ impl Prepared {
             .iter()
             .map(|r| Spectrum::new(r.input(), r.dt(), r.time()[0], &fft))
             .collect();
-        let y = records
-            .iter()
-            .map(|r| Spectrum::new(r.output(), r.dt(), r.time()[0], &fft))
-            .collect();
         Ok(Self {
             grid,
             harmonics: harmonics.to_vec(),
@@ -306,7 +327,7 @@ impl Prepared {
             k_lo,
             m: bins,
             u,
-            y,
+            y: Vec::new(),
             t_starts: records.iter().map(|r| r.time()[0]).collect(),
         })
     }

@@ -1,9 +1,9 @@
 //! Siddiqi's single-record estimator: least squares with a curvature penalty across bins.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::estimate::{BiasSource, HtfEstimate, Method};
 use crate::record::Prepared;
-use crate::smooth::{self, Alpha, BinSystem};
+use crate::smooth::{self, Alpha, AtWeight, BinSystem};
 use htfid_data::TimeSeries;
 
 /// Second differences need at least three bins.
@@ -60,4 +60,97 @@ pub fn siddiqi(
     .with_bias(BiasSource::Smoothing, res.bias)?
     .with_alpha(res.alpha, res.alpha_effective)
     .with_dof(res.dof))
+}
+
+/// Siddiqi's estimator at a fixed weight, prepared from a record's input before its output is
+/// known: the normal matrix is built from the input alone, factored and inverted once, and
+/// [`SiddiqiDesign::estimate`] then costs a transform of the output and three banded solves.
+/// For any record with the same input, `SiddiqiDesign::new(..)?.estimate(record)` equals
+/// [`siddiqi`] with [`Alpha::Fixed`], bit for bit. (A weight chosen by GCV depends on the
+/// output and cannot be prepared.)
+#[derive(Debug)]
+pub struct SiddiqiDesign {
+    prep: Prepared,
+    sys: BinSystem,
+    weight: AtWeight,
+    input: Vec<f64>,
+    dt: f64,
+    t_start: f64,
+}
+
+impl SiddiqiDesign {
+    /// Prepares the estimator from `record`'s input (its output is not read); the arguments
+    /// are those of [`siddiqi`], with the dimensionless weight `alpha`.
+    ///
+    /// # Errors
+    /// As [`siddiqi`].
+    pub fn new(
+        record: &TimeSeries,
+        period: f64,
+        harmonics: &[i32],
+        band: (f64, f64),
+        alpha: f64,
+    ) -> Result<Self> {
+        let prep = Prepared::inputs(
+            std::slice::from_ref(record),
+            period,
+            harmonics,
+            band,
+            0,
+            MIN_BINS,
+        )?;
+        let sys = BinSystem::inputs(&prep);
+        let weight = AtWeight::new(&sys, alpha, 0.0)?;
+        Ok(Self {
+            prep,
+            sys,
+            weight,
+            input: record.input().to_vec(),
+            dt: record.dt(),
+            t_start: record.time()[0],
+        })
+    }
+
+    /// The estimate from `record`, whose input must be the one this was prepared from.
+    ///
+    /// # Errors
+    /// [`Error::InputDiffers`] when the input, its sample interval or its start differ.
+    pub fn estimate(&self, record: &TimeSeries) -> Result<HtfEstimate> {
+        let input = record.input();
+        // The same samples at the same times, bit for bit: the design is exact for its own
+        // input only.
+        let same_time = record.dt().to_bits() == self.dt.to_bits()
+            && record.time().first().map(|t| t.to_bits()) == Some(self.t_start.to_bits());
+        if input.len() != self.input.len() || !same_time {
+            return Err(Error::InputDiffers {
+                index: input.len().min(self.input.len()),
+            });
+        }
+        if let Some(index) = input
+            .iter()
+            .zip(&self.input)
+            .position(|(a, b)| a.to_bits() != b.to_bits())
+        {
+            return Err(Error::InputDiffers { index });
+        }
+        let mut prep = Prepared {
+            y: Vec::new(),
+            ..self.prep.clone()
+        };
+        prep.set_outputs(std::slice::from_ref(record));
+        let mut sys = self.sys.clone();
+        sys.set_outputs(&prep);
+        let res = self.weight.estimate(&sys);
+        let omegas = prep.omegas();
+        Ok(HtfEstimate::new(
+            Method::Siddiqi,
+            prep.harmonics.clone(),
+            vec![omegas; prep.harmonics.len()],
+            res.values,
+            res.stderr,
+        )?
+        .with_bias(BiasSource::Smoothing, res.bias)?
+        .with_alpha(res.alpha, res.alpha_effective)
+        .with_dof(res.dof))
+    }
 }

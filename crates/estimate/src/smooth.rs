@@ -9,7 +9,7 @@
 
 use num_complex::Complex64;
 
-use crate::banded::{BandedHermitian, Work};
+use crate::banded::{BandedCholesky, BandedHermitian, Work};
 use crate::error::{Error, Result};
 use crate::record::Prepared;
 
@@ -39,7 +39,7 @@ const GCV_GRID: usize = 25;
 const GCV_LOG_TOL: f64 = 0.01;
 
 /// Per-bin regression rows of all records.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct BinSystem {
     pub h: usize,
     pub k: usize,
@@ -52,19 +52,42 @@ pub(crate) struct BinSystem {
 
 impl BinSystem {
     pub(crate) fn new(prep: &Prepared) -> Self {
+        let mut sys = Self::inputs(prep);
+        sys.set_outputs(prep);
+        sys
+    }
+
+    /// The regression rows of `prep`'s inputs; the outputs are left empty.
+    pub(crate) fn inputs(prep: &Prepared) -> Self {
         let (h, k, m) = (prep.harmonics.len(), prep.records(), prep.m);
         let mut a = Vec::with_capacity(m * k * h);
-        let mut y = Vec::with_capacity(m * k);
         for kb in 0..m as i64 {
             let bin = prep.k_lo + kb;
             for r in 0..k {
                 for &s in &prep.shifts {
                     a.push(prep.u[r].at(bin - s));
                 }
+            }
+        }
+        Self {
+            h,
+            k,
+            m,
+            a,
+            y: Vec::new(),
+        }
+    }
+
+    /// Reads `prep`'s outputs (its inputs those the rows were built from).
+    pub(crate) fn set_outputs(&mut self, prep: &Prepared) {
+        let mut y = Vec::with_capacity(self.m * self.k);
+        for kb in 0..self.m as i64 {
+            let bin = prep.k_lo + kb;
+            for r in 0..self.k {
                 y.push(prep.y[r].at(bin));
             }
         }
-        Self { h, k, m, a, y }
+        self.y = y;
     }
 
     #[inline]
@@ -139,122 +162,166 @@ fn penalty_bands(m: usize) -> [Vec<f64>; 3] {
 /// for small `alpha`, where `Z ~ 1/alpha` along the directions the data leave free while
 /// `n - tr S` is tiny; `alpha Z` stays of order one.
 pub(crate) fn fit(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> Result<SmoothFit> {
-    let (h, m) = (sys.h, sys.m);
-    let n = m * h;
-    let smooth = alpha > 0.0 && m >= 3;
-    let b = if smooth { 2 * h } else { h - 1 };
-    let pen = if smooth {
-        penalty_bands(m)
-    } else {
-        [Vec::new(), Vec::new(), Vec::new()]
-    };
-    let mut mat = BandedHermitian::zeros(n, b);
-    let mut g = vec![Complex64::new(0.0, 0.0); h * h];
-    let mut x = vec![Complex64::new(0.0, 0.0); n];
-    for kb in 0..m {
-        sys.gram(kb, &mut g);
-        let base = kb * h;
-        for h1 in 0..h {
-            for h2 in 0..=h1 {
-                mat.add_lower(base + h1, base + h2, g[h1 * h + h2]);
-            }
-            mat.add_lower(base + h1, base + h1, Complex64::new(ridge, 0.0));
-        }
-        for r in 0..sys.k {
-            let yr = sys.y[kb * sys.k + r];
-            for (hh, a) in sys.row(kb, r).iter().enumerate() {
-                x[base + hh] += a.conj() * yr;
-            }
-        }
-        if smooth {
-            for (d, band) in pen.iter().enumerate() {
-                if kb >= d && band[kb - d] != 0.0 {
-                    let v = Complex64::new(alpha * band[kb - d], 0.0);
-                    for hh in 0..h {
-                        mat.add_lower(base + hh, (kb - d) * h + hh, v);
-                    }
-                }
-            }
-        }
-    }
-    let mut chol = mat.factor()?;
-    chol.solve_in_place(&mut x);
-    // The penalised solution has mean `N^{-1} A^H A G = G - N^{-1} R G` (`R` the penalty), so
-    // its bias is `b = -N^{-1} R G`: the curvature of `G` weighed by the smoother's kernel.
-    // With `G = G_hat - b` this is a fixed point, `b = -N^{-1} R (G_hat - b)`; its series,
-    // truncated after BIAS_TERMS terms, starts from the plug-in `-N^{-1} R G_hat` (which
-    // falls short by the curvature the penalty already removed). The full series would be
-    // `G_hat` minus the unregularised solution, the noise the penalty suppresses included.
-    let bias = if want_zdiag {
-        let apply = |g: &[Complex64]| -> Vec<Complex64> {
-            let mut out: Vec<Complex64> = g.iter().map(|v| v * ridge).collect();
-            if smooth {
-                for kb in 0..m {
-                    for hh in 0..h {
-                        let at = |k: usize| g[k * h + hh];
-                        let mut v = at(kb) * pen[0][kb];
-                        for d in 1..=2 {
-                            if kb + d < m {
-                                v += at(kb + d) * pen[d][kb];
-                            }
-                            if kb >= d {
-                                v += at(kb - d) * pen[d][kb - d];
-                            }
-                        }
-                        out[kb * h + hh] += v * alpha;
-                    }
-                }
-            }
-            out
+    Ok(Factored::new(sys, alpha, ridge, want_zdiag)?.solve(sys))
+}
+
+/// The part of a fit that depends on the inputs alone: the normal matrix at one weight,
+/// factored, with the trace of the influence matrix and (when asked for) the diagonal of the
+/// inverse. [`Factored::solve`] adds the outputs.
+#[derive(Debug)]
+pub(crate) struct Factored {
+    chol: BandedCholesky,
+    alpha: f64,
+    ridge: f64,
+    smooth: bool,
+    pen: [Vec<f64>; 3],
+    trace: f64,
+    zdiag: Vec<f64>,
+    want_zdiag: bool,
+}
+
+impl Factored {
+    /// Builds and factors the normal matrix of `sys`'s inputs (its outputs are not read).
+    pub(crate) fn new(sys: &BinSystem, alpha: f64, ridge: f64, want_zdiag: bool) -> Result<Self> {
+        let (h, m) = (sys.h, sys.m);
+        let n = m * h;
+        let smooth = alpha > 0.0 && m >= 3;
+        let b = if smooth { 2 * h } else { h - 1 };
+        let pen = if smooth {
+            penalty_bands(m)
+        } else {
+            [Vec::new(), Vec::new(), Vec::new()]
         };
-        let mut b = vec![Complex64::new(0.0, 0.0); n];
-        for _ in 0..BIAS_TERMS {
-            let g: Vec<Complex64> = x.iter().zip(&b).map(|(x, b)| x - b).collect();
-            let mut rhs = apply(&g);
-            chol.solve_in_place(&mut rhs);
-            b = rhs.iter().map(|v| -v).collect();
-        }
-        b
-    } else {
-        Vec::new()
-    };
-    let mut rss = 0.0;
-    for kb in 0..m {
-        let xk = &x[kb * h..(kb + 1) * h];
-        for r in 0..sys.k {
-            let fit: Complex64 = sys.row(kb, r).iter().zip(xk).map(|(a, g)| a * g).sum();
-            rss += (sys.y[kb * sys.k + r] - fit).norm_sqr();
-        }
-    }
-    let mut pen_trace = 0.0;
-    let mut z_trace = 0.0;
-    let mut zdiag = if want_zdiag { vec![0.0; n] } else { Vec::new() };
-    chol.inverse_rows(|i, z| {
-        let zii = z[0].re;
-        z_trace += zii;
-        if smooth {
-            let kb = i / h;
-            pen_trace += zii * pen[0][kb];
-            for d in 1..=2 {
-                if kb + d < m {
-                    // Z and D2^T D2 are symmetric in the pair, hence twice the real part.
-                    pen_trace += 2.0 * z[d * h].re * pen[d][kb];
+        let mut mat = BandedHermitian::zeros(n, b);
+        let mut g = vec![Complex64::new(0.0, 0.0); h * h];
+        for kb in 0..m {
+            sys.gram(kb, &mut g);
+            let base = kb * h;
+            for h1 in 0..h {
+                for h2 in 0..=h1 {
+                    mat.add_lower(base + h1, base + h2, g[h1 * h + h2]);
+                }
+                mat.add_lower(base + h1, base + h1, Complex64::new(ridge, 0.0));
+            }
+            if smooth {
+                for (d, band) in pen.iter().enumerate() {
+                    if kb >= d && band[kb - d] != 0.0 {
+                        let v = Complex64::new(alpha * band[kb - d], 0.0);
+                        for hh in 0..h {
+                            mat.add_lower(base + hh, (kb - d) * h + hh, v);
+                        }
+                    }
                 }
             }
         }
-        if want_zdiag {
-            zdiag[i] = zii;
+        let mut chol = mat.factor()?;
+        let mut pen_trace = 0.0;
+        let mut z_trace = 0.0;
+        let mut zdiag = if want_zdiag { vec![0.0; n] } else { Vec::new() };
+        chol.inverse_rows(|i, z| {
+            let zii = z[0].re;
+            z_trace += zii;
+            if smooth {
+                let kb = i / h;
+                pen_trace += zii * pen[0][kb];
+                for d in 1..=2 {
+                    if kb + d < m {
+                        // Z and D2^T D2 are symmetric in the pair, hence twice the real part.
+                        pen_trace += 2.0 * z[d * h].re * pen[d][kb];
+                    }
+                }
+            }
+            if want_zdiag {
+                zdiag[i] = zii;
+            }
+        });
+        let trace = n as f64 - alpha * pen_trace - ridge * z_trace;
+        Ok(Self {
+            chol,
+            alpha,
+            ridge,
+            smooth,
+            pen,
+            trace,
+            zdiag,
+            want_zdiag,
+        })
+    }
+
+    /// The fit of `sys`'s outputs (its inputs must be those this was built from).
+    pub(crate) fn solve(&self, sys: &BinSystem) -> SmoothFit {
+        let (h, m) = (sys.h, sys.m);
+        let n = m * h;
+        let (alpha, ridge, smooth, pen, chol) =
+            (self.alpha, self.ridge, self.smooth, &self.pen, &self.chol);
+        let mut x = vec![Complex64::new(0.0, 0.0); n];
+        for kb in 0..m {
+            let base = kb * h;
+            for r in 0..sys.k {
+                let yr = sys.y[kb * sys.k + r];
+                for (hh, a) in sys.row(kb, r).iter().enumerate() {
+                    x[base + hh] += a.conj() * yr;
+                }
+            }
         }
-    });
-    let trace = n as f64 - alpha * pen_trace - ridge * z_trace;
-    Ok(SmoothFit {
-        x,
-        rss,
-        trace,
-        zdiag,
-        bias,
-        work: chol.work(),
-    })
+        chol.solve_in_place(&mut x);
+        // The penalised solution has mean `N^{-1} A^H A G = G - N^{-1} R G` (`R` the penalty),
+        // so its bias is `b = -N^{-1} R G`: the curvature of `G` weighed by the smoother's
+        // kernel. With `G = G_hat - b` this is a fixed point, `b = -N^{-1} R (G_hat - b)`; its
+        // series, truncated after BIAS_TERMS terms, starts from the plug-in `-N^{-1} R G_hat`
+        // (which falls short by the curvature the penalty already removed). The full series
+        // would be `G_hat` minus the unregularised solution, the noise the penalty suppresses
+        // included.
+        let bias = if self.want_zdiag {
+            let apply = |g: &[Complex64]| -> Vec<Complex64> {
+                let mut out: Vec<Complex64> = g.iter().map(|v| v * ridge).collect();
+                if smooth {
+                    for kb in 0..m {
+                        for hh in 0..h {
+                            let at = |k: usize| g[k * h + hh];
+                            let mut v = at(kb) * pen[0][kb];
+                            for d in 1..=2 {
+                                if kb + d < m {
+                                    v += at(kb + d) * pen[d][kb];
+                                }
+                                if kb >= d {
+                                    v += at(kb - d) * pen[d][kb - d];
+                                }
+                            }
+                            out[kb * h + hh] += v * alpha;
+                        }
+                    }
+                }
+                out
+            };
+            let mut b = vec![Complex64::new(0.0, 0.0); n];
+            for _ in 0..BIAS_TERMS {
+                let g: Vec<Complex64> = x.iter().zip(&b).map(|(x, b)| x - b).collect();
+                let mut rhs = apply(&g);
+                chol.solve_in_place(&mut rhs);
+                b = rhs.iter().map(|v| -v).collect();
+            }
+            b
+        } else {
+            Vec::new()
+        };
+        let mut rss = 0.0;
+        for kb in 0..m {
+            let xk = &x[kb * h..(kb + 1) * h];
+            for r in 0..sys.k {
+                let fit: Complex64 = sys.row(kb, r).iter().zip(xk).map(|(a, g)| a * g).sum();
+                rss += (sys.y[kb * sys.k + r] - fit).norm_sqr();
+            }
+        }
+        SmoothFit {
+            x,
+            rss,
+            trace: self.trace,
+            zdiag: self.zdiag.clone(),
+            bias,
+            work: chol.work(),
+        }
+    }
 }
 
 /// GCV ignores weights that leave fewer residual degrees of freedom than this fraction of the
@@ -325,46 +392,77 @@ pub(crate) struct SmoothResult {
 /// Chooses the weight (if asked), solves, and forms posterior standard errors
 /// `sqrt(sigma^2 Z_ii)` with `sigma^2 = RSS / (N_data - trace)`.
 pub(crate) fn estimate(sys: &BinSystem, alpha: Alpha, ridge: f64) -> Result<SmoothResult> {
+    let alpha = match alpha {
+        Alpha::Fixed(a) => a,
+        Alpha::Gcv => {
+            let (scale, ridge_eff) = weights(sys, ridge)?;
+            gcv_alpha(sys, scale, ridge_eff)?
+        }
+    };
+    Ok(AtWeight::new(sys, alpha, ridge)?.estimate(sys))
+}
+
+/// The input's scale (`BinSystem::gram_scale`) and the ridge in its units, checked.
+fn weights(sys: &BinSystem, ridge: f64) -> Result<(f64, f64)> {
     let scale = sys.gram_scale();
     if !(scale > 0.0 && scale.is_finite()) {
         return Err(Error::NoExcitation);
     }
     check_weight(ridge)?;
-    let ridge_eff = ridge * scale;
-    let alpha = match alpha {
-        Alpha::Fixed(a) => {
-            check_weight(a)?;
-            a
-        }
-        Alpha::Gcv => gcv_alpha(sys, scale, ridge_eff)?,
-    };
-    let alpha_eff = alpha * scale;
-    let f = fit(sys, alpha_eff, ridge_eff, true)?;
-    let dof = sys.data_count() - f.trace;
-    // Below one residual degree of freedom the variance estimate is meaningless.
-    let sigma2 = if dof >= 1.0 { f.rss / dof } else { f64::NAN };
-    let (h, m) = (sys.h, sys.m);
-    let values = (0..h)
-        .map(|hh| (0..m).map(|kb| f.x[kb * h + hh]).collect())
-        .collect();
-    let bias = (0..h)
-        .map(|hh| (0..m).map(|kb| f.bias[kb * h + hh]).collect())
-        .collect();
-    let stderr = (0..h)
-        .map(|hh| {
-            (0..m)
-                .map(|kb| (sigma2 * f.zdiag[kb * h + hh]).sqrt())
-                .collect()
+    Ok((scale, ridge * scale))
+}
+
+/// An estimate at a fixed weight, prepared from the inputs alone: every output estimated
+/// with it ([`AtWeight::estimate`]) gives what [`estimate`] gives for that output, bit for bit.
+#[derive(Debug)]
+pub(crate) struct AtWeight {
+    factored: Factored,
+    alpha: f64,
+    alpha_eff: f64,
+}
+
+impl AtWeight {
+    /// Factors the normal matrix of `sys`'s inputs at the dimensionless weight `alpha`.
+    pub(crate) fn new(sys: &BinSystem, alpha: f64, ridge: f64) -> Result<Self> {
+        let (scale, ridge_eff) = weights(sys, ridge)?;
+        check_weight(alpha)?;
+        let alpha_eff = alpha * scale;
+        Ok(Self {
+            factored: Factored::new(sys, alpha_eff, ridge_eff, true)?,
+            alpha,
+            alpha_eff,
         })
-        .collect();
-    Ok(SmoothResult {
-        values,
-        bias,
-        stderr,
-        alpha,
-        alpha_effective: alpha_eff,
-        dof,
-    })
+    }
+
+    /// The estimate from `sys`'s outputs (its inputs those this was prepared from).
+    pub(crate) fn estimate(&self, sys: &BinSystem) -> SmoothResult {
+        let f = self.factored.solve(sys);
+        let dof = sys.data_count() - f.trace;
+        // Below one residual degree of freedom the variance estimate is meaningless.
+        let sigma2 = if dof >= 1.0 { f.rss / dof } else { f64::NAN };
+        let (h, m) = (sys.h, sys.m);
+        let values = (0..h)
+            .map(|hh| (0..m).map(|kb| f.x[kb * h + hh]).collect())
+            .collect();
+        let bias = (0..h)
+            .map(|hh| (0..m).map(|kb| f.bias[kb * h + hh]).collect())
+            .collect();
+        let stderr = (0..h)
+            .map(|hh| {
+                (0..m)
+                    .map(|kb| (sigma2 * f.zdiag[kb * h + hh]).sqrt())
+                    .collect()
+            })
+            .collect();
+        SmoothResult {
+            values,
+            bias,
+            stderr,
+            alpha: self.alpha,
+            alpha_effective: self.alpha_eff,
+            dof,
+        }
+    }
 }
 
 fn check_weight(a: f64) -> Result<()> {

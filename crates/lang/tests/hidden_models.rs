@@ -51,7 +51,11 @@ fn check(name: &str) {
         assert!((a - b).abs() < 1e-9 * scale, "{name}: state0 {a} vs {b}");
     }
     if let Some(mode) = oracle["mode_phase0"].as_str() {
-        assert_eq!(model.mode_name(cycle.mode0), mode, "{name}: mode at phase 0");
+        assert_eq!(
+            model.mode_name(cycle.mode0),
+            mode,
+            "{name}: mode at phase 0"
+        );
     }
 
     // Floquet multipliers, as a set: measured agreement 1.3e-11; a monodromy known to about

@@ -17,7 +17,7 @@ use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::run::{
-    aliasing, estimate, fill_estimate_csv, harmonic_errors, run_plots, ESTIMATE_HEADER,
+    aliasing, design, estimate, fill_estimate_csv, harmonic_errors, run_plots, ESTIMATE_HEADER,
 };
 use crate::commands::theory::{fill_theory_csv, theory_plots, write_theory_csv, THEORY_HEADER};
 use crate::output::{json_text, open, resolve_dir};
@@ -639,20 +639,23 @@ fn estimate_and_fit(
 ) -> Result<(Estimates, JsonMap, JsonMap)> {
     let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
     let chain = |est: Estimator, csvs: Vec<htfid_data::CsvWriter>, stages: &mut Stages| {
+        // Every output is estimated with the estimator prepared once from the input.
+        let prepared = stages
+            .run(&format!("prepare ({})", est.name()), || {
+                design(
+                    settings,
+                    (rec.record.time(), rec.record.input()),
+                    &rec.excitation,
+                    est,
+                )
+            })
+            .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
         let mut per_output = Vec::new();
         for (o, y) in deviation.iter().enumerate() {
             let e = stages
                 .run(
                     &format!("estimate ({}, {})", est.name(), outputs[o]),
-                    || {
-                        estimate(
-                            settings,
-                            (rec.record.time(), rec.record.input()),
-                            &rec.excitation,
-                            y,
-                            est,
-                        )
-                    },
+                    || prepared.estimate(y),
                 )
                 .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
             per_output.push(e);

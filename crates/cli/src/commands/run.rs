@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use htfid_estimate::{
-    estimate_experiment, Alpha, HtfEstimate, Layout, LineSpec, LineWindows, Method, MultiOptions,
-    Request, Sampled, UncertaintyBudget,
+    Alpha, Design, HtfEstimate, Layout, LineSpec, LineWindows, Method, MultiOptions, Request,
+    UncertaintyBudget,
 };
 use htfid_excite::{alias_map, Polarity};
 use htfid_identify::{budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec};
@@ -67,14 +67,15 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
 
     let (hopper, orbit) = hopper_and_orbit(&settings, &mut stages)?;
     let theory = theory::from_orbit(&settings, hopper.clone(), orbit.clone(), &mut stages)?;
-    // The exact HTF's table and the sampled orbit need only the orbit: they are computed and
-    // written on the second core while the experiment is simulated.
+    // The exact HTF's table and the sampled orbit need only the orbit, the estimators'
+    // preparation only the input: they are done on the second core while the experiment is
+    // simulated.
     let theory_csv = outdir.csv("theory.csv", THEORY_HEADER)?;
     let cycle_csv = outdir.csv("limit_cycle.csv", LIMIT_CYCLE_HEADER)?;
     let sampled = hopper.clone();
     let (sim, side) = std::thread::scope(|scope| -> Result<_> {
         let (settings, theory, sampled) = (&settings, &theory, &sampled);
-        let side = scope.spawn(move || -> Result<Stages> {
+        let side = scope.spawn(move || -> Result<(Stages, Option<Vec<Prepared>>)> {
             let mut local = Stages::silent();
             let grid = local.run("exact HTF", || {
                 theory
@@ -85,12 +86,32 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 fill_theory_csv(theory_csv, &grid)?;
                 fill_limit_cycle(cycle_csv, settings, sampled, &theory.orbit)
             })?;
-            Ok(local)
+            // The estimators' work on the input alone, too: the input is known before the
+            // output (`htfid_estimate::Design`). Should it fail, the chains prepare them
+            // again from the simulated input and say what is wrong.
+            let designs = local
+                .run("prepare estimators", || -> Result<Vec<Prepared>> {
+                    let excitation = crate::signals::build(settings)?;
+                    let (_, grid) = settings.record_grid(excitation.end);
+                    let u = match &excitation.signal {
+                        Some(s) => s.sample(&grid),
+                        None => vec![0.0; grid.len()],
+                    };
+                    settings
+                        .estimation
+                        .estimators
+                        .iter()
+                        .map(|&est| design(settings, (&grid, &u), &excitation, est))
+                        .collect()
+                })
+                .ok();
+            Ok((local, designs))
         });
         let sim = simulate_on(settings, hopper, orbit, &mut stages);
         let side = side.join().expect("the theory writer does not panic");
         Ok((sim?, side?))
     })?;
+    let (side, designs) = side;
     stages.absorb(side);
     let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
 
@@ -109,6 +130,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             scope.spawn(move || crate::commands::simulate::write_timeseries(&ts_path, sim_ref));
         // Each estimator's chain (estimate, fit, uncertainty) is independent of the others':
         // one thread each.
+        let mut designs = designs.map(Vec::into_iter);
         let chains: Vec<_> = settings
             .estimation
             .estimators
@@ -116,6 +138,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             .zip(est_csvs)
             .map(|(&est, csv)| {
                 let (settings, sim, deviation, theory) = (&settings, sim_ref, &deviation, &theory);
+                let prepared = designs.as_mut().and_then(Iterator::next);
                 scope.spawn(move || {
                     let mut local = Stages::silent();
                     let chain = estimator_chain(
@@ -123,7 +146,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                         sim,
                         deviation,
                         &theory.exact,
-                        (est, csv),
+                        (est, csv, prepared),
                         &mut local,
                     );
                     (local, chain)
@@ -243,12 +266,24 @@ fn estimator_chain(
     sim: &Simulated,
     deviation: &[f64],
     exact: &(dyn HarmonicTransferFunction + Sync),
-    (est, csv): (Estimator, htfid_data::CsvWriter),
+    (est, csv, prepared): (Estimator, htfid_data::CsvWriter, Option<Prepared>),
     stages: &mut Stages,
 ) -> Result<Chain> {
     let e = stages
         .run(&format!("estimate ({})", est.name()), || {
-            estimate(settings, (&sim.t, &sim.u), &sim.excitation, deviation, est)
+            // Prepared from the experiment's input, computed as the simulation computes it;
+            // checked sample by sample, and prepared again should it ever differ.
+            let same_input = |p: &Prepared| {
+                p.input().len() == sim.u.len()
+                    && p.input()
+                        .iter()
+                        .zip(&sim.u)
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+            };
+            match prepared.filter(same_input) {
+                Some(p) => p.estimate(deviation),
+                None => estimate(settings, (&sim.t, &sim.u), &sim.excitation, deviation, est),
+            }
         })
         .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
     let (errors, fit) = std::thread::scope(|scope| -> Result<_> {
@@ -295,6 +330,36 @@ pub(crate) fn estimate(
     y: &[f64],
     est: Estimator,
 ) -> Result<HtfEstimate> {
+    design(settings, (t, u), excitation, est)?.estimate(y)
+}
+
+/// An estimator prepared from the experiment's input before its output is known
+/// (`htfid_estimate::Design`), with what a failure should name.
+#[derive(Debug)]
+pub(crate) struct Prepared {
+    design: Design,
+    context: String,
+}
+
+impl Prepared {
+    /// The estimate from the output `y`.
+    pub(crate) fn estimate(&self, y: &[f64]) -> Result<HtfEstimate> {
+        self.design.estimate(y).context(self.context.clone())
+    }
+
+    /// The input it was prepared from.
+    pub(crate) fn input(&self) -> &[f64] {
+        self.design.input()
+    }
+}
+
+/// `est` prepared from the input `u` (sampled at `t`) of the configured experiment.
+pub(crate) fn design(
+    settings: &Settings,
+    (t, u): (&[f64], &[f64]),
+    excitation: &Built,
+    est: Estimator,
+) -> Result<Prepared> {
     let mut layout = Layout {
         excited_from: settings.settle_time(),
         ..Layout::default()
@@ -340,31 +405,28 @@ pub(crate) fn estimate(
         ),
         Estimator::Lines => (htfid_estimate::Estimator::Lines, String::new()),
     };
-    let signal = Sampled {
-        u,
-        y,
-        dt: 1.0 / settings.sample_rate,
-        t_start: t.first().copied().unwrap_or(0.0),
-    };
     let request = Request {
         period: settings.period,
         harmonics: &settings.estimation.harmonics,
         band: settings.estimation.band,
     };
-    estimate_experiment(&signal, &layout, &request, &estimator).with_context(|| {
-        format!(
-            "{}: the {} estimator (simulation.sample_rate = {} Hz{alpha_text})",
-            settings.path.display(),
-            est.name(),
-            settings.sample_rate
-        )
-    })
+    let context = format!(
+        "{}: the {} estimator (simulation.sample_rate = {} Hz{alpha_text})",
+        settings.path.display(),
+        est.name(),
+        settings.sample_rate
+    );
+    let input = (
+        u,
+        1.0 / settings.sample_rate,
+        t.first().copied().unwrap_or(0.0),
+    );
+    let design =
+        Design::new(input, &layout, &request, &estimator).with_context(|| context.clone())?;
+    Ok(Prepared { design, context })
 }
 
 /// Writes an estimate CSV (`estimate_*.csv`): rows `omega,n,re,im,stderr`.
-/// The columns of `estimate_<estimator>.csv`.
-pub(crate) const ESTIMATE_HEADER: &[&str] = &["omega", "n", "re", "im", "stderr"];
-
 pub(crate) fn write_estimate_csv(
     out: &mut htfid_data::OutputDir,
     name: &str,
@@ -372,6 +434,9 @@ pub(crate) fn write_estimate_csv(
 ) -> Result<()> {
     fill_estimate_csv(out.csv(name, ESTIMATE_HEADER)?, e)
 }
+
+/// The columns of `estimate_<estimator>.csv`.
+pub(crate) const ESTIMATE_HEADER: &[&str] = &["omega", "n", "re", "im", "stderr"];
 
 /// Writes the rows of `estimate_<estimator>.csv` into `csv` (opened with [`ESTIMATE_HEADER`]).
 pub(crate) fn fill_estimate_csv(mut csv: htfid_data::CsvWriter, e: &HtfEstimate) -> Result<()> {
