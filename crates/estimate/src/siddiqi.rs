@@ -3,7 +3,7 @@
 use crate::error::{Error, Result};
 use crate::estimate::{BiasSource, HtfEstimate, Method};
 use crate::record::Prepared;
-use crate::smooth::{self, Alpha, AtWeight, BinSystem};
+use crate::smooth::{self, Alpha, AtWeight, BinSystem, SmoothResult};
 use htfid_data::TimeSeries;
 
 /// Second differences need at least three bins.
@@ -48,12 +48,17 @@ pub fn siddiqi(
         MIN_BINS,
     )?;
     let sys = BinSystem::new(&prep);
-    let res = smooth::estimate(&sys, alpha, 0.0)?;
+    assemble(&prep, smooth::estimate(&sys, alpha, 0.0)?)
+}
+
+/// The estimate of `prep`'s harmonics at its band's bins, with its bias, weight and degrees of
+/// freedom.
+fn assemble(prep: &Prepared, res: SmoothResult) -> Result<HtfEstimate> {
     let omegas = prep.omegas();
     Ok(HtfEstimate::new(
         Method::Siddiqi,
-        harmonics.to_vec(),
-        vec![omegas; harmonics.len()],
+        prep.harmonics.clone(),
+        vec![omegas; prep.harmonics.len()],
         res.values,
         res.stderr,
     )?
@@ -140,17 +145,6 @@ impl SiddiqiDesign {
         prep.set_outputs(std::slice::from_ref(record));
         let mut sys = self.sys.clone();
         sys.set_outputs(&prep);
-        let res = self.weight.estimate(&sys);
-        let omegas = prep.omegas();
-        Ok(HtfEstimate::new(
-            Method::Siddiqi,
-            prep.harmonics.clone(),
-            vec![omegas; prep.harmonics.len()],
-            res.values,
-            res.stderr,
-        )?
-        .with_bias(BiasSource::Smoothing, res.bias)?
-        .with_alpha(res.alpha, res.alpha_effective)
-        .with_dof(res.dof))
+        assemble(&prep, self.weight.estimate(&sys))
     }
 }

@@ -6,6 +6,8 @@
 //! variational equations and a brute-force simulation of the nonlinear model). Nothing of
 //! either side was written with the other in view.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use htfid_hybrid::Options;
@@ -60,7 +62,7 @@ fn check(name: &str) {
 
     // Floquet multipliers, as a set: measured agreement 1.3e-11; a monodromy known to about
     // 1e-10 gives eigenvalues to 1e-9 unless they are nearly repeated (they are not).
-    let mut theirs: Vec<Complex64> = oracle["floquet_multipliers"]
+    let theirs: Vec<Complex64> = oracle["floquet_multipliers"]
         .as_array()
         .unwrap()
         .iter()
@@ -69,17 +71,7 @@ fn check(name: &str) {
             Complex64::new(z[0], z[1])
         })
         .collect();
-    assert_eq!(theirs.len(), cycle.multipliers.len(), "{name}: multipliers");
-    for z in &cycle.multipliers {
-        let (i, d) = theirs
-            .iter()
-            .enumerate()
-            .map(|(i, w)| (i, (w - z).norm()))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap();
-        assert!(d < 1e-9, "{name}: multiplier {z} off by {d:e}");
-        theirs.remove(i);
-    }
+    common::assert_same_multipliers(name, &cycle.multipliers, &theirs, 1e-9);
 
     // HTFs of every output, as `htfid theory` computes them (exact piecewise where the
     // linearisation is constant within modes, the periodic response otherwise): measured

@@ -2,6 +2,8 @@
 //! computed by a separately written Python program (numpy/scipy/mpmath, two methods each)
 //! from the model equations alone.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use htfid_hybrid::{EventKind, Options};
@@ -68,22 +70,13 @@ fn check(model_file: &str, oracle_file: &str) {
     }
 
     // Floquet multipliers: eigenvalues of a monodromy known to about 1e-10.
-    let mut theirs: Vec<Complex64> = oracle["floquet"]
+    let theirs: Vec<Complex64> = oracle["floquet"]
         .as_array()
         .unwrap()
         .iter()
         .map(|z| Complex64::new(z["re"].as_f64().unwrap(), z["im"].as_f64().unwrap()))
         .collect();
-    for z in &cycle.multipliers {
-        let (i, d) = theirs
-            .iter()
-            .enumerate()
-            .map(|(i, w)| (i, (w - z).norm()))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap();
-        assert!(d < 1e-7, "{model_file}: multiplier {z} off by {d:e}");
-        theirs.remove(i);
-    }
+    common::assert_same_multipliers(model_file, &cycle.multipliers, &theirs, 1e-7);
 
     // HTFs, every output: the general periodic-response HTF against the oracle's
     // periodic solution of the same LTP system (checked there by small-signal simulation of

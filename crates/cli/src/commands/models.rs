@@ -17,8 +17,10 @@ use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::run::{
-    aliasing, design, estimate, fill_estimate_csv, harmonic_errors, run_plots, ESTIMATE_HEADER,
+    aliasing, design, estimate, fill_estimate_csv, harmonic_errors, run_plots, Prepared,
+    ESTIMATE_HEADER,
 };
+use crate::commands::simulate::experiment_input;
 use crate::commands::theory::{fill_theory_csv, theory_plots, write_theory_csv, THEORY_HEADER};
 use crate::output::{json_text, open, resolve_dir};
 use crate::progress::Stages;
@@ -149,8 +151,7 @@ fn simulate_record(
     cycle: &LimitCycle<Mode>,
     stages: &mut Stages,
 ) -> Result<ModelRun> {
-    let excitation = signals::build(settings)?;
-    let (_, grid) = settings.record_grid(excitation.end);
+    let (excitation, grid, u) = experiment_input(settings)?;
     let n = grid.len();
     let Driven {
         trajectory: traj,
@@ -168,10 +169,6 @@ fn simulate_record(
         .map_err(|e| {
             crate::limits::experiment_failed(settings, crate::limits::Simulated::Experiment, e)
         })?;
-    let u: Vec<f64> = match &excitation.signal {
-        Some(s) => s.sample(&grid),
-        None => vec![0.0; n],
-    };
     if let Some(noise) = settings.noise {
         add_noise(&mut outputs, noise.output_std, noise.seed).context("noise.output_std")?;
     }
@@ -459,7 +456,7 @@ pub fn run_model(
     let cycle_csv = outdir.csv("limit_cycle.csv", &header)?;
     let (rec, side) = std::thread::scope(|scope| -> Result<_> {
         let (htf, cycle) = (&htf, &cycle);
-        let side = scope.spawn(move || -> Result<Stages> {
+        let side = scope.spawn(move || -> Result<(Stages, Option<Vec<Prepared>>)> {
             let mut local = Stages::silent();
             let grids = local
                 .run("theory grid", || {
@@ -478,12 +475,26 @@ pub fn run_model(
                 }
                 fill_limit_cycle(cycle_csv, settings, model, cycle)
             })?;
-            Ok(local)
+            // The estimators' work on the input alone (`htfid_estimate::Design`); should it
+            // fail, the chains prepare them again from the simulated input and say why.
+            let designs = local
+                .run("prepare estimators", || -> Result<Vec<Prepared>> {
+                    let (excitation, grid, u) = experiment_input(settings)?;
+                    settings
+                        .estimation
+                        .estimators
+                        .iter()
+                        .map(|&est| design(settings, (&grid, &u), &excitation, est))
+                        .collect()
+                })
+                .ok();
+            Ok((local, designs))
         });
         let rec = simulate_record(settings, model, cycle, &mut stages);
         let side = side.join().expect("the theory writer does not panic");
         Ok((rec?, side?))
     })?;
+    let (side, designs) = side;
     stages.absorb(side);
     let deviation = stages.run("orbit deviation", || {
         orbit_deviation(settings, model, &cycle, &rec)
@@ -516,6 +527,7 @@ pub fn run_model(
             rec_ref,
             &deviation,
             est_csvs,
+            designs,
             &mut stages,
         );
         writer.join().expect("the CSV writer does not panic")?;
@@ -635,21 +647,32 @@ fn estimate_and_fit(
     rec: &ModelRun,
     deviation: &[Vec<f64>],
     csvs: Vec<Vec<htfid_data::CsvWriter>>,
+    designs: Option<Vec<Prepared>>,
     stages: &mut Stages,
 ) -> Result<(Estimates, JsonMap, JsonMap)> {
     let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
-    let chain = |est: Estimator, csvs: Vec<htfid_data::CsvWriter>, stages: &mut Stages| {
-        // Every output is estimated with the estimator prepared once from the input.
-        let prepared = stages
-            .run(&format!("prepare ({})", est.name()), || {
-                design(
-                    settings,
-                    (rec.record.time(), rec.record.input()),
-                    &rec.excitation,
-                    est,
-                )
-            })
-            .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
+    let chain = |est: Estimator,
+                 csvs: Vec<htfid_data::CsvWriter>,
+                 prepared: Option<Prepared>,
+                 stages: &mut Stages| {
+        // Every output is estimated with the estimator prepared once from the input: during
+        // the simulation from the same input, checked sample by sample, or here.
+        let input = rec.record.input();
+        let same_input = |p: &Prepared| {
+            p.input().len() == input.len()
+                && p.input()
+                    .iter()
+                    .zip(input)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        let prepared = match prepared.filter(same_input) {
+            Some(p) => p,
+            None => stages
+                .run(&format!("prepare ({})", est.name()), || {
+                    design(settings, (rec.record.time(), input), &rec.excitation, est)
+                })
+                .with_context(|| format!("estimator \"{}\" failed", est.name()))?,
+        };
         let mut per_output = Vec::new();
         for (o, y) in deviation.iter().enumerate() {
             let e = stages
@@ -680,6 +703,7 @@ fn estimate_and_fit(
         })?;
         anyhow::Ok((per_output, errors, fit))
     };
+    let mut designs = designs.map(Vec::into_iter);
     let chains = std::thread::scope(|scope| {
         let handles: Vec<_> = settings
             .estimation
@@ -688,9 +712,10 @@ fn estimate_and_fit(
             .zip(csvs)
             .map(|(&est, csvs)| {
                 let chain = &chain;
+                let prepared = designs.as_mut().and_then(Iterator::next);
                 scope.spawn(move || {
                     let mut local = Stages::silent();
-                    let found = chain(est, csvs, &mut local);
+                    let found = chain(est, csvs, prepared, &mut local);
                     (local, found)
                 })
             })

@@ -17,7 +17,8 @@ use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::simulate::{
-    base_summary, fill_limit_cycle, hopper_and_orbit, simulate_on, Simulated, LIMIT_CYCLE_HEADER,
+    base_summary, experiment_input, fill_limit_cycle, hopper_and_orbit, simulate_on, Simulated,
+    LIMIT_CYCLE_HEADER,
 };
 use crate::commands::theory::{self, fill_theory_csv, ltp_json, THEORY_HEADER};
 use crate::output::{json_text, open, resolve_dir};
@@ -91,12 +92,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             // again from the simulated input and say what is wrong.
             let designs = local
                 .run("prepare estimators", || -> Result<Vec<Prepared>> {
-                    let excitation = crate::signals::build(settings)?;
-                    let (_, grid) = settings.record_grid(excitation.end);
-                    let u = match &excitation.signal {
-                        Some(s) => s.sample(&grid),
-                        None => vec![0.0; grid.len()],
-                    };
+                    let (excitation, grid, u) = experiment_input(settings)?;
                     settings
                         .estimation
                         .estimators

@@ -87,6 +87,18 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
     simulate_on(settings, hopper, orbit, stages)
 }
 
+/// The configured excitation, the record's sample times and the input at them: what an
+/// experiment knows before it runs.
+pub fn experiment_input(settings: &Settings) -> Result<(Built, Vec<f64>, Vec<f64>)> {
+    let excitation = signals::build(settings)?;
+    let (_, grid) = settings.record_grid(excitation.end);
+    let u = match &excitation.signal {
+        Some(s) => s.sample(&grid),
+        None => vec![0.0; grid.len()],
+    };
+    Ok((excitation, grid, u))
+}
+
 /// The configured experiment on `hopper`, from `t = 0` on its limit cycle `orbit`.
 pub fn simulate_on(
     settings: &Settings,
@@ -94,8 +106,7 @@ pub fn simulate_on(
     orbit: HopperOrbit,
     stages: &mut Stages,
 ) -> Result<Simulated> {
-    let excitation = signals::build(settings)?;
-    let (_, grid) = settings.record_grid(excitation.end);
+    let (excitation, grid, u) = experiment_input(settings)?;
     let n = grid.len();
     let driven = stages
         .run("simulate", || {
@@ -110,10 +121,6 @@ pub fn simulate_on(
         .map_err(|e| {
             crate::limits::experiment_failed(settings, crate::limits::Simulated::Experiment, e)
         })?;
-    let u: Vec<f64> = match &excitation.signal {
-        Some(s) => s.sample(&grid),
-        None => vec![0.0; n],
-    };
     let f: Vec<f64> = grid
         .iter()
         .zip(&u)
