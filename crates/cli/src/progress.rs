@@ -77,11 +77,16 @@ pub struct Stages {
     timings: Vec<(String, f64)>,
     /// Stages of a worker thread: timed, shown when absorbed by the main thread's stages.
     silent: bool,
+    /// When the main thread's stages began (`wall` in the JSON).
+    started: Option<Instant>,
 }
 
 impl Stages {
     pub fn new() -> Self {
-        Stages::default()
+        Stages {
+            started: Some(Instant::now()),
+            ..Stages::default()
+        }
     }
 
     /// Stages run on a worker thread, beside others: timed but not shown until
@@ -97,7 +102,8 @@ impl Stages {
     /// parallel.
     pub fn absorb(&mut self, other: Stages) {
         for (name, ms) in other.timings {
-            if mode() != Mode::Quiet {
+            // A worker's stages absorbed by another worker are shown with that worker's.
+            if !self.silent && mode() != Mode::Quiet {
                 eprintln!("[htfid] {name} ... {} (in parallel)", duration(ms));
             }
             self.timings.push((name, ms));
@@ -151,6 +157,12 @@ impl Stages {
             total += ms;
         }
         map.insert("total".into(), serde_json::json!(round3(total)));
+        if let Some(started) = self.started {
+            map.insert(
+                "wall".into(),
+                serde_json::json!(round3(started.elapsed().as_secs_f64() * 1e3)),
+            );
+        }
         serde_json::Value::Object(map)
     }
 }

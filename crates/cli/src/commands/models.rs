@@ -658,14 +658,7 @@ fn estimate_and_fit(
         // Every output is estimated with the estimator prepared once from the input: during
         // the simulation from the same input, checked sample by sample, or here.
         let input = rec.record.input();
-        let same_input = |p: &Prepared| {
-            p.input().len() == input.len()
-                && p.input()
-                    .iter()
-                    .zip(input)
-                    .all(|(a, b)| a.to_bits() == b.to_bits())
-        };
-        let prepared = match prepared.filter(same_input) {
+        let prepared = match prepared.filter(|p| p.serves(input)) {
             Some(p) => p,
             None => stages
                 .run(&format!("prepare ({})", est.name()), || {

@@ -269,14 +269,7 @@ fn estimator_chain(
         .run(&format!("estimate ({})", est.name()), || {
             // Prepared from the experiment's input, computed as the simulation computes it;
             // checked sample by sample, and prepared again should it ever differ.
-            let same_input = |p: &Prepared| {
-                p.input().len() == sim.u.len()
-                    && p.input()
-                        .iter()
-                        .zip(&sim.u)
-                        .all(|(a, b)| a.to_bits() == b.to_bits())
-            };
-            match prepared.filter(same_input) {
+            match prepared.filter(|p| p.serves(&sim.u)) {
                 Some(p) => p.estimate(deviation),
                 None => estimate(settings, (&sim.t, &sim.u), &sim.excitation, deviation, est),
             }
@@ -343,9 +336,10 @@ impl Prepared {
         self.design.estimate(y).context(self.context.clone())
     }
 
-    /// The input it was prepared from.
-    pub(crate) fn input(&self) -> &[f64] {
-        self.design.input()
+    /// Whether it was prepared from the input `u`, sample by sample, bit for bit.
+    pub(crate) fn serves(&self, u: &[f64]) -> bool {
+        let input = self.design.input();
+        input.len() == u.len() && input.iter().zip(u).all(|(a, b)| a.to_bits() == b.to_bits())
     }
 }
 
