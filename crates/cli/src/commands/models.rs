@@ -17,8 +17,8 @@ use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::run::{
-    aliasing, design, estimate, fill_estimate_csv, harmonic_errors, run_plots, Prepared,
-    ESTIMATE_HEADER,
+    aliasing, design, estimate, fill_estimate_csv, harmonic_errors, prepare_all, run_plots,
+    Prepared, ESTIMATE_HEADER,
 };
 use crate::commands::simulate::experiment_input;
 use crate::commands::theory::{fill_theory_csv, theory_plots, write_theory_csv, THEORY_HEADER};
@@ -478,15 +478,7 @@ pub fn run_model(
             // The estimators' work on the input alone (`htfid_estimate::Design`); should it
             // fail, the chains prepare them again from the simulated input and say why.
             let designs = local
-                .run("prepare estimators", || -> Result<Vec<Prepared>> {
-                    let (excitation, grid, u) = experiment_input(settings)?;
-                    settings
-                        .estimation
-                        .estimators
-                        .iter()
-                        .map(|&est| design(settings, (&grid, &u), &excitation, est))
-                        .collect()
-                })
+                .run("prepare estimators", || prepare_all(settings))
                 .ok();
             Ok((local, designs))
         });

@@ -91,15 +91,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             // output (`htfid_estimate::Design`). Should it fail, the chains prepare them
             // again from the simulated input and say what is wrong.
             let designs = local
-                .run("prepare estimators", || -> Result<Vec<Prepared>> {
-                    let (excitation, grid, u) = experiment_input(settings)?;
-                    settings
-                        .estimation
-                        .estimators
-                        .iter()
-                        .map(|&est| design(settings, (&grid, &u), &excitation, est))
-                        .collect()
-                })
+                .run("prepare estimators", || prepare_all(settings))
                 .ok();
             Ok((local, designs))
         });
@@ -341,6 +333,18 @@ impl Prepared {
         let input = self.design.input();
         input.len() == u.len() && input.iter().zip(u).all(|(a, b)| a.to_bits() == b.to_bits())
     }
+}
+
+/// Every configured estimator prepared from the configured experiment's input, computed as
+/// the simulation computes it ([`experiment_input`]).
+pub(crate) fn prepare_all(settings: &Settings) -> Result<Vec<Prepared>> {
+    let (excitation, grid, u) = experiment_input(settings)?;
+    settings
+        .estimation
+        .estimators
+        .iter()
+        .map(|&est| design(settings, (&grid, &u), &excitation, est))
+        .collect()
 }
 
 /// `est` prepared from the input `u` (sampled at `t`) of the configured experiment.
