@@ -207,7 +207,7 @@ pub(crate) fn validate_harmonics(harmonics: &[i32]) -> Result<()> {
 }
 
 /// Records transformed onto one grid, with the output bins of a band.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct Prepared {
     pub grid: Grid,
     pub harmonics: Vec<i32>,
@@ -237,22 +237,22 @@ impl Prepared {
         min_bins: usize,
     ) -> Result<Self> {
         let mut prepared = Self::inputs(records, period, harmonics, band, margin, min_bins)?;
-        prepared.set_outputs(records);
+        prepared.y = prepared.output_spectra(records);
         Ok(prepared)
     }
 
-    /// Transforms the outputs of `records`: records of the length and sample interval of
+    /// The transformed outputs of `records`: records of the length and sample interval of
     /// those the inputs were prepared from, whose inputs are those inputs.
-    pub(crate) fn set_outputs(&mut self, records: &[TimeSeries]) {
+    pub(crate) fn output_spectra(&self, records: &[TimeSeries]) -> Vec<Spectrum> {
         let fft = FftPlanner::new().plan_fft_forward(self.grid.n);
-        self.y = records
+        records
             .iter()
             .map(|r| Spectrum::new(r.output(), r.dt(), r.time()[0], &fft))
-            .collect();
+            .collect()
     }
 
-    /// As [`Prepared::new`], but the outputs are not transformed (they are left empty until
-    /// [`Prepared::set_outputs`]).
+    /// As [`Prepared::new`], but the outputs are not transformed (`y` is left empty; see
+    /// [`Prepared::output_spectra`]).
     pub(crate) fn inputs(
         records: &[TimeSeries],
         period: f64,

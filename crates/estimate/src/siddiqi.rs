@@ -138,13 +138,9 @@ impl SiddiqiDesign {
         {
             return Err(Error::InputDiffers { index });
         }
-        let mut prep = Prepared {
-            y: Vec::new(),
-            ..self.prep.clone()
-        };
-        prep.set_outputs(std::slice::from_ref(record));
+        let y = self.prep.output_spectra(std::slice::from_ref(record));
         let mut sys = self.sys.clone();
-        sys.set_outputs(&prep);
-        assemble(&prep, self.weight.estimate(&sys))
+        sys.set_outputs(&self.prep, &y);
+        assemble(&self.prep, self.weight.estimate(&sys))
     }
 }

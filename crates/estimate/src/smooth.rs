@@ -11,7 +11,7 @@ use num_complex::Complex64;
 
 use crate::banded::{BandedCholesky, BandedHermitian, Work};
 use crate::error::{Error, Result};
-use crate::record::Prepared;
+use crate::record::{Prepared, Spectrum};
 
 /// How the regularisation weight is chosen.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,7 +53,7 @@ pub(crate) struct BinSystem {
 impl BinSystem {
     pub(crate) fn new(prep: &Prepared) -> Self {
         let mut sys = Self::inputs(prep);
-        sys.set_outputs(prep);
+        sys.set_outputs(prep, &prep.y);
         sys
     }
 
@@ -78,16 +78,16 @@ impl BinSystem {
         }
     }
 
-    /// Reads `prep`'s outputs (its inputs those the rows were built from).
-    pub(crate) fn set_outputs(&mut self, prep: &Prepared) {
-        let mut y = Vec::with_capacity(self.m * self.k);
+    /// Reads the output spectra `y` of `prep`'s records (the rows built from their inputs).
+    pub(crate) fn set_outputs(&mut self, prep: &Prepared, y: &[Spectrum]) {
+        let mut rows = Vec::with_capacity(self.m * self.k);
         for kb in 0..self.m as i64 {
             let bin = prep.k_lo + kb;
-            for r in 0..self.k {
-                y.push(prep.y[r].at(bin));
+            for spectrum in y.iter().take(self.k) {
+                rows.push(spectrum.at(bin));
             }
         }
-        self.y = y;
+        self.y = rows;
     }
 
     #[inline]

@@ -183,6 +183,18 @@ pub fn fit_to_htf<S: Parametric>(
         ..ShootingOptions::default()
     };
     let names: Vec<&str> = spec.parameters.iter().map(String::as_str).collect();
+    // Per output: the rows it owns and their `(n, w)`, evaluated together in every residual.
+    let outputs = rows.iter().map(|row| row.0 + 1).max().unwrap_or(0);
+    type Points = (Vec<usize>, Vec<(i32, f64)>);
+    let per_output: Vec<Points> = (0..outputs)
+        .map(|o| {
+            rows.iter()
+                .enumerate()
+                .filter(|(_, row)| row.0 == o)
+                .map(|(i, &(_, n, w, _, _))| (i, (n, w)))
+                .unzip()
+        })
+        .collect();
     let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
         let changes: Vec<(&str, f64)> = names.iter().copied().zip(p.iter().copied()).collect();
         let trial = model.unforced_with(&changes)?;
@@ -201,14 +213,8 @@ pub fn fit_to_htf<S: Parametric>(
             .map(|o| htf.channel(o))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| e.to_string())?;
-        for (o, channel) in channels.iter().enumerate() {
-            let (at, points): (Vec<usize>, Vec<(i32, f64)>) = rows
-                .iter()
-                .enumerate()
-                .filter(|(_, row)| row.0 == o)
-                .map(|(i, &(_, n, w, _, _))| (i, (n, w)))
-                .unzip();
-            for (i, g) in at.into_iter().zip(channel.values(&points)) {
+        for (channel, (at, points)) in channels.iter().zip(&per_output) {
+            for (&i, g) in at.iter().zip(channel.values(points)) {
                 let (_, _, _, value, weight) = rows[i];
                 let d = (value - g) * weight;
                 r[2 * i] = d.re;
