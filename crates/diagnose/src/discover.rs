@@ -549,6 +549,7 @@ fn refit(
         scales: Some(scales.clone()),
         bounds: Some(bounds.clone()),
         lambda0: 1e-3,
+        extend_steps: false,
     };
     // The equation error's coefficients can make the model blow up where the output error
     // would not take them (a term that destabilises the orbit beside a moved switch): start

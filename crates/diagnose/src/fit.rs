@@ -432,6 +432,7 @@ impl Context<'_> {
             scales: Some(typical.clone()),
             bounds: Some(bounds.clone()),
             lambda0: 1e-3,
+            extend_steps: true,
         };
         let lm = levenberg_marquardt_batch(residual_fn, &u0, n, &opts).map_err(|e| {
             let names: Vec<&str> = slots.iter().map(|s| s.name()).collect();

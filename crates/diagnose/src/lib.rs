@@ -42,7 +42,9 @@
 //!    The adaptive DOP853 of `htfid-hybrid` is available and is the reference in the tests.
 //! 2. **Nominal fit.** The nominal structure with its `free` parameters refitted (after a
 //!    few equation-error steps from the given values) by output error: Levenberg-Marquardt
-//!    (`htfid-estimate`) on `simulated x - measured x` over the fit ranges, until a step
+//!    (`htfid-estimate`, each accepted step extended along its direction when the cost
+//!    keeps falling beyond it, see `LmOptions::extend_steps`) on `simulated x - measured x`
+//!    over the fit ranges, until a step
 //!    improves the fit by less than `fit_tolerance` (0.01) in likelihood-ratio units; the
 //!    Jacobian of the last step gives the standard errors. Mass, stiffness and
 //!    damping are fitted as logarithms, so a silverbox-like mass of 5e-6 is as easy as a mass

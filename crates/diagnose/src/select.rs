@@ -728,17 +728,30 @@ pub(crate) fn select(
     let mut without: Vec<f64> = Vec::new();
     'backward: while chosen.len() >= 2 {
         without.clear();
-        for (k, &e) in chosen.iter().enumerate() {
-            let own = own_slots(&chosen, k, &nominal.slots);
-            let Some(reduced) = refit_without(ctx, &current, &own, absent) else {
+        // Every effect's refit without it, in parallel; read in order below, so the first
+        // effect dropped is the one a serial pass would drop (the refits after it are spent).
+        let reduced_all: Vec<Option<(FitResult, Option<Score>)>> = (0..chosen.len())
+            .into_par_iter()
+            .map(|k| {
+                let own = own_slots(&chosen, k, &nominal.slots);
+                let reduced = refit_without(ctx, &current, &own, absent)?;
+                let score = evaluate(ctx, &reduced.point, &reduced.stepping)
+                    .map(|ev| ev.score)
+                    .ok();
+                Some((reduced, score))
+            })
+            .collect();
+        evaluations += reduced_all
+            .iter()
+            .flatten()
+            .map(|(r, _)| r.evaluations)
+            .sum::<usize>();
+        for (k, (&e, refit)) in chosen.iter().zip(reduced_all).enumerate() {
+            let Some((reduced, reduced_score)) = refit else {
                 without.push(f64::NAN);
                 continue;
             };
-            evaluations += reduced.evaluations;
             let (lr, crit) = nested_test(&reduced, &current, ctx.n_fit(), opts.alpha);
-            let reduced_score = evaluate(ctx, &reduced.point, &reduced.stepping)
-                .map(|ev| ev.score)
-                .ok();
             let gain = reduced_score.map_or(f64::NAN, |s| {
                 held_out_gain(current_score.rmse, s.rmse, noise)
             });

@@ -115,7 +115,7 @@ pub use htfid_data::TimeSeries;
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
 pub use lm::{
     levenberg_marquardt, levenberg_marquardt_batch, levenberg_marquardt_parallel, FdScheme, LmFit,
-    LmOptions, LmStop,
+    LmOptions, LmStop, EXTEND_FROM, EXTEND_MAX,
 };
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};

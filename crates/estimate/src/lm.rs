@@ -60,7 +60,23 @@ pub struct LmOptions {
     pub bounds: Option<Vec<(f64, f64)>>,
     /// Initial damping `lambda` (relative to the Marquardt diagonal).
     pub lambda0: f64,
+    /// Extend an accepted step along its direction when the cost keeps falling beyond it.
+    /// The cost along the step, `c(t)` for the point `x + t d`, is taken as the quadratic
+    /// through its value and slope at `t = 0` (the slope `2 d^T J^T r`, exact for an exact
+    /// Jacobian) and its value at `t = 1`; when that quadratic's minimum `t*` lies beyond
+    /// [`EXTEND_FROM`] steps, one more evaluation tries `x + min(t*, EXTEND_MAX) d` (projected
+    /// onto the box) and keeps it if its cost is lower still. In a curved valley, where
+    /// Gauss-Newton steps fall short of the minimum along them by the same factor again and
+    /// again (a gain ratio near 2), this saves the iterations spent walking there in short
+    /// steps; one evaluation where a Jacobian costs one per parameter.
+    pub extend_steps: bool,
 }
+
+/// Least multiple of the step worth trying when [`LmOptions::extend_steps`] is on.
+pub const EXTEND_FROM: f64 = 1.5;
+/// Most multiple of the step tried when [`LmOptions::extend_steps`] is on. (Trying again from
+/// the extended point, up to 512 steps, was measured no faster on the Silverbox diagnosis.)
+pub const EXTEND_MAX: f64 = 8.0;
 
 impl Default for LmOptions {
     fn default() -> Self {
@@ -74,6 +90,7 @@ impl Default for LmOptions {
             scales: None,
             bounds: None,
             lambda0: 1e-3,
+            extend_steps: false,
         }
     }
 }
@@ -442,6 +459,11 @@ fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -
     let mut jac = DMatrix::<f64>::zeros(m, np);
     let mut r_trial = vec![0.0; m];
     let mut x_trial = vec![0.0; np];
+    let (mut x_ext, mut r_ext) = if options.extend_steps {
+        (vec![0.0; np], vec![0.0; m])
+    } else {
+        (Vec::new(), Vec::new())
+    };
     let mut iterations = 0;
     let mut jac_current = false;
     let mut stop = LmStop::MaxIterations;
@@ -544,11 +566,28 @@ fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -
                 } else if rho < 0.25 {
                     lambda *= 2.0;
                 }
-                let reduction = cost - cost_trial;
+                let old = cost;
+                let mut cost_new = cost_trial;
+                if options.extend_steps {
+                    if let Some(t) = extension(old, cost_trial, g.dot(&d)) {
+                        for j in 0..np {
+                            let (lo, hi) = bounds[j];
+                            x_ext[j] = (x[j] + t * d[j]).clamp(lo, hi);
+                        }
+                        if prob.eval(&x_ext, &mut r_ext).is_ok() {
+                            let cost_ext = sum_sq(&r_ext);
+                            if cost_ext < cost_trial {
+                                std::mem::swap(&mut x_trial, &mut x_ext);
+                                std::mem::swap(&mut r_trial, &mut r_ext);
+                                cost_new = cost_ext;
+                            }
+                        }
+                    }
+                }
+                let reduction = old - cost_new;
                 std::mem::swap(&mut x, &mut x_trial);
                 std::mem::swap(&mut r, &mut r_trial);
-                let old = cost;
-                cost = cost_trial;
+                cost = cost_new;
                 jac_current = false;
                 accepted = true;
                 if reduction <= options.ftol * old {
@@ -582,6 +621,21 @@ fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -
         evaluations: prob.evaluations(),
         stop,
     })
+}
+
+/// Multiple of an accepted step worth trying (see [`LmOptions::extend_steps`]): the minimum of
+/// the quadratic `c(t)` with `c(0) = c0`, `c'(0) = 2 slope` (`slope = d^T J^T r`, negative
+/// along a descent direction) and `c(1) = c1`, when it lies beyond [`EXTEND_FROM`]; capped at
+/// [`EXTEND_MAX`], which is also taken when the cost falls faster than linearly (no minimum).
+fn extension(c0: f64, c1: f64, slope: f64) -> Option<f64> {
+    let a = -2.0 * slope;
+    if !(a > 0.0 && c1 < c0) {
+        return None;
+    }
+    // c(t) = c0 - a t + b t^2 through c(1) = c1.
+    let b = c1 - c0 + a;
+    let t = if b > 0.0 { a / (2.0 * b) } else { EXTEND_MAX };
+    (t >= EXTEND_FROM).then_some(t.min(EXTEND_MAX))
 }
 
 fn sum_sq(v: &[f64]) -> f64 {
@@ -773,4 +827,26 @@ fn covariance(jac: &DMatrix<f64>, cost: f64, m: usize) -> Option<Vec<Vec<f64>>> 
         }
     }
     Some(cov)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// On an exact quadratic the extension lands on its minimum: `c(t) = 1 - 0.8 t + 0.1 t^2`
+    /// has `c(0) = 1`, `c'(0) = -0.8` (slope `-0.4`), `c(1) = 0.3` and its minimum at `t = 4`.
+    #[test]
+    fn the_extension_is_the_minimum_of_the_quadratic_along_the_step() {
+        let t = extension(1.0, 0.3, -0.4).unwrap();
+        assert!((t - 4.0).abs() < 1e-12, "{t}");
+        // Minimum at t = 1.25 (c = 1 - 0.8 t + 0.32 t^2): not worth an evaluation.
+        assert_eq!(extension(1.0, 0.52, -0.4), None);
+        // Falling faster than linearly: the cap.
+        assert_eq!(extension(1.0, 0.1, -0.4), Some(EXTEND_MAX));
+        // Minimum at t = 20 (c = 1 - 0.8 t + 0.02 t^2): the cap.
+        assert_eq!(extension(1.0, 0.22, -0.4), Some(EXTEND_MAX));
+        // No descent, or a step that did not lower the cost: nothing to extend.
+        assert_eq!(extension(1.0, 0.3, 0.4), None);
+        assert_eq!(extension(1.0, 1.0, -0.4), None);
+    }
 }
