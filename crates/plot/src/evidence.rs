@@ -1,6 +1,6 @@
 //! Panels for the evidence of a diagnosis: binned means with their bands, and a waterfall.
 
-use crate::figure::{Panel, Role, Series, Style};
+use crate::figure::{Panel, Role, Scale, Series, Style};
 
 /// Half-width of the band around a bin mean in a [`binned_panel`], in standard errors of the
 /// mean (about 95 % for a normal mean).
@@ -84,20 +84,47 @@ pub struct WaterfallBar {
     pub legend: String,
 }
 
-/// Bars in order along the horizontal axis, named under it: a level reaches from zero, a step
-/// floats between the level before and the level after, joined to the next bar by a dashed
-/// grey line at its end value. The vertical axis starts at zero.
-pub fn waterfall_panel(title: &str, y_label: &str, bars: &[WaterfallBar]) -> Panel {
+/// Levels spanning more than this ratio get a logarithmic axis (see [`waterfall_panel`]).
+pub const WATERFALL_LOG_SPAN: f64 = 20.0;
+
+/// Bars in order along the horizontal axis, named under it: a level reaches from the bottom of
+/// the axis, a step floats between the level before and the level after, joined to the next
+/// bar by a dashed grey line at its end value. `reference` (a value and its legend, e.g. the
+/// noise floor) is drawn as a dashed line across. The vertical axis starts at zero, unless the
+/// levels (and the reference) span more than [`WATERFALL_LOG_SPAN`]: then it is logarithmic,
+/// from a decade boundary below the lowest, so that a step from 2e-2 to 2e-4 and the later
+/// steps of a few percent there are all seen.
+pub fn waterfall_panel(
+    title: &str,
+    y_label: &str,
+    bars: &[WaterfallBar],
+    reference: Option<(f64, String)>,
+) -> Panel {
     const HALF: f64 = 0.32;
     let mut panel = Panel::new(title, "", y_label);
-    let mut top = 0.0f64;
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let values = bars
+        .iter()
+        .flat_map(|b| [finite(b.to), finite(b.from).filter(|&v| v != 0.0)])
+        .chain([reference.as_ref().map(|r| r.0)])
+        .flatten();
+    let (low, top) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+        (if v > 0.0 { lo.min(v) } else { lo }, hi.max(v))
+    });
+    let log = low.is_finite() && top > WATERFALL_LOG_SPAN * low;
+    // The axis's bottom, where a level starts: zero, or a decade boundary below the lowest.
+    let bottom = if log {
+        10f64.powf((low / 1.5).log10().floor())
+    } else {
+        0.0
+    };
     for (i, b) in bars.iter().enumerate() {
         let x = i as f64;
-        let (lo, hi) = (b.from.min(b.to), b.from.max(b.to));
+        let from = if b.from == 0.0 { bottom } else { b.from };
+        let (lo, hi) = (from.min(b.to), from.max(b.to));
         if !(lo.is_finite() && hi.is_finite()) {
             continue;
         }
-        top = top.max(hi);
         panel.series.push(
             Series::band(
                 b.legend.clone(),
@@ -133,8 +160,23 @@ pub fn waterfall_panel(title: &str, y_label: &str, bars: &[WaterfallBar]) -> Pan
         .enumerate()
         .map(|(i, b)| (i as f64, b.name.clone()))
         .collect();
-    panel.x_range = Some((-0.6, bars.len().max(1) as f64 - 0.4));
-    if top > 0.0 {
+    let x_range = (-0.6, bars.len().max(1) as f64 - 0.4);
+    panel.x_range = Some(x_range);
+    if let Some((value, legend)) = reference {
+        panel.series.push(
+            Series::new(
+                legend,
+                vec![x_range.0, x_range.1],
+                vec![value, value],
+                Style::Dashed,
+            )
+            .with_role(Role::Bound),
+        );
+    }
+    if log {
+        panel.y_scale = Scale::Log10;
+        panel.y_range = Some((bottom, 1.5 * top));
+    } else if top > 0.0 {
         panel.y_range = Some((0.0, 1.1 * top));
     }
     panel
@@ -186,6 +228,7 @@ mod tests {
                 bar("refitted", 5.0, 4.0),
                 bar("final", 0.0, 4.0),
             ],
+            None,
         );
         let names: Vec<&str> = p.x_ticks.iter().map(|t| t.1.as_str()).collect();
         assert_eq!(names, ["configured", "refitted", "final"]);
@@ -194,5 +237,48 @@ mod tests {
         assert_eq!(p.series.len(), 3 * 2 + 2);
         let step = &p.series[3];
         assert_eq!((step.y[0], step.upper[0]), (4.0, 5.0));
+    }
+}
+
+#[cfg(test)]
+mod log_tests {
+    use super::*;
+
+    /// Levels from 2e-2 to 2.5e-4 (and a floor of 6.5e-5) span more than 20: a logarithmic
+    /// axis from the decade below the lowest value (1e-5, below 6.5e-5 / 1.5), the levels drawn
+    /// from there, the steps between their levels, and the reference line across.
+    #[test]
+    fn a_waterfall_over_decades_has_a_log_axis_from_a_decade_below_the_lowest() {
+        let bar = |from: f64, to: f64| WaterfallBar {
+            name: "b".into(),
+            from,
+            to,
+            role: Role::Extended,
+            legend: String::new(),
+        };
+        let p = waterfall_panel(
+            "t",
+            "RMSE (V)",
+            &[
+                bar(0.0, 2e-2),
+                bar(2e-2, 7e-3),
+                bar(7e-3, 2.5e-4),
+                bar(0.0, 2.5e-4),
+            ],
+            Some((6.5e-5, "noise floor".into())),
+        );
+        assert_eq!(p.y_scale, Scale::Log10);
+        assert_eq!(p.y_range, Some((1e-5, 1.5 * 2e-2)));
+        let first = &p.series[0];
+        assert_eq!((first.y[0], first.upper[0]), (1e-5, 2e-2));
+        let step = &p.series[6];
+        assert_eq!((step.y[0], step.upper[0]), (2.5e-4, 7e-3));
+        let floor = p.series.last().expect("the reference line");
+        assert_eq!(floor.label, "noise floor");
+        assert_eq!(floor.y, vec![6.5e-5, 6.5e-5]);
+        // Within a decade the axis stays linear from zero.
+        let p = waterfall_panel("t", "RMSE (V)", &[bar(0.0, 5.0), bar(5.0, 1.0)], None);
+        assert_eq!(p.y_scale, Scale::Linear);
+        assert_eq!(p.y_range, Some((0.0, 5.5)));
     }
 }

@@ -61,6 +61,8 @@ pub use convenience::{
     TIME_LABEL, Z_95,
 };
 pub use error::PlotError;
-pub use evidence::{binned_panel, waterfall_panel, BinnedSeries, WaterfallBar, BIN_BAND_STDERRS};
+pub use evidence::{
+    binned_panel, waterfall_panel, BinnedSeries, WaterfallBar, BIN_BAND_STDERRS, WATERFALL_LOG_SPAN,
+};
 pub use figure::{Figure, Panel, Role, Scale, Series, Style};
 pub use output::save;

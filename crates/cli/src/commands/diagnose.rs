@@ -189,14 +189,13 @@ fn htf_unit(s: &DiagnoseSettings) -> Option<&'static str> {
     (s.data.output == "x" && s.data.input == "f").then_some("m/N")
 }
 
-/// The extended model's name in legends.
 /// The extended model's key in `validation.fit_percent` (`docs/outputs.md`): by the cause.
 fn validation_key(report: &DiagnosisReport) -> String {
     format!("extended ({})", report.diagnosis.cause)
 }
 
 /// The extended model in figures: by the effects it adds.
-fn ext_label(report: &DiagnosisReport) -> String {
+pub(crate) fn ext_label(report: &DiagnosisReport) -> String {
     let added = added_effects(&report.diagnosis);
     if added.is_empty() {
         "extended (nothing added)".to_string()
@@ -808,13 +807,47 @@ fn pct_cell(v: f64) -> String {
     }
 }
 
+/// The verdict of a diagnosis with several causes: the cause first (what the nominal model
+/// lacks most), the other effects beside it, a refit of the configured parameters apart, then
+/// every share of the explained error.
+fn several_causes(d: &htfid_diagnose::Diagnosis, cause: &str) -> String {
+    let quoted = |names: Vec<&str>| {
+        names
+            .iter()
+            .map(|n| format!("`{n}`"))
+            .collect::<Vec<_>>()
+            .join(" and ")
+    };
+    let beside: Vec<&str> = d
+        .causes
+        .iter()
+        .map(|c| c.effect.as_str())
+        .filter(|&e| e != cause && e != "parameter_error")
+        .collect();
+    let mut v = format!("**Cause: `{cause}`**");
+    if !beside.is_empty() {
+        v += &format!(", with {}", quoted(beside));
+    }
+    if cause != "parameter_error" && d.causes.iter().any(|c| c.effect == "parameter_error") {
+        v += "; the configured parameters are off as well (`parameter_error`)";
+    }
+    v += &format!(
+        ". Together they lower the held-out simulation error by {} % against the refitted \
+         nominal model. Shares of the error they explain, from the configured model to the \
+         final one: {}; each step is in `error_waterfall.png`.",
+        htfid_number::sig(100.0 * d.gain, 4),
+        causes_text(d)
+    );
+    v
+}
+
 /// The causes with their shares, strongest first.
 fn causes_text(d: &htfid_diagnose::Diagnosis) -> String {
     d.causes
         .iter()
         .map(|c| {
             format!(
-                "`{}` ({} % of the explained error)",
+                "`{}` {} %",
                 c.effect,
                 htfid_number::sig(100.0 * c.gain_share, 3)
             )
@@ -841,10 +874,10 @@ fn report_md(
     let verdict = match d.cause.as_str() {
         "none" => "**No effect found**: the nominal model explains the data down to the noise.".to_string(),
         "unexplained" if d.causes.is_empty() => "**Unexplained**: the nominal model leaves clear structure in the residual that no candidate effect in the library explains with confidence.".to_string(),
-        "unexplained" => format!("**Unexplained**: the library effects found ({}) lower the held-out simulation error by {} %, but clear structure remains that they do not explain.", causes_text(d), num(100.0 * d.gain, 4)),
+        "unexplained" => format!("**Unexplained**: the library effects found ({}: their shares of the error they explain) lower the held-out simulation error by {} %, but clear structure remains that they do not explain.", causes_text(d), num(100.0 * d.gain, 4)),
         "ambiguous" => format!("**Ambiguous**: {} explain the data equally well; the data cannot tell them apart (see the evidence for the experiment that would).", d.alternatives.iter().map(|a| format!("`{a}`")).collect::<Vec<_>>().join(" and ")),
         "model_mismatch" => format!("**Model mismatch**: the nominal model does not describe these data at all, so no effect is named. Likely reasons: {}", d.mismatch.join("; ")),
-        c if d.causes.len() > 1 => format!("**Causes: {}** (strongest first, `{c}`). Together they lower the held-out simulation error by {} %.", causes_text(d), num(100.0 * d.gain, 4)),
+        c if d.causes.len() > 1 => several_causes(d, c),
         c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {} %.", num(100.0 * d.gain, 4)),
     };
     let _ = writeln!(m, "{verdict}\n");

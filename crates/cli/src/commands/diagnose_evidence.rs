@@ -148,7 +148,7 @@ pub fn draw_bins(
 ) -> Result<()> {
     let u = unit_or_words(s);
     let y_label = format!("residual acceleration ({u}/s^2)");
-    let ext_label = format!("extended ({})", report.diagnosis.cause);
+    let ext_label = super::diagnose::ext_label(report);
     type Pick = fn(&BinnedResidual) -> &Vec<Bin>;
     let mut panels = Vec::new();
     let kinds: [(&str, String, Pick); 3] = [
@@ -279,23 +279,14 @@ pub fn draw_waterfall(
         });
     }
     let u = unit_or_words(s);
-    let mut panel = waterfall_panel(
+    let panel = waterfall_panel(
         "held-out RMSE, step by step",
         &format!("held-out RMSE ({u})"),
         &bars,
+        report
+            .noise_floor
+            .map(|floor| (floor, format!("noise floor ({} {u})", num(floor, 3)))),
     );
-    if let Some(floor) = report.noise_floor {
-        let (lo, hi) = panel.x_range.unwrap_or((0.0, 1.0));
-        panel.series.push(
-            Series::new(
-                format!("noise floor ({} {u})", num(floor, 3)),
-                vec![lo, hi],
-                vec![floor, floor],
-                Style::Dashed,
-            )
-            .with_role(Role::Bound),
-        );
-    }
     let fig = stacked_figure(
         format!(
             "{}: held-out error from the configured to the final model",
@@ -363,7 +354,7 @@ pub fn draw_htf_difference(
     diffs: &[HarmonicDifference],
     unit: Option<&str>,
 ) -> Result<()> {
-    let ext_label = format!("extended ({}): measured - theory", report.diagnosis.cause);
+    let ext_label = format!("{}: measured - theory", super::diagnose::ext_label(report));
     let panels: Vec<Panel> = diffs
         .iter()
         .map(|d| {
