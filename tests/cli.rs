@@ -1413,13 +1413,11 @@ fn diagnose_hopper_model_config_runs() {
     );
     let cf = best["parameters"]["damping_v_free"].as_f64().unwrap();
     assert!((cf / 0.2 - 1.0).abs() < 0.05, "{cf}");
-    let cause = d["cause"].as_str().unwrap();
-    assert!(
-        cause == "mode_damping(v, free)"
-            || (cause == "ambiguous" && d["alternatives"][0] == "mode_damping(v, free)"),
-        "{cause} {}",
-        d["alternatives"]
-    );
+    // A cubic and quadratic spring comes within 2 % of it held out (both near the noise
+    // floor), but the fit data separate them by a likelihood ratio of about 600 at one
+    // parameter fewer: the damping is named alone (`bic_margin`).
+    assert_eq!(d["cause"], "mode_damping(v, free)", "{}", d["alternatives"]);
+    assert_eq!(d["options"]["bic_margin"], 10.0);
 }
 
 /// A user's own candidate, `[[diagnose.terms]]`: a term on a named state equation in a named
@@ -3242,4 +3240,76 @@ fn boundary_parameters_carry_their_units() {
     for d in shown {
         assert!(d.ends_with(" s"), "{d}");
     }
+}
+
+/// Records from a generator that shares no code with htfid (`tests/oracle/real_like`, Python
+/// with SciPy's DOP853, written from the equations alone; truth in its `truth.json`), diagnosed
+/// through the configs beside them with the built-in library:
+/// - a hardening Duffing oscillator (45 % held-out NRMSE for the refitted linear nominal): the
+///   cubic spring alone, `k3` within 1 % (measured 4.00003e6 against 4e6; the record's noise
+///   is 1e-6 m on a 1e-3 m response), no rival;
+/// - a friction-dominated stage under closed-loop control (motor force held per sample,
+///   quantised position), with a free mass (`k = 0`) as nominal: Coulomb friction named, with
+///   the friction level, the offset force and the viscous damping within 10 % of the truth
+///   (measured 20.65 N, 3.11 N and 211 N s/m against 20.4, 3.1 and 213). The mass and a small
+///   stiffness come out of the refit of the configured parameters wrong (1.9 kg, 4 N/m against
+///   0.95 kg and 0): the open-loop simulation of the drifting mass reads the sample-held force
+///   as a smooth one;
+/// - a hysteretic (Bouc-Wen) oscillator: hysteresis is outside the library, so no library
+///   effect may be claimed with confidence (`unexplained`, or `ambiguous`).
+#[test]
+fn records_from_an_independent_generator_get_the_physically_right_answer() {
+    let dir = root().join("tests/fixtures/real-like");
+    let truth: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |config: &str| {
+        let out = tmp.path().join(config);
+        htfid_ok(&[
+            "diagnose",
+            dir.join(config).to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        diagnosis(&out)
+    };
+    let within = |got: f64, want: f64, tol: f64, what: &str| {
+        assert!(
+            (got / want - 1.0).abs() <= tol,
+            "{what}: {got} against the truth {want}"
+        );
+    };
+
+    let d = run("duffing.toml");
+    assert_eq!(d["cause"], "cubic_stiffness", "{}", d["evidence"]);
+    assert_eq!(d["alternatives"], serde_json::json!([]));
+    let k3 = truth["duffing_hardening.csv"]["parameters"]["k3_N_per_m3"]
+        .as_f64()
+        .unwrap();
+    within(d["parameters"]["k3"].as_f64().unwrap(), k3, 0.01, "k3");
+
+    let d = run("friction.toml");
+    assert_eq!(d["cause"], "coulomb_friction", "{}", d["evidence"]);
+    let p = &truth["friction_stage.csv"]["parameters"];
+    let fc = p["Fc_N"].as_f64().unwrap();
+    within(d["parameters"]["mu"].as_f64().unwrap(), fc, 0.1, "mu");
+    // The offset force F0 enters as -F0 (truth.json's note): an input offset of -F0.
+    let offset = -p["F0_N"].as_f64().unwrap();
+    within(
+        d["parameters"]["input_offset"].as_f64().unwrap(),
+        offset,
+        0.1,
+        "input_offset",
+    );
+    let fv = p["Fv_Ns_per_m"].as_f64().unwrap();
+    within(d["parameters"]["c"].as_f64().unwrap(), fv, 0.1, "c");
+
+    let d = run("bouc-wen.toml");
+    let cause = d["cause"].as_str().unwrap();
+    assert!(
+        cause == "unexplained" || cause == "ambiguous",
+        "{cause}: {}",
+        d["evidence"]
+    );
 }

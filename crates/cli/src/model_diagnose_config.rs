@@ -53,6 +53,7 @@ struct RawOptions {
     effects: Option<Spanned<Vec<String>>>,
     alpha: Option<Spanned<f64>>,
     rival_margin: Option<Spanned<f64>>,
+    bic_margin: Option<Spanned<f64>>,
     unexplained_ratio: Option<Spanned<f64>>,
     min_explained: Option<Spanned<f64>>,
     max_effects: Option<Spanned<f64>>,
@@ -217,6 +218,9 @@ impl ModelDiagnoseSettings {
             options.rival_margin = src.number(v, "diagnose.rival_margin", "in [0, 1]", |x| {
                 (0.0..=1.0).contains(&x)
             })?;
+        }
+        if let Some(v) = o.and_then(|o| o.bic_margin.as_ref()) {
+            options.bic_margin = src.number(v, "diagnose.bic_margin", ">= 0", |x| x >= 0.0)?;
         }
         if let Some(v) = o.and_then(|o| o.unexplained_ratio.as_ref()) {
             options.unexplained_ratio =

@@ -56,7 +56,7 @@ pub fn diagnose_with_progress(
         sensor: nominal.sensor,
     };
 
-    let f_n = (start.params.k / start.params.m).sqrt() / (2.0 * std::f64::consts::PI);
+    let f_n = start.params.natural_rate() / (2.0 * std::f64::consts::PI);
     let half = window_half_width(f_n, dt);
     let burn_in_s = match opts.burn_in_s {
         Some(b) => b,
@@ -98,6 +98,10 @@ pub fn diagnose_with_progress(
         max_iterations: opts.max_iterations,
         fit_tolerance: opts.fit_tolerance,
         forcing_period: (nominal.params.forcing_amplitude != 0.0).then_some(nominal.params.period),
+        mass_range: (
+            nominal.params.m / crate::fit::MASS_RANGE,
+            nominal.params.m * crate::fit::MASS_RANGE,
+        ),
     };
     let screening = Screening::new(&ctx, half);
     let v: Vec<f64> = screening.samples().iter().map(|(_, k)| k.v).collect();
@@ -282,7 +286,7 @@ pub fn simulate_record(
     };
     let input = MeasuredForce::new(record.time()[0], record.dt(), record.input(), interpolation);
     let (hopper, force) = input.drive_with(p, model.damper, model.effects)?;
-    let f_n = (p.k / p.m).sqrt() / (2.0 * std::f64::consts::PI);
+    let f_n = p.natural_rate() / (2.0 * std::f64::consts::PI);
     let half = init_half_width(f_n, record.dt());
     let init = match init {
         Some(i) => i,

@@ -252,7 +252,7 @@ impl Frame {
         let q = &p.params;
         let period = q.period;
         Frame {
-            x_eq: q.x0 - q.m * q.g / q.k,
+            x_eq: q.equilibrium(),
             omega: if period.is_finite() && period > 0.0 {
                 2.0 * std::f64::consts::PI / period
             } else {

@@ -200,7 +200,7 @@ pub fn residual_acceleration(
     let hopper = input.drive(p, model.damper, model.effects)?;
     let s = model.sensor;
     let x: Vec<f64> = record.output().iter().map(|&y| (y - s.b) / s.g).collect();
-    let f_n = (p.k / p.m).sqrt() / (2.0 * std::f64::consts::PI);
+    let f_n = p.natural_rate() / (2.0 * std::f64::consts::PI);
     let half = window_half_width(f_n, dt);
     let kernel = acceleration_kernel(half, dt);
     let skip = (skip_s / dt - 1e-9).ceil().max(0.0) as usize;

@@ -62,7 +62,17 @@ pub(crate) struct Context<'a> {
     pub fit_tolerance: f64,
     /// The nominal's forcing period when it is forced (the forcing is in the measured force).
     pub forcing_period: Option<f64>,
+    /// The range every fit keeps the mass in: [`MASS_RANGE`] times the configured mass either
+    /// way.
+    pub mass_range: (f64, f64),
 }
+
+/// A fitted mass stays within this factor of the configured one either way. Without a bound
+/// the output-error fit of a nominal far from the data (a free mass without the friction that
+/// holds the real one) can shrink the mass towards zero, where the model turns first order
+/// and ever finer integration steps are needed; a factor of 100 is no constraint on a mass
+/// that is merely unknown.
+pub(crate) const MASS_RANGE: f64 = 100.0;
 
 /// A point in model space.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -325,6 +335,7 @@ impl Context<'_> {
 
     /// Output-error fit of `slots` from `start` (which must hold the starting values).
     pub(crate) fn fit(&self, start: &ModelPoint, slots: &[Slot]) -> Result<FitResult, String> {
+        let first = *start;
         let mut start = *start;
         let mut stepping = self.stepping(&start);
         let mut evaluations = 0;
@@ -341,14 +352,30 @@ impl Context<'_> {
             start = result.point;
             stepping = needed;
         }
+        // Where the fit went, parameter by parameter.
+        let moves: Vec<String> = slots
+            .iter()
+            .map(|&s| {
+                format!(
+                    "{} {} -> {}",
+                    s.name(),
+                    htfid_number::sig(first.get(s), 3),
+                    htfid_number::sig(start.get(s), 3)
+                )
+            })
+            .collect();
+        let mass = if slots.contains(&Slot::M) && start.get(Slot::M) < first.get(Slot::M) {
+            "; a shrinking mass turns the model first order: leave `m` out of `free` (a free \
+             mass, k = 0, simulated open loop drifts away from a mass held by friction), or \
+             fit shorter ranges"
+        } else {
+            ""
+        };
         Err(format!(
-            "the fitted model kept needing a finer integration step (a stiffening contact or a \
-             vanishing lag among {}); bound the parameter or start it nearer the data",
-            slots
-                .iter()
-                .map(|s| s.name())
-                .collect::<Vec<_>>()
-                .join(", ")
+            "the fitted model kept needing a finer integration step ({}): a stiffening \
+             contact, a vanishing lag or a shrinking mass; bound the parameter or start it \
+             nearer the data{mass}",
+            moves.join(", ")
         ))
     }
 
@@ -377,9 +404,14 @@ impl Context<'_> {
         for (i, &s) in slots.iter().enumerate() {
             let v = start.get(s);
             if layout.log[i] {
-                u0.push(v.ln());
+                let (lo, hi) = if s == Slot::M {
+                    (self.mass_range.0.ln(), self.mass_range.1.ln())
+                } else {
+                    (f64::NEG_INFINITY, f64::INFINITY)
+                };
+                u0.push(v.ln().clamp(lo, hi));
                 typical.push(1.0);
-                bounds.push((f64::NEG_INFINITY, f64::INFINITY));
+                bounds.push((lo, hi));
             } else {
                 let lower = s.lower_bound();
                 u0.push(v.max(lower));

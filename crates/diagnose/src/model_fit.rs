@@ -43,10 +43,17 @@ pub struct ModelFitOptions {
     /// Significance level of the likelihood-ratio test of an effect.
     pub alpha: f64,
     /// Two significant effects whose held-out NRMSEs differ by less than this fraction of the
-    /// better one explain the data equally well: the answer is `ambiguous`. The default 0.05
-    /// is a difference of mean squares of about a tenth of the better one's, below what a few
-    /// thousand held-out samples of a residual near the noise floor resolve.
+    /// better one may explain the data equally well; the fit data decide (`bic_margin`). The
+    /// default 0.05 is a difference of mean squares of about a tenth of the better one's,
+    /// below what a few thousand held-out samples of a residual near the noise floor resolve.
     pub rival_margin: f64,
+    /// Of the effects within `rival_margin` held out, the one with the lowest BIC on the fit
+    /// data is named; the others are its rivals only when their BIC is within this margin of
+    /// it (as the built-in diagnosis's `bic_margin`, default 10: a likelihood ratio of about 10
+    /// at equal parameter counts). Near the noise floor the held-out NRMSEs of a right and a
+    /// wrong effect differ by a few percent, while the fit data still tell them apart by
+    /// hundreds.
+    pub bic_margin: f64,
     /// The answer is `unexplained` when the best model's held-out residual stays above this
     /// many times the noise floor while its effect removes less than `min_explained` of the
     /// refit's error above the floor.
@@ -76,6 +83,7 @@ impl Default for ModelFitOptions {
             user_terms: Vec::new(),
             alpha: 1e-4,
             rival_margin: 0.05,
+            bic_margin: 10.0,
             unexplained_ratio: 5.0,
             min_explained: 0.999,
             resolution: 1e-4,
@@ -363,6 +371,31 @@ fn nested_ratio(small_rss: f64, big_rss: f64, big_residuals: &[f64], n: usize) -
         0.0
     };
     (lr, kappa)
+}
+
+/// Of the fits `close` (indices into `tried`, each held out within the rival margin of the
+/// best), the one with the lowest BIC on the fit data (`n` residuals; every fitted parameter
+/// counted) and those within `margin` of it, best BIC first: the winner and its rivals.
+fn rivals_by_bic(tried: &[Tried], close: &[usize], n: usize, margin: f64) -> (usize, Vec<usize>) {
+    let bic = |i: usize| {
+        let t = &tried[i];
+        let b = crate::fit::bic(t.rss, n, t.candidate.parameters.len());
+        if b.is_finite() {
+            b
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut order: Vec<usize> = close.to_vec();
+    // Stable: equal BICs keep the held-out order.
+    order.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
+    let w = order[0];
+    let rivals = order[1..]
+        .iter()
+        .copied()
+        .filter(|&i| bic(i) - bic(w) < margin)
+        .collect();
+    (w, rivals)
 }
 
 /// Inflation of least-squares standard errors for residuals correlated in time:
@@ -921,23 +954,27 @@ pub fn diagnose_model(
     candidates
         .sort_by(|a, b| (a.candidate.nrmse_validation).total_cmp(&b.candidate.nrmse_validation));
     let best = candidates.iter().position(|c| c.candidate.significant);
-    // A significant rival within `rival_margin` of the best held-out score explains the data
-    // as well: the data cannot tell them apart.
-    let alternatives: Vec<String> = match best {
+    // A significant rival within `rival_margin` of the best held-out score may explain the
+    // data as well: of those, the lowest BIC on the fit data is named, and the others within
+    // `bic_margin` of it are its rivals (the data cannot tell them apart).
+    let (best, alternatives) = match best {
         Some(b) => {
-            let best_score = candidates[b].candidate.nrmse_validation;
-            candidates
-                .iter()
-                .enumerate()
-                .filter(|(i, c)| {
-                    *i != b
-                        && c.candidate.significant
-                        && c.candidate.nrmse_validation <= best_score * (1.0 + opts.rival_margin)
+            let limit = candidates[b].candidate.nrmse_validation * (1.0 + opts.rival_margin);
+            let close: Vec<usize> = (0..candidates.len())
+                .filter(|&i| {
+                    i == b
+                        || (candidates[i].candidate.significant
+                            && candidates[i].candidate.nrmse_validation <= limit)
                 })
-                .map(|(_, c)| c.candidate.effect.clone())
-                .collect()
+                .collect();
+            let (w, rivals) = rivals_by_bic(&candidates, &close, n, opts.bic_margin);
+            let names = rivals
+                .iter()
+                .map(|&i| candidates[i].candidate.effect.clone())
+                .collect();
+            (Some(w), names)
         }
-        None => Vec::new(),
+        None => (None, Vec::new()),
     };
     // The noise floor of the best model's residual (scaled by each output's spread, so in
     // NRMSE units), from the band 60-95 % of the Nyquist frequency.
@@ -1159,26 +1196,31 @@ pub fn diagnose_model(
     }
     pairs.sort_by(by_score);
     let second = pairs.iter().position(|p| p.candidate.significant);
-    // With a pair, its first effect is the cause, and the first effects of other passing pairs
-    // within `rival_margin` of it are its rivals.
-    let mut alternatives: Vec<String> = match second {
+    // With a pair, its first effect is the cause; the first effects of other passing pairs
+    // within `rival_margin` of it held out and `bic_margin` on the fit data are its rivals
+    // (of those within `rival_margin`, the lowest BIC is named, as in the first round).
+    let (second, mut alternatives): (Option<usize>, Vec<String>) = match second {
         Some(s) => {
-            let lead = trials[pairs[s].set[0]].name();
             let limit = pairs[s].candidate.nrmse_validation * (1.0 + opts.rival_margin);
+            let close: Vec<usize> = (0..pairs.len())
+                .filter(|&i| {
+                    i == s
+                        || (pairs[i].candidate.significant
+                            && pairs[i].candidate.nrmse_validation <= limit)
+                })
+                .collect();
+            let (w, rival_pairs) = rivals_by_bic(&pairs, &close, n, opts.bic_margin);
+            let lead = trials[pairs[w].set[0]].name();
             let mut rivals: Vec<String> = Vec::new();
-            for p in &pairs {
-                let name = trials[p.set[0]].name();
-                if p.candidate.significant
-                    && p.candidate.nrmse_validation <= limit
-                    && name != lead
-                    && !rivals.contains(&name)
-                {
+            for i in rival_pairs {
+                let name = trials[pairs[i].set[0]].name();
+                if name != lead && !rivals.contains(&name) {
                     rivals.push(name);
                 }
             }
-            rivals
+            (Some(w), rivals)
         }
-        None => alternatives,
+        None => (None, alternatives),
     };
     // The effects chosen so far and their joint fit (an index into `candidates` or `pairs`,
     // or a later round's fit).

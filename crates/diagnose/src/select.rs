@@ -22,7 +22,9 @@
 //! passes or `max_effects` are chosen. A backward pass then refits the model without each
 //! chosen effect in turn and drops any whose removal the same test does not reject.
 //! Two first-round candidates whose fits differ by less than `bic_margin` in BIC are rivals:
-//! unless the later rounds add both, the data cannot tell them apart.
+//! unless the later rounds add both, the data cannot tell them apart, or the rival, in place
+//! of the chosen effect beside the others chosen, fits worse than the final model by
+//! `bic_margin` or more.
 
 use htfid_number::{sig, Quantity};
 use rayon::prelude::*;
@@ -775,6 +777,53 @@ pub(crate) fn select(
     }
     // A rival of an effect the backward pass dropped is no rival of the answer.
     rivals.retain(|(c, _)| chosen.contains(c));
+    // A first-round rival stays one only while it explains the data as well as the final
+    // model: in place of its effect, beside the other chosen effects, within `bic_margin`. A
+    // first round far from the answer (a strongly nonlinear record whose first fits stop in
+    // a side valley) can leave two effects within the margin that the final fit separates by
+    // thousands. Look-alikes were refitted so above already.
+    let mut kept = Vec::new();
+    for (e, r) in std::mem::take(&mut rivals) {
+        let Some(k) = chosen.iter().position(|&c| c == e) else {
+            continue;
+        };
+        if look_alikes(e).contains(&r) {
+            kept.push((e, r));
+            continue;
+        }
+        // Alone, the rival in place of the effect is its first-round fit beside the nominal.
+        let first_fit = (chosen.len() == 1)
+            .then(|| first_round.iter().find(|j| j.outcome.effect == r))
+            .flatten()
+            .and_then(|j| j.outcome.fit.clone().map(|f| (f, j.outcome.val_rmse)));
+        let refit = first_fit.or_else(|| {
+            let own = own_slots(&chosen, k, &nominal.slots);
+            let reduced = refit_without(ctx, &current, &own, absent)?;
+            evaluations += reduced.evaluations;
+            let o = run_candidate(ctx, screening, &reduced, &reduced.slots, r);
+            let f = o.fit?;
+            evaluations += f.evaluations;
+            Some((f, o.val_rmse))
+        });
+        let Some((f, val_rmse)) = refit else {
+            kept.push((e, r));
+            continue;
+        };
+        let d = f.bic - current.bic;
+        if d >= opts.bic_margin {
+            evidence.push(format!(
+                "{} in place of {} fits worse by {d:.1} in BIC beside the other chosen effects \
+                 (held-out RMSE {} against {}): the data separate them, no rivals",
+                r.name(),
+                e.name(),
+                sig(val_rmse, 4),
+                sig(current_score.rmse, 4)
+            ));
+        } else {
+            kept.push((e, r));
+        }
+    }
+    rivals = kept;
     let full = current_score.rmse.powi(2);
     let rises: Vec<f64> = if chosen.len() == 1 {
         vec![(nominal_score.rmse.powi(2) - full).max(0.0)]

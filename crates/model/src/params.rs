@@ -38,7 +38,8 @@ impl HopperParams {
     /// Checks every range; the error names the parameter, what was expected and the value.
     pub fn validate(&self) -> Result<(), ModelError> {
         positive("m", self.m)?;
-        positive("k", self.k)?;
+        // k = 0 is a free mass (an integrating plant, e.g. a positioning stage).
+        non_negative("k", self.k)?;
         non_negative("c", self.c)?;
         finite("g", self.g)?;
         finite("x0", self.x0)?;
@@ -47,9 +48,25 @@ impl HopperParams {
         Ok(())
     }
 
-    /// The static equilibrium `x0 - m g / k`.
+    /// The static equilibrium `x0 - m g / k`; `x0` for a free mass (`k = 0`), which has
+    /// none.
     pub fn equilibrium(&self) -> f64 {
-        self.x0 - self.m * self.g / self.k
+        if self.k > 0.0 {
+            self.x0 - self.m * self.g / self.k
+        } else {
+            self.x0
+        }
+    }
+
+    /// The rate (rad/s) that sets the model's time scale: the undamped natural frequency
+    /// `sqrt(k / m)`, or for a free mass (`k = 0`) the velocity's decay rate `c / m` (zero
+    /// for a free mass without damping, which has no time scale of its own).
+    pub fn natural_rate(&self) -> f64 {
+        if self.k > 0.0 {
+            (self.k / self.m).sqrt()
+        } else {
+            self.c / self.m
+        }
     }
 
     /// Pumping (forcing) angular frequency `2 pi / T` (rad/s).

@@ -1105,8 +1105,12 @@ fn report_md(
 /// [`crate::records::check_time_scale`]).
 fn check_time_scale(settings: &DiagnoseSettings, record: &TimeSeries) -> Result<()> {
     let p = &settings.params;
-    let wn = (p.k / p.m).sqrt();
-    let what = format!("one natural period of the nominal model (sqrt(k/m) = {wn:.3} rad/s)");
+    let wn = p.natural_rate();
+    let what = if p.k > 0.0 {
+        format!("one natural period of the nominal model (sqrt(k/m) = {wn:.3} rad/s)")
+    } else {
+        format!("one time constant of the free mass (c/m = {wn:.3} 1/s) times 2 pi")
+    };
     crate::records::check_time_scale(
         &settings.path,
         record.dt(),

@@ -61,7 +61,7 @@ fn unit_or_words(s: &DiagnoseSettings) -> String {
 
 fn natural_period(report: &DiagnosisReport) -> f64 {
     let p = &report.nominal_model.params;
-    2.0 * std::f64::consts::PI / (p.k / p.m).sqrt()
+    2.0 * std::f64::consts::PI / p.natural_rate()
 }
 
 fn forcing_period(s: &DiagnoseSettings) -> Option<f64> {

@@ -110,6 +110,25 @@ pub fn run(
         );
     }
 
+    let options = serde_json::json!({
+        "free": s.options.free,
+        "fit_fraction": s.options.fit_fraction,
+        "burn_in": s.options.burn_in,
+        "significance_sigma": s.options.significance_sigma,
+        "min_gain": s.options.min_gain,
+        "alpha": s.options.alpha,
+        "rival_margin": s.options.rival_margin,
+        "bic_margin": s.options.bic_margin,
+        "unexplained_ratio": s.options.unexplained_ratio,
+        "min_explained": s.options.min_explained,
+        "max_effects": s.options.max_effects,
+        "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
+        "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({
+            "name": t.name,
+            "term": t.describe(),
+        })).collect::<Vec<_>>(),
+    });
     let json = json!({
         "name": s.name,
         "config": s.path.display().to_string(),
@@ -135,24 +154,7 @@ pub fn run(
         "noise_floor": d.noise_floor,
         "explained": d.explained,
         "validation": validation_json,
-        "options": {
-            "free": s.options.free,
-            "fit_fraction": s.options.fit_fraction,
-            "burn_in": s.options.burn_in,
-            "significance_sigma": s.options.significance_sigma,
-            "min_gain": s.options.min_gain,
-            "alpha": s.options.alpha,
-            "rival_margin": s.options.rival_margin,
-            "unexplained_ratio": s.options.unexplained_ratio,
-            "min_explained": s.options.min_explained,
-            "max_effects": s.options.max_effects,
-            "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
-            "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
-            "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({
-                "name": t.name,
-                "term": t.describe(),
-            })).collect::<Vec<_>>(),
-        },
+        "options": options,
     });
     outdir.write_text("diagnosis.json", &json_text(&json))?;
     outdir.write_text("report.md", &report(&s, &d, &checks))?;

@@ -232,13 +232,22 @@ impl DiagnoseSettings {
         };
         let params = HopperParams {
             m: src.positive(&m.m, "model.m")?,
-            k: src.positive(&m.k, "model.k")?,
+            k: src.non_negative(&m.k, "model.k")?,
             c: src.non_negative(&m.c, "model.c")?,
             g: zero(&m.g, "model.g")?,
             x0: zero(&m.x0, "model.x0")?,
             forcing_amplitude: amplitude,
             period,
         };
+        if params.k == 0.0 && params.c == 0.0 {
+            return Err(src.error(
+                Some(&m.k.span()),
+                "model.k",
+                "k = 0 is a free mass, which needs damping (c > 0) for a time scale: give c, or \
+                 a stiffness k > 0"
+                    .to_string(),
+            ));
+        }
         check_hopper_scales(
             &src,
             &params,

@@ -66,8 +66,11 @@ pub(super) fn check_hopper_scales(
             ),
         ));
     }
+    // A free mass (k = 0, diagnosis only) has no damping ratio, static sag or deflection.
+    let free_mass = p.k == 0.0;
+    let per_k = |force: f64| if free_mass { 0.0 } else { force / p.k };
     let zeta = p.c / (2.0 * (p.k * p.m).sqrt());
-    if zeta > MAX_DAMPING_RATIO {
+    if !free_mass && zeta > MAX_DAMPING_RATIO {
         return Err(src.error(
             at.c.as_ref(),
             "model.c",
@@ -84,7 +87,7 @@ pub(super) fn check_hopper_scales(
             "model.g",
             &at.g,
             "the spring's static sag m g / k",
-            p.m * p.g / p.k,
+            per_k(p.m * p.g),
             format!("g = {}", show(p.g)),
         ),
         (
@@ -98,7 +101,7 @@ pub(super) fn check_hopper_scales(
             "forcing.amplitude",
             &at.amplitude,
             "the static deflection amplitude / k",
-            p.forcing_amplitude / p.k,
+            per_k(p.forcing_amplitude),
             format!("amplitude = {}", show(p.forcing_amplitude)),
         ),
     ] {
