@@ -407,6 +407,7 @@ impl Context<'_> {
             bic: crate::fit::bic(rss, n, 0),
             stepping,
             evaluations: 1,
+            at_limit: false,
         })
     }
 }

@@ -4,7 +4,7 @@
 use std::ops::Range;
 use std::sync::Arc;
 
-use htfid_estimate::{levenberg_marquardt_batch, FdScheme, LmOptions};
+use htfid_estimate::{levenberg_marquardt_batch, FdScheme, LmOptions, LmStop};
 use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
 use nalgebra::DMatrix;
 
@@ -121,6 +121,8 @@ pub(crate) struct FitResult {
     pub bic: f64,
     pub stepping: Stepping,
     pub evaluations: usize,
+    /// The fit stopped at its iteration limit (`max_iterations`) before a tolerance was met.
+    pub at_limit: bool,
 }
 
 /// How the vector of fitted numbers maps to a model.
@@ -499,6 +501,7 @@ impl Context<'_> {
             bic: bic(rss, n, np),
             stepping: stepping.clone(),
             evaluations: lm.evaluations,
+            at_limit: lm.stop == LmStop::MaxIterations,
         })
     }
 }

@@ -301,6 +301,12 @@ fn judge(
             _ => {}
         }
     }
+    if fit.at_limit {
+        note.push_str(&format!(
+            "; the fit stopped at its iteration limit ({}) before converging",
+            ctx.max_iterations
+        ));
+    }
     let passes = reasons.is_empty();
     if !passes {
         note.push_str(&format!("; not significant: {}", reasons.join(", ")));

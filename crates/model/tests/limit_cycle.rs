@@ -179,7 +179,8 @@ fn invalid_parameters_are_named() {
         ..HopperParams::paper()
     })
     .unwrap_err();
-    assert_eq!(err.to_string(), "k must be > 0 and finite (got -3)");
+    // k = 0 is a free mass (an integrating plant); a negative stiffness is refused.
+    assert_eq!(err.to_string(), "k must be >= 0 and finite (got -3)");
     let err = Hopper::new(HopperParams {
         m: f64::NAN,
         ..HopperParams::paper()

@@ -12,7 +12,7 @@ Writes into OUTDIR:
     truth.json             parameters, equations, self-checks
 
 Everything is deterministic (fixed seeds).  Only numpy and scipy are used; the
-code shares nothing with the toolkit under test.  See README.md next to this
+code shares nothing with htfid, which it tests.  See README.md next to this
 file for the exact definitions.
 """
 
