@@ -299,6 +299,14 @@ pub(crate) fn conclude(
             }
             for ch in &sel.chosen {
                 let (parameters, stderr) = effect_parameters(ch.effect, &sel.fit);
+                // The library's parameter error beside the refit's finding is one cause: the
+                // configured parameters are off (its values are the final fit's).
+                if let Some(c) = causes.iter_mut().find(|c| c.effect == ch.effect.name()) {
+                    c.gain_share += share(ch.rise);
+                    c.parameters.extend(parameters);
+                    c.stderr.extend(stderr);
+                    continue;
+                }
                 causes.push(Cause {
                     effect: ch.effect.name().to_string(),
                     parameters,

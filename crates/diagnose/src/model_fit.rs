@@ -373,10 +373,17 @@ fn nested_ratio(small_rss: f64, big_rss: f64, big_residuals: &[f64], n: usize) -
     (lr, kappa)
 }
 
-/// Of the fits `close` (indices into `tried`, each held out within the rival margin of the
-/// best), the one with the lowest BIC on the fit data (`n` residuals; every fitted parameter
-/// counted) and those within `margin` of it, best BIC first: the winner and its rivals.
-fn rivals_by_bic(tried: &[Tried], close: &[usize], n: usize, margin: f64) -> (usize, Vec<usize>) {
+/// The fits that may explain the data as well as `tried[best]` (the best held-out score):
+/// it and every significant fit within `rival_margin` of its held-out NRMSE. Of those, the one
+/// with the lowest BIC on the fit data (`n` residuals; every fitted parameter counted) and
+/// those within `bic_margin` of it, best BIC first: the winner and its rivals.
+fn rivals_by_bic(
+    tried: &[Tried],
+    best: usize,
+    n: usize,
+    opts: &ModelFitOptions,
+) -> (usize, Vec<usize>) {
+    let limit = tried[best].candidate.nrmse_validation * (1.0 + opts.rival_margin);
     let bic = |i: usize| {
         let t = &tried[i];
         let b = crate::fit::bic(t.rss, n, t.candidate.parameters.len());
@@ -386,14 +393,19 @@ fn rivals_by_bic(tried: &[Tried], close: &[usize], n: usize, margin: f64) -> (us
             f64::INFINITY
         }
     };
-    let mut order: Vec<usize> = close.to_vec();
+    let mut order: Vec<usize> = (0..tried.len())
+        .filter(|&i| {
+            i == best
+                || (tried[i].candidate.significant && tried[i].candidate.nrmse_validation <= limit)
+        })
+        .collect();
     // Stable: equal BICs keep the held-out order.
     order.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
     let w = order[0];
     let rivals = order[1..]
         .iter()
         .copied()
-        .filter(|&i| bic(i) - bic(w) < margin)
+        .filter(|&i| bic(i) - bic(w) < opts.bic_margin)
         .collect();
     (w, rivals)
 }
@@ -959,15 +971,7 @@ pub fn diagnose_model(
     // `bic_margin` of it are its rivals (the data cannot tell them apart).
     let (best, alternatives) = match best {
         Some(b) => {
-            let limit = candidates[b].candidate.nrmse_validation * (1.0 + opts.rival_margin);
-            let close: Vec<usize> = (0..candidates.len())
-                .filter(|&i| {
-                    i == b
-                        || (candidates[i].candidate.significant
-                            && candidates[i].candidate.nrmse_validation <= limit)
-                })
-                .collect();
-            let (w, rivals) = rivals_by_bic(&candidates, &close, n, opts.bic_margin);
+            let (w, rivals) = rivals_by_bic(&candidates, b, n, opts);
             let names = rivals
                 .iter()
                 .map(|&i| candidates[i].candidate.effect.clone())
@@ -1201,15 +1205,7 @@ pub fn diagnose_model(
     // (of those within `rival_margin`, the lowest BIC is named, as in the first round).
     let (second, mut alternatives): (Option<usize>, Vec<String>) = match second {
         Some(s) => {
-            let limit = pairs[s].candidate.nrmse_validation * (1.0 + opts.rival_margin);
-            let close: Vec<usize> = (0..pairs.len())
-                .filter(|&i| {
-                    i == s
-                        || (pairs[i].candidate.significant
-                            && pairs[i].candidate.nrmse_validation <= limit)
-                })
-                .collect();
-            let (w, rival_pairs) = rivals_by_bic(&pairs, &close, n, opts.bic_margin);
+            let (w, rival_pairs) = rivals_by_bic(&pairs, s, n, opts);
             let lead = trials[pairs[w].set[0]].name();
             let mut rivals: Vec<String> = Vec::new();
             for i in rival_pairs {

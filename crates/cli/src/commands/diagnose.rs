@@ -604,7 +604,11 @@ fn draw(
     let block_words = if s.params.forcing_amplitude.abs() > 0.0 {
         format!("forcing period ({} s)", htfid_number::sig(period, 3))
     } else {
-        format!("{} s (ten natural periods)", htfid_number::sig(period, 3))
+        format!(
+            "{} s (ten {})",
+            htfid_number::sig(period, 3),
+            super::diagnose_evidence::natural_periods(s.params.k)
+        )
     };
     let mut top = Panel::new(
         format!("RMS of the residual per {block_words}, all held-out data"),

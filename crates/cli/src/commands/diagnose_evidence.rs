@@ -59,6 +59,16 @@ fn unit_or_words(s: &DiagnoseSettings) -> String {
     output_unit(s).unwrap_or_else(|| "output units".into())
 }
 
+/// What the nominal model's natural period is called: a spring's period, or for a free mass
+/// (`k = 0`) `2 pi m / c`, its velocity's time constant times 2 pi.
+pub fn natural_periods(k: f64) -> &'static str {
+    if k > 0.0 {
+        "natural periods of the nominal model"
+    } else {
+        "periods 2 pi m / c of the free mass"
+    }
+}
+
 fn natural_period(report: &DiagnosisReport) -> f64 {
     let p = &report.nominal_model.params;
     2.0 * std::f64::consts::PI / p.natural_rate()
@@ -82,7 +92,11 @@ pub fn compute(
             let b = NATURAL_PERIODS_PER_BLOCK * natural_period(report);
             (
                 b,
-                format!("{} s, ten natural periods of the nominal model", num(b, 3)),
+                format!(
+                    "{} s, ten {}",
+                    num(b, 3),
+                    natural_periods(report.nominal_model.params.k)
+                ),
             )
         }
     };
@@ -324,7 +338,10 @@ pub fn time_window(
 pub fn window_words(s: &DiagnoseSettings) -> String {
     match forcing_period(s) {
         Some(_) => format!("{WINDOW_PERIODS} forcing periods"),
-        None => format!("{NATURAL_PERIODS_PER_WINDOW} natural periods (of the nominal model)"),
+        None => format!(
+            "{NATURAL_PERIODS_PER_WINDOW} {}",
+            natural_periods(s.params.k)
+        ),
     }
 }
 
