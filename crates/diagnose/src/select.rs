@@ -734,6 +734,9 @@ pub(crate) fn select(
 
     // Backward pass, and each effect's share from the fit without it.
     let mut without: Vec<f64> = Vec::new();
+    // The refits without each chosen effect of the last pass (the final set's when it kept
+    // them all), for the rivals below.
+    let mut without_fits: Vec<Option<FitResult>> = Vec::new();
     'backward: while chosen.len() >= 2 {
         without.clear();
         // Every effect's refit without it, in parallel; read in order below, so the first
@@ -754,6 +757,10 @@ pub(crate) fn select(
             .flatten()
             .map(|(r, _)| r.evaluations)
             .sum::<usize>();
+        without_fits = reduced_all
+            .iter()
+            .map(|o| o.as_ref().map(|(f, _)| f.clone()))
+            .collect();
         for (k, (&e, refit)) in chosen.iter().zip(reduced_all).enumerate() {
             let Some((reduced, reduced_score)) = refit else {
                 without.push(f64::NAN);
@@ -781,6 +788,9 @@ pub(crate) fn select(
         }
         break;
     }
+    if chosen.len() < 2 {
+        without_fits.clear();
+    }
     // A rival of an effect the backward pass dropped is no rival of the answer.
     rivals.retain(|(c, _)| chosen.contains(c));
     // A first-round rival stays one only while it explains the data as well as the final
@@ -802,10 +812,18 @@ pub(crate) fn select(
             .then(|| first_round.iter().find(|j| j.outcome.effect == r))
             .flatten()
             .and_then(|j| j.outcome.fit.clone().map(|f| (f, j.outcome.val_rmse)));
+        // Beside others, from the backward pass's refit without the effect (fitted again only
+        // where that refit failed).
         let refit = first_fit.or_else(|| {
-            let own = own_slots(&chosen, k, &nominal.slots);
-            let reduced = refit_without(ctx, &current, &own, absent)?;
-            evaluations += reduced.evaluations;
+            let reduced = match without_fits.get(k).cloned().flatten() {
+                Some(f) => f,
+                None => {
+                    let own = own_slots(&chosen, k, &nominal.slots);
+                    let f = refit_without(ctx, &current, &own, absent)?;
+                    evaluations += f.evaluations;
+                    f
+                }
+            };
             let o = run_candidate(ctx, screening, &reduced, &reduced.slots, r);
             let f = o.fit?;
             evaluations += f.evaluations;

@@ -379,6 +379,26 @@ fn extended_steps_reach_the_same_minimum_and_save_evaluations_on_short_steps() {
         levenberg_marquardt(sine, &[1.0, 2.0], ts.len(), &extended).unwrap(),
     );
     compare("sine", &a, &b);
+    // The sine fit's minimum is not known in closed form: its cost's gradient, by central
+    // differences of the residuals here (not the fit's Jacobian), must vanish there, to 1e-6 of
+    // the cost per unit of the parameter (the differences' error is about 1e-9).
+    let cost = |p: &[f64]| {
+        let mut r = vec![0.0; ts.len()];
+        sine(p, &mut r).unwrap();
+        r.iter().map(|v| v * v).sum::<f64>()
+    };
+    for j in 0..2 {
+        let h = 1e-6 * b.params[j].abs().max(1.0);
+        let (mut up, mut down) = (b.params.clone(), b.params.clone());
+        up[j] += h;
+        down[j] -= h;
+        let g = (cost(&up) - cost(&down)) / (2.0 * h);
+        assert!(
+            g.abs() * b.params[j].abs().max(1.0) <= 1e-6 * b.cost,
+            "sine: gradient {g} in parameter {j} at {:?}",
+            b.params
+        );
+    }
     // Measured: 155 plain, 49 extended.
     assert!(
         2 * b.evaluations < a.evaluations,
@@ -386,20 +406,40 @@ fn extended_steps_reach_the_same_minimum_and_save_evaluations_on_short_steps() {
         b.evaluations,
         a.evaluations
     );
-    let problems: [(&str, &Problem<'_>, Vec<f64>, usize); 3] = [
+    // Their minima are known: the data of the two exponentials are the model at (2, 1.3, 0.5,
+    // 0.2) exactly, Rosenbrock's minimum is (1, 1); both with zero cost.
+    let problems: [(&str, &Problem<'_>, Vec<f64>, usize, Vec<f64>); 3] = [
         (
             "two exponentials",
             &two_exp,
             vec![1.0, 3.0, 1.0, 0.5],
             ts.len(),
+            vec![2.0, 1.3, 0.5, 0.2],
         ),
-        ("Rosenbrock", &rosenbrock, vec![-1.2, 1.0], 2),
-        ("Rosenbrock", &rosenbrock, vec![3.0, -2.0], 2),
+        (
+            "Rosenbrock",
+            &rosenbrock,
+            vec![-1.2, 1.0],
+            2,
+            vec![1.0, 1.0],
+        ),
+        (
+            "Rosenbrock",
+            &rosenbrock,
+            vec![3.0, -2.0],
+            2,
+            vec![1.0, 1.0],
+        ),
     ];
-    for (name, f, start, m) in problems {
+    for (name, f, start, m, truth) in problems {
         let a = levenberg_marquardt(f, &start, m, &plain).unwrap();
         let b = levenberg_marquardt(f, &start, m, &extended).unwrap();
         compare(name, &a, &b);
+        // 1e-6: the zero-residual minimum to the stopping tolerances and the central
+        // differences' error, with margin.
+        for (got, want) in b.params.iter().zip(&truth) {
+            assert!((got - want).abs() <= 1e-6, "{name}: {:?}", b.params);
+        }
         assert!(
             10 * b.evaluations <= 11 * a.evaluations,
             "{name}: {} evaluations extended, {} plain",
