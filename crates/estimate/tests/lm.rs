@@ -11,6 +11,8 @@ use rand_distr::{Distribution, Normal};
 
 type Never = std::convert::Infallible;
 type Problem<'a> = dyn Fn(&[f64], &mut [f64]) -> Result<(), Never> + 'a;
+/// A named problem, its start, its residual count and its known minimum.
+type Case<'a> = (&'a str, &'a Problem<'a>, Vec<f64>, usize, Vec<f64>);
 
 #[test]
 fn rosenbrock_reaches_its_minimum() {
@@ -408,7 +410,7 @@ fn extended_steps_reach_the_same_minimum_and_save_evaluations_on_short_steps() {
     );
     // Their minima are known: the data of the two exponentials are the model at (2, 1.3, 0.5,
     // 0.2) exactly, Rosenbrock's minimum is (1, 1); both with zero cost.
-    let problems: [(&str, &Problem<'_>, Vec<f64>, usize, Vec<f64>); 3] = [
+    let problems: [Case<'_>; 3] = [
         (
             "two exponentials",
             &two_exp,
