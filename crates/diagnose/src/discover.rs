@@ -58,6 +58,7 @@ use serde::{Deserialize, Serialize};
 use crate::deriv::savitzky_golay;
 use crate::diagnose::{evaluate_driven, validation_inits_of};
 use crate::fit::{hac, Context, Driven, FitResult, ModelPoint, Segment};
+use crate::select::chi2_quantile;
 use crate::sim::{ExtraForce, Stepping};
 use crate::DiagnoseOptions;
 
@@ -491,6 +492,26 @@ struct Refit {
     point: ModelPoint,
     theta: Vec<f64>,
     stderr: Vec<f64>,
+    /// Residual sum of squares on the fit data.
+    rss: f64,
+    /// The largest factor by which the residuals' correlation inflates a term's variance.
+    inflation: f64,
+}
+
+impl Refit {
+    /// The nested test of the terms together against `base`: the likelihood-ratio statistic,
+    /// corrected for the residuals' correlation as the library effects' test is, and its
+    /// critical value. Collinear terms (the input's recent past at several lags) can be
+    /// demanded by the data together while no single coefficient stands out.
+    fn joint_test(&self, base: &FitResult, n: usize, alpha: f64) -> (f64, f64) {
+        let ratio = base.rss / self.rss.max(f64::MIN_POSITIVE);
+        let lr = if ratio.is_finite() && ratio > 0.0 {
+            n as f64 * ratio.ln() / self.inflation
+        } else {
+            0.0
+        };
+        (lr, chi2_quantile(self.theta.len(), alpha))
+    }
 }
 
 fn refit(
@@ -588,11 +609,13 @@ fn refit(
         jac.column_mut(j).copy_from_slice(&c?);
     }
     let lens: Vec<usize> = ctx.fit.iter().map(|s| s.scored().len()).collect();
-    let (stderr, _) = hac(&jac, &lm.residuals, &lens);
+    let (stderr, inflation) = hac(&jac, &lm.residuals, &lens);
     Some(Refit {
         point: point(&u),
         theta: u[k..].to_vec(),
         stderr: stderr[k..].to_vec(),
+        rss: lm.residuals.iter().map(|r| r * r).sum(),
+        inflation: inflation[k..].iter().copied().fold(1.0, f64::max),
     })
 }
 
@@ -676,6 +699,7 @@ pub(crate) fn discover(
     // drops the insignificant terms; a failed joint round falls back to the last significant
     // held or joint result.
     let mut joint = false;
+    let mut jointly: Option<(f64, f64)> = None;
     let mut last: Option<(Vec<Term>, Refit)> = None;
     let mut result: Option<(Vec<Term>, Refit)> = None;
     for _ in 0..5 {
@@ -685,12 +709,21 @@ pub(crate) fn discover(
             }
             return none("the output-error refit of the proposed terms failed");
         };
-        let keep: Vec<bool> = r
+        let mut keep: Vec<bool> = r
             .theta
             .iter()
             .zip(&r.stderr)
             .map(|(t, s)| s.is_finite() && t.abs() >= opts.significance_sigma * s)
             .collect();
+        // No single coefficient stands out: the terms are kept together when the data demand
+        // them together (a weakly identified coefficient does not veto the set).
+        if !keep.iter().any(|&k| k) {
+            let (lr, critical) = r.joint_test(base, ctx.n_fit(), opts.alpha);
+            if lr >= critical {
+                jointly = Some((lr, critical));
+                keep.fill(true);
+            }
+        }
         if keep.iter().all(|&k| k) {
             theta.clone_from(&r.theta);
             if joint || base.slots.is_empty() {
@@ -759,10 +792,17 @@ pub(crate) fn discover(
             100.0 * gain
         ));
     }
+    let together = match jointly {
+        Some((lr, critical)) => format!(
+            "; no single coefficient stands out, the terms together improve the fit by a \
+             likelihood ratio of {lr:.1} (critical {critical:.1})"
+        ),
+        None => String::new(),
+    };
     let sentence = format!(
         "term search outside the library: the force {text} N (x_eq = {:.4e} m) lowers the \
-         held-out RMSE from {before:.3e} to {after:.3e} (gain {:.1} %); a hint, not a library \
-         effect",
+         held-out RMSE from {before:.3e} to {after:.3e} (gain {:.1} %){together}; a hint, not \
+         a library effect",
         frame.x_eq,
         100.0 * gain
     );

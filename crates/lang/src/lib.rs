@@ -53,10 +53,12 @@
 mod build;
 mod error;
 mod extend;
+mod forward;
 mod model;
 mod read;
 
 pub use build::{Output, Parameter, State};
 pub use error::{Location, ModelError};
 pub use extend::{Extension, Site};
+pub use forward::{output_sensitivities, ForwardError, OutputSensitivities};
 pub use model::{InputFn, Mode, Model, ParameterSensitivity};

@@ -536,6 +536,28 @@ impl Model {
         self.input.as_ref().map_or(0.0, |u| u(t))
     }
 
+    /// The input's value at `t`: the input function's, or 0 without one.
+    pub fn input_value(&self, t: f64) -> f64 {
+        self.u(t)
+    }
+
+    /// The outputs' Jacobian `dy/dx` at `(t, x)` with input value `u`, into `c` (`p x n`
+    /// row-major).
+    pub fn output_state_jacobian(&self, t: f64, x: &[f64], u: f64, c: &mut [f64]) {
+        let (n, p) = (x.len(), self.def.outputs.len());
+        with_vars(t, x, u, |v| {
+            with_outputs(&self.compiled.output_linear, v, |out| {
+                c[..p * n].copy_from_slice(&out[..p * n]);
+            })
+        });
+    }
+
+    /// The index among all the model's guards (in the order it declares them) of guard
+    /// `index` of `mode`.
+    pub(crate) fn global_guard(&self, mode: Mode, index: usize) -> usize {
+        self.def.guards_of[mode.index()][index]
+    }
+
     /// The outputs `y` at `(mode, t, x)` with input value `u`, into `y` (length p).
     pub fn eval_outputs(&self, _mode: Mode, t: f64, x: &[f64], u: f64, y: &mut [f64]) {
         with_vars(t, x, u, |v| self.compiled.output.eval(v, y));

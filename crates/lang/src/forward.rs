@@ -1,0 +1,262 @@
+//! Forward sensitivities: the derivatives of a model's simulated outputs with respect to some
+//! of its parameters and to its initial state, integrated beside the state with the same
+//! integrator (one simulation instead of one per parameter, and exact to the integrator's
+//! tolerance instead of a finite difference's truncation and noise).
+//!
+//! Between guards the sensitivity `S = dx/dtheta` (`n x m`, `theta` the parameters and then,
+//! optionally, the initial state) follows `S' = A S + [df/dp, 0]` with `A = df/dx`, from
+//! `S(t0) = [0, I]`. At a guard crossed at time `tau`, with `h` the guard, `R` the reset and
+//! `f-`, `f+` the vector fields before and after, the crossing time moves by
+//! `tau_theta = -(h_x S- + [h_p, 0]) / (h_x f- + h_t)`, and
+//! `S+ = R_x (S- + f- tau_theta) + [R_p, 0] + (R_t - f+) tau_theta`: the saltation matrix
+//! and its parameter terms. Every derivative is symbolic (the model's own, and
+//! [`Model::parameter_sensitivity`]). The outputs' derivatives are `dy/dtheta = C S +
+//! [dy/dp, 0]`.
+//!
+//! A state that slides along a switching surface (Filippov) has sensitivities this does not
+//! cover: [`output_sensitivities`] then fails with [`ForwardError::Sliding`], and a caller
+//! falls back to differences.
+
+use std::cell::RefCell;
+
+use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
+
+use crate::model::{Mode, Model, ParameterSensitivity};
+use crate::ModelError;
+
+/// Why forward sensitivities could not be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum ForwardError {
+    /// A name that is not one of the model's parameters.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The simulation failed.
+    #[error("the simulation with sensitivities failed: {0}")]
+    Simulation(String),
+    /// The motion slid along a switching surface, where these sensitivities do not hold.
+    #[error(
+        "the motion slides along a switching surface from t = {0} s, where forward \
+         sensitivities do not hold"
+    )]
+    Sliding(f64),
+}
+
+/// A model's outputs on a grid and their derivatives with respect to parameters and,
+/// optionally, the initial state.
+#[derive(Debug, Clone)]
+pub struct OutputSensitivities {
+    /// `outputs[o][i]`: output `o` at grid time `i`.
+    pub outputs: Vec<Vec<f64>>,
+    /// `columns[j][o][i]`: the derivative of output `o` at grid time `i` by the `j`-th of the
+    /// parameters, then (when asked for) by each initial state.
+    pub columns: Vec<Vec<Vec<f64>>>,
+}
+
+/// The model and its state with the sensitivities appended, `n (1 + m)` entries:
+/// `[x, S row by row]`.
+struct Augmented<'a> {
+    model: &'a Model,
+    sens: ParameterSensitivity,
+    /// Parameters (`k`) and all sensitivity columns (`m`).
+    k: usize,
+    m: usize,
+    n: usize,
+    scratch: RefCell<Scratch>,
+}
+
+#[derive(Default)]
+struct Scratch {
+    a: Vec<f64>,
+    fp: Vec<f64>,
+}
+
+impl Augmented<'_> {
+    fn u(&self, t: f64) -> f64 {
+        self.model.input_value(t)
+    }
+}
+
+impl HybridSystem for Augmented<'_> {
+    type Mode = Mode;
+
+    fn dim(&self) -> usize {
+        self.n * (1 + self.m)
+    }
+
+    fn vector_field(&self, mode: Mode, t: f64, x: &[f64], dxdt: &mut [f64]) {
+        let (n, k, m) = (self.n, self.k, self.m);
+        let (state, s) = x.split_at(n);
+        self.model.vector_field(mode, t, state, &mut dxdt[..n]);
+        let mut scratch = self.scratch.borrow_mut();
+        let Scratch { a, fp } = &mut *scratch;
+        a.resize(n * n, 0.0);
+        fp.resize(n * k.max(1), 0.0);
+        self.model.jacobian(mode, t, state, a);
+        if k > 0 {
+            self.sens.flow(mode, t, state, self.u(t), fp);
+        }
+        let ds = &mut dxdt[n..];
+        for i in 0..n {
+            for j in 0..m {
+                let mut acc = if j < k { fp[i * k + j] } else { 0.0 };
+                for l in 0..n {
+                    acc += a[i * n + l] * s[l * m + j];
+                }
+                ds[i * m + j] = acc;
+            }
+        }
+    }
+
+    fn num_guards(&self, mode: Mode) -> usize {
+        self.model.num_guards(mode)
+    }
+
+    fn guard(&self, mode: Mode, index: usize, t: f64, x: &[f64]) -> f64 {
+        self.model.guard(mode, index, t, &x[..self.n])
+    }
+
+    fn guard_direction(&self, mode: Mode, index: usize) -> Crossing {
+        self.model.guard_direction(mode, index)
+    }
+
+    fn sliding_chart(&self, mode: Mode, index: usize) -> Option<Mode> {
+        self.model.sliding_chart(mode, index)
+    }
+
+    fn transition(&self, mode: Mode, index: usize, t: f64, x: &mut [f64]) -> Mode {
+        let (n, k, m) = (self.n, self.k, self.m);
+        let u = self.u(t);
+        let before: Vec<f64> = x[..n].to_vec();
+        let g = self.model.global_guard(mode, index);
+        let mut f_minus = vec![0.0; n];
+        self.model.vector_field(mode, t, &before, &mut f_minus);
+        let mut h_x = vec![0.0; n];
+        self.model.guard_gradient(mode, index, t, &before, &mut h_x);
+        let h_t = self
+            .model
+            .guard_time_derivative(mode, index, t, &before)
+            .unwrap_or(0.0);
+        let mut h_p = vec![0.0; k];
+        if k > 0 {
+            self.sens.guard(g, t, &before, u, &mut h_p);
+        }
+        let mut r_x = vec![0.0; n * n];
+        self.model.reset_jacobian(mode, index, t, &before, &mut r_x);
+        let mut r_t = vec![0.0; n];
+        self.model
+            .reset_time_derivative(mode, index, t, &before, &mut r_t);
+        let mut r_p = vec![0.0; n * k];
+        if k > 0 {
+            self.sens.reset(g, t, &before, u, &mut r_p);
+        }
+        let to = self.model.transition(mode, index, t, &mut x[..n]);
+        let mut f_plus = vec![0.0; n];
+        self.model.vector_field(to, t, &x[..n], &mut f_plus);
+        let speed: f64 = h_x.iter().zip(&f_minus).map(|(a, b)| a * b).sum::<f64>() + h_t;
+        let s = &mut x[n..];
+        // The crossing time's derivative; a grazing crossing (zero speed) has none, and the
+        // sensitivities then pass as the reset's Jacobian maps them.
+        let tau: Vec<f64> = (0..m)
+            .map(|j| {
+                let hs: f64 = (0..n).map(|l| h_x[l] * s[l * m + j]).sum::<f64>()
+                    + if j < k { h_p[j] } else { 0.0 };
+                if speed != 0.0 && speed.is_finite() {
+                    -hs / speed
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        // S- + f- tau_theta, then through R_x.
+        let moved: Vec<f64> = (0..n * m)
+            .map(|idx| {
+                let (i, j) = (idx / m, idx % m);
+                s[idx] + f_minus[i] * tau[j]
+            })
+            .collect();
+        for i in 0..n {
+            for j in 0..m {
+                let mut acc = (r_t[i] - f_plus[i]) * tau[j];
+                if j < k {
+                    acc += r_p[i * k + j];
+                }
+                for l in 0..n {
+                    acc += r_x[i * n + l] * moved[l * m + j];
+                }
+                s[i * m + j] = acc;
+            }
+        }
+        to
+    }
+}
+
+/// Simulates `model` (driven by its own input) from `(mode0, x0)` at `t0` and returns its
+/// outputs on `grid` with their exact derivatives by the parameters `params` and, when
+/// `initial_state` holds, by each entry of `x0` (after the parameters' columns).
+///
+/// # Errors
+/// [`ForwardError`].
+#[allow(clippy::too_many_arguments)] // reason: the model, what to differentiate and the grid
+pub fn output_sensitivities(
+    model: &Model,
+    params: &[&str],
+    initial_state: bool,
+    mode0: Mode,
+    t0: f64,
+    x0: &[f64],
+    grid: &[f64],
+    opts: &Options,
+) -> Result<OutputSensitivities, ForwardError> {
+    let sens = model.parameter_sensitivity(params)?;
+    let n = model.dim();
+    let k = params.len();
+    let m = k + if initial_state { n } else { 0 };
+    let sys = Augmented {
+        model,
+        sens: sens.clone(),
+        k,
+        m,
+        n,
+        scratch: RefCell::new(Scratch::default()),
+    };
+    let mut start = vec![0.0; n * (1 + m)];
+    start[..n].copy_from_slice(x0);
+    if initial_state {
+        for i in 0..n {
+            start[n + i * m + k + i] = 1.0;
+        }
+    }
+    let end = grid.last().copied().unwrap_or(t0);
+    let traj = simulate(&sys, mode0, t0, &start, end, grid, opts)
+        .map_err(|e| ForwardError::Simulation(e.to_string()))?;
+    if let Some(slide) = traj.sliding.first() {
+        return Err(ForwardError::Sliding(slide.start));
+    }
+    let p = model.outputs().len();
+    let mut outputs = vec![vec![0.0; grid.len()]; p];
+    let mut columns = vec![vec![vec![0.0; grid.len()]; p]; m];
+    let mut y = vec![0.0; p];
+    let mut c = vec![0.0; p * n];
+    let mut yp = vec![0.0; p * k];
+    for (i, &t) in grid.iter().enumerate() {
+        let u = model.input_value(t);
+        let state = traj.state(i);
+        let (x, s) = state.split_at(n);
+        model.eval_outputs(traj.modes[i], t, x, u, &mut y);
+        model.output_state_jacobian(t, x, u, &mut c);
+        if k > 0 {
+            sens.output(t, x, u, &mut yp);
+        }
+        for o in 0..p {
+            outputs[o][i] = y[o];
+            for (j, column) in columns.iter_mut().enumerate() {
+                let mut acc = if j < k { yp[o * k + j] } else { 0.0 };
+                for l in 0..n {
+                    acc += c[o * n + l] * s[l * m + j];
+                }
+                column[o][i] = acc;
+            }
+        }
+    }
+    Ok(OutputSensitivities { outputs, columns })
+}

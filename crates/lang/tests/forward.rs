@@ -1,0 +1,164 @@
+//! Forward sensitivities of the simulated outputs against central differences of plain
+//! simulations (the model recompiled with each parameter, or started from each initial state,
+//! moved up and down), on the shipped models with every kind of guard: a switching damper
+//! without reset (hopper, two-dof), touchdown and liftoff guards whose expressions hold
+//! parameters (flight hopper), and an impact with restitution on a moving table (bouncing
+//! ball: a time-dependent guard and reset, non-identity saltation).
+
+use std::path::Path;
+use std::sync::Arc;
+
+use htfid_hybrid::{simulate, Options};
+use htfid_lang::{output_sensitivities, InputFn, Model};
+
+fn load(name: &str) -> Model {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../models/{name}.toml"));
+    Model::from_file(&path).unwrap()
+}
+
+fn tight() -> Options {
+    Options {
+        rtol: 1e-12,
+        atol: 1e-14,
+        ..Options::default()
+    }
+}
+
+/// The outputs of a plain simulation on `grid`, and the times of its transitions.
+fn outputs(model: &Model, x0: &[f64], grid: &[f64]) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let mode = model.start_mode(model.initial_mode(), grid[0], x0);
+    let end = *grid.last().unwrap();
+    let traj = simulate(model, mode, grid[0], x0, end, grid, &tight()).unwrap();
+    let p = model.outputs().len();
+    let mut out = vec![vec![0.0; grid.len()]; p];
+    let mut y = vec![0.0; p];
+    for (i, &t) in grid.iter().enumerate() {
+        model.eval_outputs(
+            traj.modes[i],
+            t,
+            traj.state(i),
+            model.input_value(t),
+            &mut y,
+        );
+        for o in 0..p {
+            out[o][i] = y[o];
+        }
+    }
+    (out, traj.events.iter().map(|e| e.time).collect())
+}
+
+/// Every column of the exact sensitivities against a central difference with relative step
+/// `step` (of at least `0.1` for a state), at `rtol = 1e-12`. Samples between a transition of
+/// the two moved runs are skipped (with `1e-4` s to spare): a difference straddling a crossing
+/// there sees the moved event, not the derivative. The step depends on the guards:
+///
+/// - Where the field is continuous across a switch (a damper switching at zero velocity) the
+///   outputs are once but not twice differentiable in the parameters (the field's Jacobian
+///   jumps), so a central difference is only first-order accurate: `1e-5`, whose error is
+///   then about `1e-5` of a column.
+/// - Where the field or the state jumps (a touchdown, an impact), the crossing is located to
+///   about `1e-12` s, which moves the output by the jump (up to 30 m/s^2) times that: over a
+///   step of `1e-5` that noise would reach `1e-5` of a column, so the step is `1e-4`
+///   (truncation about `1e-8`, noise about `1e-6`).
+///
+/// `2e-5` of the column's largest value bounds either with room, while a missing saltation
+/// term or a wrong sign is off by the column's own size.
+fn check(name: &str, params: &[&str], step: f64, span: f64, min_events: usize) {
+    let input: InputFn = Arc::new(|t: f64| 0.3 * (3.1 * t).sin());
+    let model = load(name).with_input(Some(input));
+    let x0 = model.initial_state().to_vec();
+    let n = x0.len();
+    let grid: Vec<f64> = (0..=400).map(|i| span * i as f64 / 400.0).collect();
+    let mode = model.start_mode(model.initial_mode(), 0.0, &x0);
+    let exact =
+        output_sensitivities(&model, params, true, mode, 0.0, &x0, &grid, &tight()).unwrap();
+    let (plain, events) = outputs(&model, &x0, &grid);
+    let events = events.len();
+    assert!(
+        events >= min_events,
+        "{name}: {events} transitions, the test needs at least {min_events}"
+    );
+    // The sensitivity run's outputs are the plain run's, to the tolerance.
+    for (a, b) in exact.outputs.iter().zip(&plain) {
+        let size = b.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        for (x, y) in a.iter().zip(b) {
+            assert!(
+                (x - y).abs() <= 1e-9 * size.max(1e-3),
+                "{name}: outputs {x} vs {y}"
+            );
+        }
+    }
+    let columns = params.len() + n;
+    for j in 0..columns {
+        let (up, down, h, what) = if j < params.len() {
+            let v = model.parameter(params[j]).unwrap();
+            let h = step * v.abs().max(1e-3);
+            let up = model.with_parameters(&[(params[j], v + h)]).unwrap();
+            let down = model.with_parameters(&[(params[j], v - h)]).unwrap();
+            (
+                outputs(&up, &x0, &grid),
+                outputs(&down, &x0, &grid),
+                h,
+                params[j].to_string(),
+            )
+        } else {
+            let s = j - params.len();
+            let h = step * x0[s].abs().max(0.1);
+            let (mut a, mut b) = (x0.clone(), x0.clone());
+            a[s] += h;
+            b[s] -= h;
+            (
+                outputs(&model, &a, &grid),
+                outputs(&model, &b, &grid),
+                h,
+                format!("initial state {s}"),
+            )
+        };
+        let ((up, up_events), (down, down_events)) = (up, down);
+        // Between a transition of the run moved up and the same transition of the run moved
+        // down (and 1e-4 s around), the difference straddles the crossing.
+        let near_event = |t: f64| {
+            up_events
+                .iter()
+                .zip(&down_events)
+                .any(|(&a, &b)| t > a.min(b) - 1e-4 && t < a.max(b) + 1e-4)
+        };
+        for o in 0..plain.len() {
+            let col = &exact.columns[j][o];
+            let size = col.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            assert!(size > 0.0, "{name}: d y{o} / d {what} vanishes everywhere");
+            for i in 0..grid.len() {
+                if near_event(grid[i]) {
+                    continue;
+                }
+                let fd = (up[o][i] - down[o][i]) / (2.0 * h);
+                assert!(
+                    (col[i] - fd).abs() <= 2e-5 * size,
+                    "{name}: d y{o} / d {what} at t = {}: exact {} vs difference {fd}",
+                    grid[i],
+                    col[i]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_hoppers_sensitivities_cross_its_damper_switches() {
+    check("hopper", &["k", "c", "m", "x0"], 1e-5, 6.0, 8);
+}
+
+#[test]
+fn the_flight_hoppers_sensitivities_cross_touchdown_and_liftoff() {
+    check("flight-hopper", &["k", "c", "L0", "a"], 1e-4, 3.0, 6);
+}
+
+#[test]
+fn the_bouncing_balls_sensitivities_cross_impacts_on_the_moving_table() {
+    check("bouncing-ball", &["e", "A", "g"], 1e-4, 2.0, 4);
+}
+
+#[test]
+fn the_two_dof_sensitivities_with_two_outputs() {
+    check("two-dof", &["k1", "k2", "k3", "c1", "c2"], 1e-5, 5.0, 6);
+}
