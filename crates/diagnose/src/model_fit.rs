@@ -4,15 +4,16 @@
 
 use std::sync::Arc;
 
-use htfid_estimate::{levenberg_marquardt, LmOptions};
+use htfid_estimate::{levenberg_marquardt_with_jacobian, LmOptions};
 use htfid_hybrid::{simulate, HybridSystem, Options};
-use htfid_lang::{InputFn, Model};
+use htfid_lang::{output_sensitivities, ForwardError, InputFn, Model};
 use htfid_orbit::ShootingOptions;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::boundary::{Boundary, BoundaryEffect};
 use crate::interp::{Interpolation, SampledSignal};
+use crate::sensor::Sensor;
 use crate::term::{term_library, TermEffect, TermKind};
 use crate::{DiagnoseError, TimeSeries};
 use htfid_lang::Site;
@@ -436,6 +437,64 @@ fn correlation_inflation(r: &[f64]) -> f64 {
 
 /// One record prepared for output-error fits: its input as a function of time, the samples
 /// scored, the output scales, and the model's starting point.
+/// A fit's residual function: the scaled residuals at a point, or why they failed.
+type Residual<'a> = dyn Fn(&[f64], &mut [f64]) -> Result<(), String> + 'a;
+
+/// Central differences (one-sided against a bound) of `residuals` at `p`, where they are
+/// `r`, for the columns `cols` of `jac` (column-major, `r.len()` rows): for the parameters no
+/// forward sensitivity covers (a boundary effect's lag, delay or sensor), and for every
+/// parameter when the motion slides along a switching surface. The step of parameter `j` is
+/// `step * max(|p_j|, typical_j)`.
+fn difference_columns(
+    residuals: &Residual<'_>,
+    p: &[f64],
+    r: &[f64],
+    cols: &[usize],
+    (step, typical, bounds): (f64, &[f64], &[(f64, f64)]),
+    jac: &mut [f64],
+) -> Result<(), String> {
+    let m = r.len();
+    let (mut up, mut down) = (vec![0.0; m], vec![0.0; m]);
+    for &j in cols {
+        let h = step * p[j].abs().max(typical[j]);
+        let (lo, hi) = bounds[j];
+        let mut q = p.to_vec();
+        let plus = p[j] + h <= hi && {
+            q[j] = p[j] + h;
+            residuals(&q, &mut up).is_ok()
+        };
+        let minus = p[j] - h >= lo && {
+            q[j] = p[j] - h;
+            residuals(&q, &mut down).is_ok()
+        };
+        let col = &mut jac[j * m..(j + 1) * m];
+        match (plus, minus) {
+            (true, true) => {
+                for i in 0..m {
+                    col[i] = (up[i] - down[i]) / (2.0 * h);
+                }
+            }
+            (true, false) => {
+                for i in 0..m {
+                    col[i] = (up[i] - r[i]) / h;
+                }
+            }
+            (false, true) => {
+                for i in 0..m {
+                    col[i] = (r[i] - down[i]) / h;
+                }
+            }
+            (false, false) => {
+                return Err(format!(
+                    "parameter {j} at {}: the simulation failed on both sides",
+                    p[j]
+                ))
+            }
+        }
+    }
+    Ok(())
+}
+
 struct Prepared<'a> {
     rec: &'a TimeSeries,
     signal: Arc<SampledSignal>,
@@ -531,13 +590,31 @@ impl<'a> Prepared<'a> {
         })
     }
 
-    /// `model` with its parameter `name` at the best of 0 and +-0.1, 0.3 and 1 times `scale`,
-    /// by the output error from `x0` (a moved switching surface: the cost is not convex in
-    /// the shift, and the neutral start may sit in the wrong valley).
-    fn best_shift(&self, model: &Model, name: &str, scale: f64, x0: &[f64]) -> Model {
+    /// `model` with its parameter `name` at the best of 0 and +-0.03, 0.1, 0.3, 1 and 3 times
+    /// `scale`, by the output error from `x0` (a moved switching surface: the cost is not
+    /// convex in the shift, and the neutral start may sit in the wrong valley).
+    ///
+    /// With `surface` (the parameter moves a switching surface), 0 is never the start: where
+    /// the field is continuous across the unmoved surface (a damper switching at zero
+    /// velocity), the output's derivative by the shift vanishes there, so a fit with exact
+    /// derivatives could not leave it; the better of the two smallest steps is taken instead,
+    /// from which a fit returns to 0 if that is the optimum.
+    fn best_shift(
+        &self,
+        model: &Model,
+        name: &str,
+        scale: f64,
+        x0: &[f64],
+        surface: bool,
+    ) -> Model {
         let mut r = vec![0.0; self.residual_len()];
         let mut best = (f64::INFINITY, model.clone());
-        for step in [0.0, 0.1, -0.1, 0.3, -0.3, 1.0, -1.0] {
+        let steps: &[f64] = if surface {
+            &[0.03, -0.03, 0.1, -0.1, 0.3, -0.3, 1.0, -1.0, 3.0, -3.0]
+        } else {
+            &[0.0, 0.03, -0.03, 0.1, -0.1, 0.3, -0.3, 1.0, -1.0, 3.0, -3.0]
+        };
+        for &step in steps {
             let Ok(m) = model.with_parameters(&[(name, step * scale)]) else {
                 continue;
             };
@@ -611,6 +688,46 @@ impl<'a> Prepared<'a> {
         }
     }
 
+    /// The exact derivatives of the scaled residuals on `rows` by the parameters `names` of
+    /// `model` and by the initial state `x0`, from forward sensitivities
+    /// ([`output_sensitivities`]) simulated over the first `upto` samples with the boundary
+    /// `b` (its sensors are linear in the outputs up to their offsets, so they map the
+    /// derivatives by their linear part). Column `i` of the result (`names` first, then the
+    /// states) goes to column `at[i]` of `jac` (column-major, one column per fitted value).
+    #[allow(clippy::too_many_arguments)] // reason: the model, the point, the rows and the target
+    fn sensitivities(
+        &self,
+        model: &Model,
+        names: &[&str],
+        x0: &[f64],
+        b: &Boundary,
+        upto: usize,
+        rows: std::ops::Range<usize>,
+        at: &[usize],
+        jac: &mut [f64],
+    ) -> Result<(), ForwardError> {
+        let driven = model.with_input(Some(b.input(&self.signal)));
+        let t0 = self.rec.time()[0];
+        let times = &self.rec.time()[..upto.clamp(1, self.rec.len())];
+        let mode = driven.start_mode(self.mode0, t0, x0);
+        let sens = output_sensitivities(&driven, names, true, mode, t0, x0, times, &self.sim_opts)?;
+        let len = rows.len();
+        let m = self.rec.outputs().len() * len;
+        for (mut column, &j) in sens.columns.into_iter().zip(at) {
+            for (o, sensor) in b.sensors.iter().enumerate() {
+                let linear = Sensor { b: 0.0, ..*sensor };
+                linear.apply(self.dt, &mut column[o]);
+            }
+            let target = &mut jac[j * m..(j + 1) * m];
+            for (o, y) in column.iter().enumerate() {
+                for (k, i) in rows.clone().enumerate() {
+                    target[o * len + k] = y[i] / self.scale[o];
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The initial state that best fits the scored samples with `model`'s parameters fixed:
     /// the record starts wherever the measured system was, so neither the configured nor the
     /// refitted model is charged with a start nobody specified.
@@ -626,9 +743,9 @@ impl<'a> Prepared<'a> {
         x0: &[f64],
         b: &Boundary,
     ) -> Result<Vec<f64>, DiagnoseError> {
+        let typical: Vec<f64> = x0.iter().map(|v| v.abs().max(1e-3)).collect();
         let lm = LmOptions {
-            scales: Some(x0.iter().map(|v| v.abs().max(1e-3)).collect()),
-            fd_step: Some(self.fd_step()),
+            scales: Some(typical.clone()),
             ..LmOptions::default()
         };
         let outputs = self.rec.outputs().len();
@@ -647,11 +764,32 @@ impl<'a> Prepared<'a> {
                 self.fill_rows(&sim, r, rows.clone());
                 Ok(())
             };
-            x = levenberg_marquardt(residuals, &x, outputs * rows.len(), &lm)
-                .map(|f| f.params)
-                .map_err(|e| DiagnoseError::NominalFit {
-                    reason: format!("initial state: {e}"),
-                })?;
+            let every: Vec<usize> = (0..x.len()).collect();
+            let unbounded = vec![(f64::NEG_INFINITY, f64::INFINITY); x.len()];
+            let jacobian = |z: &[f64], r: &[f64], jac: &mut [f64]| -> Result<(), String> {
+                match self.sensitivities(model, &[], z, b, rows.end, rows.clone(), &every, jac) {
+                    Err(ForwardError::Sliding(_)) => difference_columns(
+                        &residuals,
+                        z,
+                        r,
+                        &every,
+                        (self.fd_step(), &typical, &unbounded),
+                        jac,
+                    ),
+                    other => other.map_err(|e| e.to_string()),
+                }
+            };
+            x = levenberg_marquardt_with_jacobian(
+                &residuals,
+                jacobian,
+                &x,
+                outputs * rows.len(),
+                &lm,
+            )
+            .map(|f| f.params)
+            .map_err(|e| DiagnoseError::NominalFit {
+                reason: format!("initial state: {e}"),
+            })?;
             if len == full.len() {
                 return Ok(x);
             }
@@ -879,7 +1017,7 @@ pub fn diagnose_model(
                 scales.extend(samples.term_scales(&extended, &est.signal, term));
                 let mut extended = extended;
                 if term.multistart {
-                    extended = est.best_shift(&extended, &added[0], scales[k], &base.state);
+                    extended = est.best_shift(&extended, &added[0], scales[k], &base.state, true);
                 }
                 let joint_t = Joint {
                     est: &est,
@@ -1048,7 +1186,7 @@ pub fn diagnose_model(
             let name = &term.parameter_names()[0];
             if !known.contains_key(name) {
                 if let Some(j) = all.iter().position(|a| a == name) {
-                    m = est.best_shift(&m, name, scales[j], x0);
+                    m = est.best_shift(&m, name, scales[j], x0, term.multistart);
                 }
             }
         }
@@ -1669,18 +1807,50 @@ impl Joint<'_, '_> {
         }
         bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(x0.len()));
         scales.extend(x0.iter().map(|v| v.abs().max(1e-3)));
+        // Exact columns for the model's parameters and the initial state; differences for the
+        // boundary effects' own (and for all while the motion slides).
+        let exact_at: Vec<usize> = (0..k).chain(k + e..k + e + x0.len()).collect();
+        let boundary: Vec<usize> = (k..k + e).collect();
+        let every: Vec<usize> = (0..k + e + x0.len()).collect();
+        let jacobian = |p: &[f64], r: &[f64], jac: &mut [f64]| -> Result<(), String> {
+            let trial = self.model_at(&p[..k]).map_err(|e| e.to_string())?;
+            let b = Boundary::with_all(effects, &p[k..k + e], outputs);
+            let differences = |cols: &[usize], jac: &mut [f64]| {
+                difference_columns(
+                    &residuals,
+                    p,
+                    r,
+                    cols,
+                    (est.fd_step(), &scales, &bounds),
+                    jac,
+                )
+            };
+            match est.sensitivities(
+                &trial,
+                self.names,
+                &p[k + e..],
+                &b,
+                est.rec.len(),
+                est.rows.clone(),
+                &exact_at,
+                jac,
+            ) {
+                Ok(()) => differences(&boundary, jac),
+                Err(ForwardError::Sliding(_)) => differences(&every, jac),
+                Err(e) => Err(e.to_string()),
+            }
+        };
         let lm = LmOptions {
-            scales: Some(scales),
-            bounds: Some(bounds),
+            scales: Some(scales.clone()),
+            bounds: Some(bounds.clone()),
             max_iter: self.max_iter,
-            fd_step: Some(est.fd_step()),
             ..LmOptions::default()
         };
-        let fit = levenberg_marquardt(residuals, &p0, est.residual_len(), &lm).map_err(|e| {
-            DiagnoseError::NominalFit {
+        let fit =
+            levenberg_marquardt_with_jacobian(&residuals, jacobian, &p0, est.residual_len(), &lm)
+                .map_err(|e| DiagnoseError::NominalFit {
                 reason: e.to_string(),
-            }
-        })?;
+            })?;
         let np = k + e;
         Ok(JointFit {
             params: fit.params[..np].to_vec(),

@@ -407,6 +407,13 @@ pub enum Error {
         /// Parameter value at which the difference was attempted.
         value: f64,
     },
+    /// The caller's Jacobian (see `levenberg_marquardt_with_jacobian`) failed or was not
+    /// finite.
+    #[error("the Jacobian could not be computed: {message}")]
+    JacobianFunction {
+        /// What failed.
+        message: String,
+    },
     /// An estimator needs a part of the experiment's layout that it lacks.
     #[error("the {estimator} estimator needs {needs}; the experiment has none")]
     MissingLayout {

@@ -114,8 +114,8 @@ pub use experiment::{
 pub use htfid_data::TimeSeries;
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
 pub use lm::{
-    levenberg_marquardt, levenberg_marquardt_batch, levenberg_marquardt_parallel, FdScheme, LmFit,
-    LmOptions, LmStop, EXTEND_FROM, EXTEND_MAX,
+    levenberg_marquardt, levenberg_marquardt_batch, levenberg_marquardt_parallel,
+    levenberg_marquardt_with_jacobian, FdScheme, LmFit, LmOptions, LmStop, EXTEND_FROM, EXTEND_MAX,
 };
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};

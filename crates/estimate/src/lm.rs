@@ -428,6 +428,81 @@ where
     )
 }
 
+/// [`levenberg_marquardt`] with the Jacobian from the caller: `jacobian(p, r, jac)` fills
+/// `jac` (`m x n`, column-major: column `j` is `jac[j * m..(j + 1) * m]`) at `p`, where the
+/// residuals are `r`, as exact derivatives (forward sensitivities, say) or any mix of its own.
+/// A failure or a non-finite entry stops the fit with [`Error::JacobianFunction`]. The
+/// difference options (`fd_scheme`, `fd_step`) are not used.
+pub fn levenberg_marquardt_with_jacobian<F, J, E>(
+    residuals: F,
+    jacobian: J,
+    p0: &[f64],
+    m: usize,
+    options: &LmOptions,
+) -> Result<LmFit>
+where
+    F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
+    J: FnMut(&[f64], &[f64], &mut [f64]) -> std::result::Result<(), E>,
+    E: Display,
+{
+    solve(
+        JacobianProblem {
+            f: residuals,
+            jac: jacobian,
+            evaluations: 0,
+        },
+        p0,
+        m,
+        options,
+    )
+}
+
+/// A residual function with the caller's Jacobian.
+struct JacobianProblem<F, J> {
+    f: F,
+    jac: J,
+    evaluations: usize,
+}
+
+impl<F, J, E> Residuals for JacobianProblem<F, J>
+where
+    F: FnMut(&[f64], &mut [f64]) -> std::result::Result<(), E>,
+    J: FnMut(&[f64], &[f64], &mut [f64]) -> std::result::Result<(), E>,
+    E: Display,
+{
+    fn eval(&mut self, x: &[f64], r: &mut [f64]) -> Result<()> {
+        self.evaluations += 1;
+        checked(&mut self.f, x, r)
+    }
+
+    fn jacobian(
+        &mut self,
+        x: &[f64],
+        r: &[f64],
+        jac: &mut DMatrix<f64>,
+        _scheme: FdScheme,
+        _step: f64,
+        _typical: &[f64],
+        _bounds: &[(f64, f64)],
+    ) -> Result<()> {
+        self.evaluations += 1;
+        let m = r.len();
+        (self.jac)(x, r, jac.as_mut_slice()).map_err(|e| Error::JacobianFunction {
+            message: e.to_string(),
+        })?;
+        match jac.as_slice().iter().position(|v| !v.is_finite()) {
+            Some(at) => Err(Error::JacobianFunction {
+                message: format!("entry ({}, {}) is not finite", at % m.max(1), at / m.max(1)),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    fn evaluations(&self) -> usize {
+        self.evaluations
+    }
+}
+
 fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -> Result<LmFit> {
     let np = p0.len();
     if np == 0 || m == 0 {

@@ -450,3 +450,67 @@ fn extended_steps_reach_the_same_minimum_and_save_evaluations_on_short_steps() {
         );
     }
 }
+
+#[test]
+fn a_callers_exact_jacobian_reaches_the_known_minimum_in_fewer_evaluations() {
+    // Rosenbrock with its analytic Jacobian (column-major): the same minimum (1, 1), one
+    // evaluation per Jacobian instead of two per parameter.
+    let f = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        r[0] = 10.0 * (p[1] - p[0] * p[0]);
+        r[1] = 1.0 - p[0];
+        Ok(())
+    };
+    let jac = |p: &[f64], _r: &[f64], j: &mut [f64]| -> Result<(), Never> {
+        // Column 0: d r / d x; column 1: d r / d y.
+        j.copy_from_slice(&[-20.0 * p[0], -1.0, 10.0, 0.0]);
+        Ok(())
+    };
+    let exact = htfid_estimate::levenberg_marquardt_with_jacobian(
+        f,
+        jac,
+        &[-1.2, 1.0],
+        2,
+        &LmOptions::default(),
+    )
+    .unwrap();
+    assert!((exact.params[0] - 1.0).abs() < 1e-8 && (exact.params[1] - 1.0).abs() < 1e-8);
+    let differences = levenberg_marquardt(f, &[-1.2, 1.0], 2, &LmOptions::default()).unwrap();
+    assert!(
+        exact.evaluations < differences.evaluations,
+        "{} evaluations with the exact Jacobian, {} with differences",
+        exact.evaluations,
+        differences.evaluations
+    );
+    // A Jacobian that fails, or that is not finite, stops the fit with its reason.
+    let failing = |_: &[f64], _: &[f64], _: &mut [f64]| -> Result<(), String> {
+        Err("no sensitivities here".to_string())
+    };
+    let g = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+        r[0] = p[0] - 1.0;
+        r[1] = p[0] + 1.0;
+        Ok(())
+    };
+    let err = htfid_estimate::levenberg_marquardt_with_jacobian(
+        g,
+        failing,
+        &[0.5],
+        2,
+        &LmOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&err, Error::JacobianFunction { message } if message == "no sensitivities here"),
+        "{err:?}"
+    );
+    let nan = |_: &[f64], _: &[f64], j: &mut [f64]| -> Result<(), String> {
+        j.copy_from_slice(&[1.0, f64::NAN]);
+        Ok(())
+    };
+    let err =
+        htfid_estimate::levenberg_marquardt_with_jacobian(g, nan, &[0.5], 2, &LmOptions::default())
+            .unwrap_err();
+    assert!(
+        matches!(&err, Error::JacobianFunction { message } if message.contains("(1, 0)")),
+        "{err:?}"
+    );
+}

@@ -12,8 +12,22 @@ use htfid_hybrid::{simulate, Options};
 use htfid_lang::{output_sensitivities, InputFn, Model};
 
 fn load(name: &str) -> Model {
+    if name == "two-dof-shifted" {
+        return shifted();
+    }
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../models/{name}.toml"));
     Model::from_file(&path).unwrap()
+}
+
+/// The two-dof model with its damper switching at `v1 = s` instead of 0: the field jumps at
+/// the switch, on a surface along which the motion could slide.
+fn shifted() -> Model {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/two-dof.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let text = text
+        .replace("when = \"v1\"", "when = \"v1 - s\"")
+        .replace("[parameters]", "[parameters]\ns = { value = 0.05 }");
+    Model::parse(&text).unwrap()
 }
 
 fn tight() -> Options {
@@ -161,4 +175,9 @@ fn the_bouncing_balls_sensitivities_cross_impacts_on_the_moving_table() {
 #[test]
 fn the_two_dof_sensitivities_with_two_outputs() {
     check("two-dof", &["k1", "k2", "k3", "c1", "c2"], 1e-5, 5.0, 6);
+}
+
+#[test]
+fn the_sensitivities_cross_a_moved_switch_where_the_field_jumps() {
+    check("two-dof-shifted", &["s", "k2", "c1"], 1e-4, 5.0, 6);
 }
