@@ -199,15 +199,24 @@ pub fn diagnose_with_progress(
         let (mut found, mut sentence) = discover::discover(&ctx, half, extended_fit, opts);
         // Library effects that only partly mimic the force outside the library bend the
         // residual the terms are read from; the refitted nominal's residual shows it whole.
-        if found.is_none() && decision.extended.is_some() {
+        // The formula whose model predicts the held-out data better is kept.
+        if decision.extended.is_some() {
             let (again, second) = discover::discover(&ctx, half, &nominal_fit, opts);
             if let Some(mut d) = again {
-                d.read_from = "nominal".to_string();
-                found = Some(d);
-                sentence = format!(
-                    "{second}; read from the refitted nominal's residual, beside which the \
-                     selected effects left no formula that held up ({sentence})"
-                );
+                let beside = found.as_ref().map(|f| f.rmse_after);
+                if beside.is_none_or(|rmse| d.rmse_after < rmse) {
+                    d.read_from = "nominal".to_string();
+                    found = Some(d);
+                    let why = if beside.is_some() {
+                        "whose formula predicts the held-out data better than the one found \
+                         beside the selected effects"
+                    } else {
+                        "beside which the selected effects left no formula that held up"
+                    };
+                    sentence = format!(
+                        "{second}; read from the refitted nominal's residual, {why} ({sentence})"
+                    );
+                }
             }
         }
         decision.diagnosis.evidence.push(sentence);

@@ -194,6 +194,30 @@ impl HybridSystem for Augmented<'_> {
 /// outputs on `grid` with their exact derivatives by the parameters `params` and, when
 /// `initial_state` holds, by each entry of `x0` (after the parameters' columns).
 ///
+/// ```
+/// use std::sync::Arc;
+/// use htfid_hybrid::Options;
+/// use htfid_lang::{output_sensitivities, Model};
+///
+/// let model = Model::parse(r#"
+///     states = ["x", "v"]
+///     parameters = { k = 4.0, c = 0.5 }
+///     flow = { x = "v", v = "-k*x - c*v + u" }
+///     outputs = { x = "x" }
+///     initial = { x = 1.0, v = 0.0 }
+/// "#)?
+/// .with_input(Some(Arc::new(|t: f64| (2.0 * t).sin())));
+/// let grid: Vec<f64> = (0..=100).map(|i| 0.05 * i as f64).collect();
+/// let mode = model.initial_mode();
+/// let s = output_sensitivities(&model, &["k"], true, mode, 0.0, &[1.0, 0.0], &grid,
+///                              &Options::default())?;
+/// // Columns: d x / d k, then d x / d x(0) and d x / d v(0); at t = 0 only d x / d x(0) is 1.
+/// assert_eq!(s.columns.len(), 3);
+/// assert_eq!(s.columns[1][0][0], 1.0);
+/// assert_eq!(s.columns[0][0][0], 0.0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
 /// # Errors
 /// [`ForwardError`].
 #[allow(clippy::too_many_arguments)] // reason: the model, what to differentiate and the grid

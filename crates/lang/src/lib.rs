@@ -17,6 +17,10 @@
 //! [`htfid_hybrid::HybridSystem`] and [`htfid_ltp::InputOutput`], so every library of the
 //! workspace takes it as it takes a system written in Rust.
 //!
+//! [`output_sensitivities`] integrates the forward sensitivities of the outputs by any of the
+//! parameters and by the initial state beside the state (with the saltation's parameter terms at
+//! every guard): the exact Jacobians of output-error fits.
+//!
 //! Errors ([`ModelError`]) name the file, the line and the column (inside an expression, the
 //! column of the offending character), and the key path.
 //!
