@@ -204,7 +204,7 @@ pub fn diagnose_with_progress(
             let (again, second) = discover::discover(&ctx, half, &nominal_fit, opts);
             if let Some(mut d) = again {
                 let beside = found.as_ref().map(|f| f.rmse_after);
-                if beside.is_none_or(|rmse| d.rmse_after < rmse) {
+                if beside.map_or(true, |rmse| d.rmse_after < rmse) {
                     d.read_from = "nominal".to_string();
                     found = Some(d);
                     let why = if beside.is_some() {
