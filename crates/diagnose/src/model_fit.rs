@@ -443,7 +443,8 @@ type Residual<'a> = dyn Fn(&[f64], &mut [f64]) -> Result<(), String> + 'a;
 /// Central differences (one-sided against a bound) of `residuals` at `p`, where they are
 /// `r`, for the columns `cols` of `jac` (column-major, `r.len()` rows): for the parameters no
 /// forward sensitivity covers (a boundary effect's lag, delay or sensor), and for every
-/// parameter when the motion slides along a switching surface. The step of parameter `j` is
+/// parameter when the motion slides along a switching surface (or the simulation with
+/// sensitivities fails). The step of parameter `j` is
 /// `step * max(|p_j|, typical_j)`.
 fn difference_columns(
     residuals: &Residual<'_>,
@@ -766,18 +767,25 @@ impl<'a> Prepared<'a> {
             };
             let every: Vec<usize> = (0..x.len()).collect();
             let unbounded = vec![(f64::NEG_INFINITY, f64::INFINITY); x.len()];
+            // Once the sensitivities fail (the motion slides), the rest of the fit differences.
+            let failed = std::cell::Cell::new(false);
             let jacobian = |z: &[f64], r: &[f64], jac: &mut [f64]| -> Result<(), String> {
-                match self.sensitivities(model, &[], z, b, rows.end, rows.clone(), &every, jac) {
-                    Err(ForwardError::Sliding(_)) => difference_columns(
-                        &residuals,
-                        z,
-                        r,
-                        &every,
-                        (self.fd_step(), &typical, &unbounded),
-                        jac,
-                    ),
-                    other => other.map_err(|e| e.to_string()),
+                let exact = !failed.get()
+                    && self
+                        .sensitivities(model, &[], z, b, rows.end, rows.clone(), &every, jac)
+                        .is_ok();
+                failed.set(!exact);
+                if exact {
+                    return Ok(());
                 }
+                difference_columns(
+                    &residuals,
+                    z,
+                    r,
+                    &every,
+                    (self.fd_step(), &typical, &unbounded),
+                    jac,
+                )
             };
             x = levenberg_marquardt_with_jacobian(
                 &residuals,
@@ -1808,10 +1816,13 @@ impl Joint<'_, '_> {
         bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(x0.len()));
         scales.extend(x0.iter().map(|v| v.abs().max(1e-3)));
         // Exact columns for the model's parameters and the initial state; differences for the
-        // boundary effects' own (and for all while the motion slides).
+        // boundary effects' own, and for all where the sensitivities do not hold (the motion
+        // slides) or their simulation fails (a fit must not fail where differences work).
         let exact_at: Vec<usize> = (0..k).chain(k + e..k + e + x0.len()).collect();
         let boundary: Vec<usize> = (k..k + e).collect();
         let every: Vec<usize> = (0..k + e + x0.len()).collect();
+        // Once the sensitivities fail (the motion slides), the rest of the fit differences.
+        let failed = std::cell::Cell::new(false);
         let jacobian = |p: &[f64], r: &[f64], jac: &mut [f64]| -> Result<(), String> {
             let trial = self.model_at(&p[..k]).map_err(|e| e.to_string())?;
             let b = Boundary::with_all(effects, &p[k..k + e], outputs);
@@ -1825,20 +1836,21 @@ impl Joint<'_, '_> {
                     jac,
                 )
             };
-            match est.sensitivities(
-                &trial,
-                self.names,
-                &p[k + e..],
-                &b,
-                est.rec.len(),
-                est.rows.clone(),
-                &exact_at,
-                jac,
-            ) {
-                Ok(()) => differences(&boundary, jac),
-                Err(ForwardError::Sliding(_)) => differences(&every, jac),
-                Err(e) => Err(e.to_string()),
-            }
+            let exact = !failed.get()
+                && est
+                    .sensitivities(
+                        &trial,
+                        self.names,
+                        &p[k + e..],
+                        &b,
+                        est.rec.len(),
+                        est.rows.clone(),
+                        &exact_at,
+                        jac,
+                    )
+                    .is_ok();
+            failed.set(!exact);
+            differences(if exact { &boundary } else { &every }, jac)
         };
         let lm = LmOptions {
             scales: Some(scales.clone()),
