@@ -9,6 +9,10 @@ Writes ``tests/fixtures/two-dof-effects/``:
   and seed, and everything else needed to reproduce the record,
 * ``README.md``.
 
+With ``--only NAME`` (repeatable) it writes only the named single-effect record(s) into the
+existing ``tests/fixtures/two-dof-effects/`` and merges their entries and self-checks into the
+existing ``truth.json``; every other file there is left untouched.
+
 With ``--pairs`` it writes ``tests/fixtures/two-dof-pairs/`` instead: records with two of the
 effects below at once (list ``PAIRS``), in the same format, with their own ``truth.json``.
 With ``--triples`` it writes ``tests/fixtures/two-dof-triples/``: records with three of the
@@ -17,6 +21,7 @@ effects at once (list ``TRIPLES``), likewise.
 Run from the repository root (or anywhere)::
 
     python3 tests/oracle/two_dof_effects.py            # single effects, runs the self-checks
+    python3 tests/oracle/two_dof_effects.py --only posvel   # just that record, its checks
     python3 tests/oracle/two_dof_effects.py --pairs    # pairs of effects, with their self-checks
     python3 tests/oracle/two_dof_effects.py --triples  # triples of effects, likewise
 
@@ -68,9 +73,14 @@ stiffer-k2   k2 = 110 instead of 100
 friction2    an extra force -0.4 sign(v2) N on mass 2 (Coulomb), with sticking: when v2 = 0 and
              |k2 (x1 - x2) + c2 v1| <= 0.4 N mass 2 stays at rest until that force reaches
              0.4 N in magnitude (events at v2 = 0 and at |force| = 0.4)
+posvel       an extra force -a x1 v1 (N) on mass 1 in every mode, a = 5.0 N s/m^2: v1' gets
+             -a x1 v1 / m1 in both modes up and down.  (This a is the effect's own coefficient,
+             not the forcing amplitude a = 20 of the model.)  The term vanishes on the surface
+             v1 = 0, so the two modes' flows still agree there and no sliding can occur.
 
 Noise: independent Gaussian, standard deviation 2e-5 m, added to each recorded output after the
-sensor effect; seeded, a different seed per file.  The input column carries no noise.
+sensor effect; seeded, a different seed per file (7100 + i in the order of ``EFFECTS``, so
+posvel uses 7107).  The input column carries no noise.
 
 Pairs (``--pairs``, one file each; every effect defined exactly as above)
 --------------------------------------------------------------------------
@@ -189,6 +199,7 @@ class Effect:
         self.delay = kw.pop("delay", 0.0)           # input delay
         self.v_switch = kw.pop("v_switch", 0.0)     # damper-1 switching surface v1 = v_switch
         self.friction2 = kw.pop("friction2", 0.0)   # Coulomb force on mass 2, N
+        self.posvel = kw.pop("posvel", 0.0)         # a in the extra force -a x1 v1 on mass 1
         # smooth_drag: evaluate the drag as -d v1^2 in mode up and +d v1^2 in mode down.  On
         # each mode's own side of the surface v1 = 0 this is -d |v1| v1 exactly, but it has no
         # kink inside the integration step that crosses the surface, so DOP853's dense output
@@ -220,6 +231,9 @@ EFFECTS = [
     Effect("friction2", "Coulomb friction on mass 2: extra force -F*sign(v2) on mass 2 "
            "(-F/m2*sign(v2) on v2'), with sticking (v2 = 0 held while "
            "|k2*(x1-x2) + c2*v1| <= F)", friction2=0.4, true_values={"F": 0.4}),
+    Effect("posvel", "extra force -a*x1*v1 on mass 1 in every mode (v1' gets -a*x1*v1/m1 in "
+           "modes up and down); a = 5.0 N s/m^2 is this effect's own coefficient, not the "
+           "forcing amplitude a = 20 of the model", posvel=5.0, true_values={"a": 5.0}),
 ]
 
 
@@ -237,7 +251,7 @@ def _combine(*names):
     for e in parts:
         kw["params"].update({k: v for k, v in e.params.items() if v != PARAMS[k]})
     for attr, default in (("drag", 0.0), ("tau_s", None), ("delay", 0.0),
-                          ("v_switch", 0.0), ("friction2", 0.0)):
+                          ("v_switch", 0.0), ("friction2", 0.0), ("posvel", 0.0)):
         vals = [getattr(e, attr) for e in parts if getattr(e, attr) != default]
         assert len(vals) <= 1, attr                       # the effects are disjoint
         kw[attr] = vals[0] if vals else default
@@ -297,6 +311,8 @@ class Sim:
         f0 = self.a * math.cos(2.0 * math.pi * t / self.T)
         u = u_of_t(t - self.eff.delay)
         base = spring1 + coupling + f0 + u
+        if self.eff.posvel:                  # (only then, so the other records keep their bits)
+            base = base - self.eff.posvel * x1 * v1
         if self.eff.smooth_drag:
             dv = self.eff.drag * v1 * v1
             return (base - self.c1 * v1) / self.m1 - dv, base / self.m1 + dv
@@ -630,6 +646,169 @@ def truth_header(t_start, u, regenerate):
     return truth
 
 
+def single_record(eff, i, t, u, clean_y, out, t_start):
+    """Simulate the single-effect record EFFECTS[i] = eff, write its CSV into out, and return
+    (file name, truth.json entry, noiseless outputs, trajectory).  clean_y is the clean
+    model's noiseless output (None for the clean record itself)."""
+    sim = Sim(eff)
+    traj = sim.run(t0=t_start)
+    y1, y2 = outputs(eff, traj, t)
+    if clean_y is None:
+        assert eff.name == "clean"
+        clean_y = (y1, y2)
+    seed = NOISE_SEED_BASE + i
+    noise = np.random.default_rng(seed).normal(0.0, NOISE_STD, size=(N_SAMPLES, 2))
+    n1 = y1 + noise[:, 0]
+    n2 = y2 + noise[:, 1]
+    fname = eff.name + ".csv"
+    write_csv(os.path.join(out, fname), t, u, n1, n2)
+    d1 = y1 - clean_y[0]
+    d2 = y2 - clean_y[1]
+    eff_rms = {"x1": rms(d1), "x2": rms(d2)}
+    rec_rms = {"x1": rms(n1 - clean_y[0]), "x2": rms(n2 - clean_y[1])}
+    extra = {"drag_d": eff.drag, "tau_s": eff.tau_s, "input_delay": eff.delay,
+             "v_switch": eff.v_switch, "friction2_F": eff.friction2}
+    if eff.posvel:                       # (only then, so the other entries stay as they were)
+        extra["posvel_a"] = eff.posvel
+    entry = {
+        "effect": eff.name,
+        "description": eff.description,
+        "true_values": eff.true_values,
+        "parameters": eff.params,
+        "extra": extra,
+    }
+    if eff.posvel:
+        z = traj(t)
+        fx = eff.posvel * z[0] * z[1]
+        entry["extra_force"] = {
+            "term": "force -a*x1*v1 on mass 1",
+            "in_v1_dot": "-a*x1*v1/m1, added in both modes up and down",
+            "a": eff.posvel,
+            "a_unit": "N s/m^2",
+            "note": "a here is the effect's own coefficient (true_values.a), not the "
+                    "model's forcing amplitude parameters.a = 20",
+            "rms_of_a_x1_v1_over_record_N": rms(fx),
+            "max_abs_of_a_x1_v1_over_record_N": float(np.max(np.abs(fx))),
+            "evaluated_on": "the noiseless states x1, v1 at the 6001 sample times t = 0..60 s",
+        }
+    entry.update({
+        "noise_std": NOISE_STD,
+        "noise_seed": seed,
+        "rms_noiseless_minus_clean_noiseless": eff_rms,
+        "rms_record_minus_clean_noiseless": rec_rms,
+        "effect_rms_over_noise_std": {k: v / NOISE_STD for k, v in eff_rms.items()},
+        "hybrid_summary": traj.summary(),
+    })
+    print("%-16s effect RMS x1 %.3e (%.2f sd)  x2 %.3e (%.2f sd)  %s" % (
+        fname, eff_rms["x1"], eff_rms["x1"] / NOISE_STD, eff_rms["x2"],
+        eff_rms["x2"] / NOISE_STD, traj.summary()), flush=True)
+    return fname, entry, (y1, y2), traj
+
+
+def convergence_check(eff, y, t, t_start):
+    """Self-check (a'): the record's noiseless outputs y again at rtol 1e-12, atol 1e-14."""
+    tr = Sim(eff).run(t0=t_start, rtol=1e-12, atol=1e-14)
+    f1, f2 = outputs(eff, tr, t)
+    res = {"x1": float(np.max(np.abs(f1 - y[0]))), "x2": float(np.max(np.abs(f2 - y[1])))}
+    print("(a') %-12s rtol 1e-12 vs 1e-10: max |dx1| %.3e  max |dx2| %.3e" % (
+        eff.name, res["x1"], res["x2"]), flush=True)
+    return res
+
+
+def posvel_check(eff, y, conv, t, t_start):
+    """Self-check (f) for the posvel record (noiseless outputs y, its (a') result conv).
+
+    (f1) the (a') convergence numbers relative to the RMS of each output;
+    (f2) an event-free integration written directly from the formulas (no Sim, no modes):
+         v1' = (-k1 x1 - k3 x1^3 - k2 (x1 - x2) - c2 (v1 - v2) - c1 max(v1, 0)
+                + a_f cos(2 pi t / T) + u(t) - a x1 v1) / m1,
+         which is the hybrid model whenever nothing slides (mode up <=> v1 > 0; the two
+         modes agree at v1 = 0); DOP853 at rtol 1e-12, atol 1e-14, max_step 0.01 s.  Its error
+         comes from the kink of max(v1, 0) inside the steps that cross v1 = 0.
+    (f3) the same with the posvel term left out, against the clean model (shows that the
+         effect is what differs; recorded as the RMS of the difference over the noise std)."""
+    p = eff.params
+    m1, m2, k1, k2, k3 = p["m1"], p["m2"], p["k1"], p["k2"], p["k3"]
+    c1, c2, af, T = p["c1"], p["c2"], p["a"], p["T"]
+    out_rms = {"x1": rms(y[0]), "x2": rms(y[1])}
+    res = {"output_rms_m": out_rms,
+           "a_rtol1e-12_max_abs_diff_over_output_rms": {k: conv[k] / out_rms[k]
+                                                        for k in ("x1", "x2")}}
+
+    def free(coef):
+        def f(tt, z):
+            x1, v1, x2, v2 = z
+            fc = -k2 * (x1 - x2) - c2 * (v1 - v2)
+            a1 = (-k1 * x1 - k3 * x1 ** 3 + fc - c1 * max(v1, 0.0)
+                  + af * math.cos(2.0 * math.pi * tt / T) + u_of_t(tt) - coef * x1 * v1) / m1
+            return [v1, a1, v2, -fc / m2]
+        sol = solve_ivp(f, (t_start, T_END), [0.0, 0.0, 0.0, 0.0], method="DOP853",
+                        rtol=1e-12, atol=1e-14, max_step=MAX_STEP, t_eval=t)
+        if not sol.success:
+            raise RuntimeError(sol.message)
+        return sol.y[0], sol.y[2]
+
+    g1, g2 = free(eff.posvel)
+    d = {"x1": float(np.max(np.abs(g1 - y[0]))), "x2": float(np.max(np.abs(g2 - y[1])))}
+    res["event_free_max_abs_diff"] = d
+    res["event_free_max_abs_diff_over_output_rms"] = {k: d[k] / out_rms[k] for k in d}
+    print("(f) posvel output RMS: x1 %.6e  x2 %.6e" % (out_rms["x1"], out_rms["x2"]),
+          flush=True)
+    print("(f) posvel rtol 1e-12 vs 1e-10, max |d| / RMS: x1 %.3e  x2 %.3e" % (
+        res["a_rtol1e-12_max_abs_diff_over_output_rms"]["x1"],
+        res["a_rtol1e-12_max_abs_diff_over_output_rms"]["x2"]), flush=True)
+    print("(f) posvel vs event-free integration from the formulas: max |dx1| %.3e (%.3e of "
+          "RMS)  max |dx2| %.3e (%.3e of RMS)" % (
+              d["x1"], d["x1"] / out_rms["x1"], d["x2"], d["x2"] / out_rms["x2"]), flush=True)
+    return res
+
+
+def main_only(args):
+    """Write only the named single-effect records into args.out and merge their entries and
+    self-checks into the truth.json that is already there; nothing else is touched."""
+    t_start = args.t_start
+    path = os.path.join(args.out, "truth.json")
+    with open(path) as f:
+        truth = json.load(f)
+    if truth["simulation"]["t_start"] != t_start:
+        raise SystemExit("%s was made with t_start = %r, not %r" % (
+            path, truth["simulation"]["t_start"], t_start))
+    for lib, ver in (("scipy", __import__("scipy").__version__), ("numpy", np.__version__)):
+        if truth["simulation"][lib] != ver:
+            print("warning: %s was made with %s %s, this is %s" % (
+                path, lib, truth["simulation"][lib], ver), file=sys.stderr)
+    names = [e.name for e in EFFECTS]
+    for n in args.only:
+        if n not in names:
+            raise SystemExit("--only: unknown effect %r (one of %s)" % (n, ", ".join(names)))
+    t = sample_times()
+    u = u_vec(t)
+    clean_eff = EFFECTS[0]
+    clean_traj = Sim(clean_eff).run(t0=t_start)
+    clean_y = outputs(clean_eff, clean_traj, t)       # the clean record is not rewritten
+    checks = truth.setdefault("self_checks", {})
+    for n in args.only:
+        i = names.index(n)
+        eff = EFFECTS[i]
+        fname, entry, y, traj = single_record(eff, i, t, u, None if n == "clean" else clean_y,
+                                              args.out, t_start)
+        truth["files"][fname] = entry
+        conv = convergence_check(eff, y, t, t_start)
+        if n == "clean":
+            checks["a_clean_rtol1e-12_max_abs_diff"] = conv
+        else:
+            checks.setdefault("a_other_effects_rtol1e-12_max_abs_diff", {})[n] = conv
+        if eff.posvel:
+            checks["f_posvel"] = posvel_check(eff, y, conv, t, t_start)
+        if n in ("sensor-lag", "friction2"):
+            print("note: self-check %s for %s runs only without --only" % (
+                "(b)" if n == "sensor-lag" else "(e)", n), file=sys.stderr)
+    with open(path, "w") as f:
+        json.dump(truth, f, indent=2)
+        f.write("\n")
+    return 0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=None,
@@ -645,7 +824,12 @@ def main():
     group.add_argument("--triples", action="store_true",
                        help="write the records with three effects at once (TRIPLES) instead "
                             "of the single-effect records")
+    ap.add_argument("--only", action="append", metavar="NAME", default=None,
+                    help="write only this single-effect record (repeatable) and merge it into "
+                         "the existing truth.json; the other files are left as they are")
     args = ap.parse_args()
+    if args.only and (args.pairs or args.triples):
+        ap.error("--only is for the single-effect records")
     if args.triples:
         if args.out is None:
             args.out = OUT_TRIPLES
@@ -656,6 +840,8 @@ def main():
         return main_pairs(args)
     if args.out is None:
         args.out = OUT
+    if args.only:
+        return main_only(args)
     t_start = args.t_start
     os.makedirs(args.out, exist_ok=True)
 
@@ -669,40 +855,12 @@ def main():
     clean_y = None
     noiseless = {}
     for i, eff in enumerate(EFFECTS):
-        sim = Sim(eff)
-        traj = sim.run(t0=t_start)
-        y1, y2 = outputs(eff, traj, t)
+        fname, entry, (y1, y2), traj = single_record(eff, i, t, u, clean_y, args.out,
+                                                     t_start)
         noiseless[eff.name] = (y1, y2)
         if eff.name == "clean":
             clean_traj, clean_y = traj, (y1, y2)
-        seed = NOISE_SEED_BASE + i
-        noise = np.random.default_rng(seed).normal(0.0, NOISE_STD, size=(N_SAMPLES, 2))
-        n1 = y1 + noise[:, 0]
-        n2 = y2 + noise[:, 1]
-        fname = eff.name + ".csv"
-        write_csv(os.path.join(args.out, fname), t, u, n1, n2)
-        d1 = y1 - clean_y[0]
-        d2 = y2 - clean_y[1]
-        eff_rms = {"x1": rms(d1), "x2": rms(d2)}
-        rec_rms = {"x1": rms(n1 - clean_y[0]), "x2": rms(n2 - clean_y[1])}
-        entry = {
-            "effect": eff.name,
-            "description": eff.description,
-            "true_values": eff.true_values,
-            "parameters": eff.params,
-            "extra": {"drag_d": eff.drag, "tau_s": eff.tau_s, "input_delay": eff.delay,
-                      "v_switch": eff.v_switch, "friction2_F": eff.friction2},
-            "noise_std": NOISE_STD,
-            "noise_seed": seed,
-            "rms_noiseless_minus_clean_noiseless": eff_rms,
-            "rms_record_minus_clean_noiseless": rec_rms,
-            "effect_rms_over_noise_std": {k: v / NOISE_STD for k, v in eff_rms.items()},
-            "hybrid_summary": traj.summary(),
-        }
         truth["files"][fname] = entry
-        print("%-16s effect RMS x1 %.3e (%.2f sd)  x2 %.3e (%.2f sd)  %s" % (
-            fname, eff_rms["x1"], eff_rms["x1"] / NOISE_STD, eff_rms["x2"],
-            eff_rms["x2"] / NOISE_STD, traj.summary()), flush=True)
 
     # ---- self-checks --------------------------------------------------------------------
     # (a) convergence of the clean record
@@ -718,13 +876,7 @@ def main():
     # (a') the same convergence test for every effect
     conv = {}
     for eff in EFFECTS[1:]:
-        tr = Sim(eff).run(t0=t_start, rtol=1e-12, atol=1e-14)
-        f1, f2 = outputs(eff, tr, t)
-        y1, y2 = noiseless[eff.name]
-        conv[eff.name] = {"x1": float(np.max(np.abs(f1 - y1))),
-                          "x2": float(np.max(np.abs(f2 - y2)))}
-        print("(a') %-12s rtol 1e-12 vs 1e-10: max |dx1| %.3e  max |dx2| %.3e" % (
-            eff.name, conv[eff.name]["x1"], conv[eff.name]["x2"]), flush=True)
+        conv[eff.name] = convergence_check(eff, noiseless[eff.name], t, t_start)
     checks["a_other_effects_rtol1e-12_max_abs_diff"] = conv
 
     # (b) sensor lag against the exact first-order-hold solution of the lag on the clean
@@ -781,6 +933,11 @@ def main():
         print("(e) friction2 vs smooth friction tanh(v2/%g): max |dx1| %.3e  max |dx2| %.3e"
               % (eps, echk["eps=%g" % eps]["x1"], echk["eps=%g" % eps]["x2"]), flush=True)
     checks["e_friction2_vs_tanh_regularised_max_abs_diff"] = echk
+
+    # (f) posvel: convergence relative to the output RMS, and an event-free integration written
+    # directly from the formulas
+    pv = _single("posvel")
+    checks["f_posvel"] = posvel_check(pv, noiseless["posvel"], conv["posvel"], t, t_start)
 
     truth["self_checks"] = checks
     with open(os.path.join(args.out, "truth.json"), "w") as f:

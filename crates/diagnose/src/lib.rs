@@ -239,8 +239,8 @@ pub use htf::{
 pub use htfid_data::TimeSeries;
 pub use interp::Interpolation;
 pub use model_fit::{
-    diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelFitOptions, ModelScore,
-    ParameterChange,
+    diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelDiscovered,
+    ModelDiscoveredTerm, ModelFitOptions, ModelScore, ParameterChange,
 };
 pub use nominal::NominalModel;
 pub use options::DiagnoseOptions;

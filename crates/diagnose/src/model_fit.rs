@@ -18,6 +18,9 @@ use crate::term::{term_library, TermEffect, TermKind};
 use crate::{DiagnoseError, TimeSeries};
 use htfid_lang::Site;
 
+mod search;
+pub use search::{ModelDiscovered, ModelDiscoveredTerm};
+
 /// How a model is refitted.
 #[derive(Debug, Clone)]
 pub struct ModelFitOptions {
@@ -265,6 +268,11 @@ pub struct ModelDiagnosis {
     /// The extended model's simulated outputs (with the chosen effect), when there is one.
     #[serde(skip)]
     pub simulated_extended: Option<Vec<Vec<f64>>>,
+    /// The term search outside the library, when it found terms that pass (it runs while
+    /// clear structure remains): a hint beside the cause, which it never changes.
+    pub discovered: Option<ModelDiscovered>,
+    /// What the term search found or why it proposed nothing; `None` when it did not run.
+    pub term_search: Option<String>,
 }
 
 fn sim_failure(reason: impl ToString) -> DiagnoseError {
@@ -1502,6 +1510,26 @@ pub fn diagnose_model(
         .as_ref()
         .map(|c| c.set.iter().map(|&i| trials[i].name()).collect())
         .unwrap_or_default();
+    // Outside the library: a term search on the refitted model while clear structure remains.
+    let (discovered, term_search) = if structure_left {
+        let score = |m: &Model, x: &[f64]| score_of(m, x, &ideal).map(|(s, _)| s);
+        let (found, sentence) = search::Search {
+            est: &est,
+            model: &refitted_model,
+            names: &names,
+            scales: &joint.scales,
+            base: &base,
+            samples: &samples,
+            means: &means,
+            refitted: &refitted,
+            score: &score,
+            opts,
+        }
+        .run();
+        (found, Some(sentence))
+    } else {
+        (None, None)
+    };
     let (extended, simulated_extended) = match current {
         Some(mut c) => {
             let sim = c.simulated.take();
@@ -1533,6 +1561,8 @@ pub fn diagnose_model(
         simulated: refitted_sim,
         simulated_configured: configured_sim,
         simulated_extended,
+        discovered,
+        term_search,
     })
 }
 

@@ -231,3 +231,91 @@ pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<Ter
     }
     out
 }
+
+/// One term of the term search's dictionary for a model file: a function of the states added,
+/// with a coefficient of its own, to the equation of a velocity state.
+#[derive(Debug, Clone)]
+pub(crate) struct DictionaryTerm {
+    /// The velocity state whose equation it joins.
+    pub state: String,
+    /// The function, as an expression of the states (centred on their means).
+    pub function: String,
+}
+
+/// The term search's dictionary for `model`: in the equation of every velocity state (one that
+/// a position state's equation integrates), every product of two or three states, each taken
+/// from its mean on the record (`means`), and `|v| v` of every velocity. Linear terms are the
+/// refit's own (its free parameters) and are left out.
+pub(crate) fn term_dictionary(model: &Model, means: &[f64]) -> Vec<DictionaryTerm> {
+    let states = model.states();
+    let pairs = velocity_pairs(model);
+    let mut velocities: Vec<usize> = pairs.iter().map(|&(_, v)| v).collect();
+    velocities.sort_unstable();
+    velocities.dedup();
+    let centred: Vec<String> = states
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let c: f64 = format!("{:.5e}", means.get(i).copied().unwrap_or(0.0))
+                .parse()
+                .unwrap_or(0.0);
+            if c == 0.0 {
+                s.name.clone()
+            } else if c < 0.0 {
+                format!("({} + {})", s.name, -c)
+            } else {
+                format!("({} - {c})", s.name)
+            }
+        })
+        .collect();
+    let n = states.len();
+    let mut functions = Vec::new();
+    for i in 0..n {
+        for j in i..n {
+            functions.push(format!("{}*{}", centred[i], centred[j]));
+            for k in j..n {
+                functions.push(format!("{}*{}*{}", centred[i], centred[j], centred[k]));
+            }
+        }
+    }
+    for &v in &velocities {
+        let vn = &states[v].name;
+        functions.push(format!("abs({vn})*{vn}"));
+    }
+    velocities
+        .iter()
+        .flat_map(|&v| {
+            functions.iter().map(move |f| DictionaryTerm {
+                state: states[v].name.clone(),
+                function: f.clone(),
+            })
+        })
+        .collect()
+}
+
+/// The terms `chosen` of `dictionary` as one extension of `model`, each with a coefficient
+/// of its own starting at zero (named `theta_1`, `theta_2`, ... or the next free names).
+pub(crate) fn dictionary_extension(
+    model: &Model,
+    dictionary: &[DictionaryTerm],
+    chosen: &[usize],
+) -> Extension {
+    let mut names: Vec<String> = Vec::new();
+    let mut terms = Vec::new();
+    for (i, &j) in chosen.iter().enumerate() {
+        let p = fresh(model, &names, &format!("theta_{}", i + 1));
+        let d = &dictionary[j];
+        terms.push((
+            Site::Flow {
+                state: d.state.clone(),
+                mode: None,
+            },
+            format!("{p}*{}", d.function),
+        ));
+        names.push(p);
+    }
+    Extension {
+        parameters: names.into_iter().map(zero).collect(),
+        terms,
+    }
+}

@@ -173,6 +173,55 @@ fn a_moved_damper_switch_is_named() {
     named_with("guard-shift.csv", "guard_shift(v1)", "shift_1", "v_switch");
 }
 
+/// A force outside the library, `-a x1 v1` on the first mass (`posvel.csv`): no library effect
+/// is claimed, and the term search writes it as a formula with its coefficient within 5 % of
+/// the truth (`-a / m1` in `v1'`, `m1` = 1 kg). 5 %: the output-error fit is unbiased and the
+/// force is 50 to 130 times the noise in the outputs; a companion term that the search may add
+/// (a second product of the states near the floor) takes at most a little of it.
+#[test]
+fn a_force_outside_the_library_is_written_as_a_formula() {
+    let d = diagnose("posvel.csv");
+    let t = table(&d);
+    assert!(
+        !matches!(d.cause, ModelCause::Effect(_)),
+        "a library effect claimed: {t}"
+    );
+    let found = d
+        .discovered
+        .as_ref()
+        .unwrap_or_else(|| panic!("no formula: {:?}\n{t}", d.term_search));
+    let a = truth("posvel.csv", "a");
+    let term = found
+        .terms
+        .iter()
+        .find(|x| {
+            x.state == "v1"
+                && x.term.contains("(x1 ")
+                && x.term.contains("(v1 ")
+                && !x.term.contains("x2")
+        })
+        .unwrap_or_else(|| panic!("no x1 v1 term in v1': {}", found.formula));
+    assert!(
+        (term.coefficient / -a - 1.0).abs() < 0.05,
+        "{}: coefficient {} against {}",
+        found.formula,
+        term.coefficient,
+        -a
+    );
+    assert!(found.gain > 0.5, "{}: gain {}", found.formula, found.gain);
+}
+
+/// On clean data the term search does not run (no structure is left), so no formula.
+#[test]
+fn clean_data_get_no_formula() {
+    let d = diagnose("clean.csv");
+    assert!(
+        d.discovered.is_none() && d.term_search.is_none(),
+        "{:?}",
+        d.term_search
+    );
+}
+
 #[test]
 fn friction_the_library_cannot_write_is_not_claimed() {
     let d = diagnose("friction2.csv");

@@ -156,6 +156,13 @@ pub fn run(
         "validation": validation_json,
         "options": options,
     });
+    let mut json = json;
+    if let Some(found) = &d.discovered {
+        json["discovered"] = serde_json::to_value(found).unwrap_or_default();
+    }
+    if let Some(sentence) = &d.term_search {
+        json["term_search"] = serde_json::Value::String(sentence.clone());
+    }
     outdir.write_text("diagnosis.json", &json_text(&json))?;
     outdir.write_text("report.md", &report(&s, &d, &checks))?;
     // A few forcing periods at the end of the held-out part: measured, configured, refitted.
@@ -555,6 +562,17 @@ fn report(
         ));
     }
     r.para(&decision);
+    if let Some(sentence) = &d.term_search {
+        let lead = match &d.discovered {
+            Some(found) => format!(
+                "**Outside the library**, a formula (a hint beside the cause, which it does not \
+                 change): `{}`. ",
+                found.formula
+            ),
+            None => "**Outside the library**, the term search proposed nothing. ".to_string(),
+        };
+        r.para(&format!("{lead}In full: {sentence}."));
+    }
 
     r.section("Data");
     let held_out = match &s.validation {
