@@ -546,6 +546,10 @@ fn report(
                 c.effect,
                 percent(d.explained, 3)
             ),
+            // The decision above already says what to do.
+            _ if matches!(d.cause, ModelCause::Unexplained) => {
+                "no effect tried accounts for it.".to_string()
+            }
             _ => "no effect tried accounts for it. Write the suspected effect as a term of \
                   the model's equations (`[[diagnose.terms]]`) and diagnose again to measure \
                   its gain."
@@ -563,15 +567,22 @@ fn report(
     }
     r.para(&decision);
     if let Some(sentence) = &d.term_search {
-        let lead = match &d.discovered {
+        r.para(&match &d.discovered {
             Some(found) => format!(
-                "**Outside the library**, a formula (a hint beside the cause, which it does not \
-                 change): `{}`. ",
-                found.formula
+                "**Outside the library**, a search over products of the states in the \
+                 equations of the velocity states writes what the refit leaves as `{}`: with \
+                 it the refitted model predicts the held-out data with NRMSE {} instead of {} \
+                 ({} lower). The search stopped because {}. This is a hint beside the \
+                 decision above, which it does not change; to test it as an effect, write it as \
+                 a term of the model (`[[diagnose.terms]]`) and diagnose again.",
+                found.formula,
+                percent(found.nrmse_after, 3),
+                percent(found.nrmse_before, 3),
+                percent(found.gain, 3),
+                found.stopped
             ),
-            None => "**Outside the library**, the term search proposed nothing. ".to_string(),
-        };
-        r.para(&format!("{lead}In full: {sentence}."));
+            None => format!("**Outside the library**, nothing: {sentence}."),
+        });
     }
 
     r.section("Data");

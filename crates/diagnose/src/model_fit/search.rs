@@ -42,6 +42,8 @@ pub struct ModelDiscovered {
     pub gain: f64,
     /// The model the terms were added to: `"nominal"` (the refitted model).
     pub read_from: String,
+    /// Why the search added no further term.
+    pub stopped: String,
 }
 
 /// One term of a [`ModelDiscovered`] formula.
@@ -209,6 +211,7 @@ impl Search<'_, '_> {
                 nrmse_after: after,
                 gain: 1.0 - after / before,
                 read_from: "nominal".into(),
+                stopped: stop,
             }),
             sentence,
         )
