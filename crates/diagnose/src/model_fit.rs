@@ -269,7 +269,8 @@ pub struct ModelDiagnosis {
     #[serde(skip)]
     pub simulated_extended: Option<Vec<Vec<f64>>>,
     /// The term search outside the library, when it found terms that pass (it runs while
-    /// clear structure remains): a hint beside the cause, which it never changes.
+    /// clear structure remains and the cause is not a single library effect): a hint beside
+    /// the cause, which it never changes.
     pub discovered: Option<ModelDiscovered>,
     /// What the term search found or why it proposed nothing; `None` when it did not run.
     pub term_search: Option<String>,
@@ -1510,8 +1511,10 @@ pub fn diagnose_model(
         .as_ref()
         .map(|c| c.set.iter().map(|&i| trials[i].name()).collect())
         .unwrap_or_default();
-    // Outside the library: a term search on the refitted model while clear structure remains.
-    let (discovered, term_search) = if structure_left {
+    // Outside the library: a term search on the refitted model while clear structure remains
+    // that no chosen effect accounts for (with an effect named, its own fit is the answer).
+    let searched = structure_left && !matches!(cause, ModelCause::Effect(_));
+    let (discovered, term_search) = if searched {
         let score = |m: &Model, x: &[f64]| score_of(m, x, &ideal).map(|(s, _)| s);
         let (found, sentence) = search::Search {
             est: &est,
