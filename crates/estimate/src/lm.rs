@@ -100,10 +100,13 @@ impl Default for LmOptions {
 pub struct LmFit {
     /// Best parameters found.
     pub params: Vec<f64>,
-    /// `sqrt(diag(covariance))`, when the covariance exists.
+    /// `sqrt(diag(covariance))`, when the covariance exists (`NaN` for a parameter the data
+    /// do not determine).
     pub stderr: Option<Vec<f64>>,
-    /// `s^2 (J^T J)^{-1}` with `s^2 = cost / (m - p)` and `J` at `params`; `None` when `m <= p`
-    /// or `J` is rank deficient.
+    /// `s^2 (J^T J)^{-1}` with `s^2 = cost / (m - p)` and `J` at `params`, on the directions
+    /// the data determine: a parameter they do not determine (a zero column, or one involved
+    /// in a direction of vanishing singular value) has `NaN` in its row and column. `None`
+    /// when `m <= p` or no parameter is determined.
     pub covariance: Option<Vec<Vec<f64>>>,
     /// Sum of squared residuals `sum_i r_i^2` at `params`.
     pub cost: f64,
@@ -553,10 +556,16 @@ fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -
         // of the box. They take no part in the step or in the gradient test (the projected
         // gradient), so a fit that ends on a bound converges as one inside the box does
         // instead of spending its iterations on steps the box clips away.
+        // Parameters without influence are held too: a change of their typical size moves
+        // the residuals by less than 1e-9 of their norm (an initial state whose effect has died
+        // out before the scored samples), so the data do not determine them, and the
+        // Marquardt scaling of their vanishing column would let them wander without limit.
         let held: Vec<bool> = (0..np)
             .map(|j| {
                 let (lo, hi) = bounds[j];
-                (x[j] <= lo && g[j] > 0.0) || (x[j] >= hi && g[j] < 0.0)
+                (x[j] <= lo && g[j] > 0.0)
+                    || (x[j] >= hi && g[j] < 0.0)
+                    || jac.column(j).norm() * typical[j] <= 1e-9 * rnorm
             })
             .collect();
         let cosine = (0..np)
@@ -874,31 +883,57 @@ fn difference(
 }
 
 /// `s^2 (J^T J)^{-1}` through the SVD of `J`, or `None` if `m <= p` or `J` is rank deficient.
+/// `s^2 (J^T J)^{-1}` on the directions the data determine. The columns are scaled to unit
+/// norm first (parameters of very different sizes, a stiffness of 1e5 beside a position of
+/// 1e-3, must not make a well-determined column look singular). A parameter that the data do
+/// not determine (a zero column, such as an initial state whose effect has died out before the
+/// scored samples, or a direction of a vanishing singular value that involves it) gets `NaN`
+/// in its row and column; the others keep their variances. `None` when `m <= p` or no
+/// parameter is determined.
 fn covariance(jac: &DMatrix<f64>, cost: f64, m: usize) -> Option<Vec<Vec<f64>>> {
     let np = jac.ncols();
     if m <= np {
         return None;
     }
     let s2 = cost / (m - np) as f64;
-    let svd = jac.clone().svd(false, true);
+    let norms: Vec<f64> = (0..np).map(|j| jac.column(j).norm()).collect();
+    if norms.iter().any(|n| !n.is_finite()) {
+        return None;
+    }
+    let scaled = DMatrix::from_fn(jac.nrows(), np, |i, j| {
+        if norms[j] > 0.0 {
+            jac[(i, j)] / norms[j]
+        } else {
+            0.0
+        }
+    });
+    let svd = scaled.svd(false, true);
     let v_t = svd.v_t?;
     let sv = &svd.singular_values;
     let smax = sv.max();
-    if smax.is_nan()
-        || smax <= 0.0
-        || sv
-            .iter()
-            .any(|&s| s <= smax * f64::EPSILON * m.max(np) as f64)
-    {
+    if smax.is_nan() || smax <= 0.0 {
         return None;
     }
-    let mut cov = vec![vec![0.0; np]; np];
-    for (i, row) in cov.iter_mut().enumerate() {
-        for (j, c) in row.iter_mut().enumerate() {
-            *c = s2
-                * (0..np)
+    let tol = smax * f64::EPSILON * m.max(np) as f64;
+    let kept: Vec<bool> = sv.iter().map(|&s| s > tol).collect();
+    // A parameter is undetermined when its column vanishes or a dropped direction involves it
+    // (a component above 1e-6: below it, the direction's variance would reach the parameter
+    // only at the level of the rounding that dropped it).
+    let undetermined: Vec<bool> = (0..np)
+        .map(|i| norms[i] <= 0.0 || (0..sv.len()).any(|k| !kept[k] && v_t[(k, i)].abs() > 1e-6))
+        .collect();
+    if undetermined.iter().all(|&u| u) {
+        return None;
+    }
+    let mut cov = vec![vec![f64::NAN; np]; np];
+    for i in (0..np).filter(|&i| !undetermined[i]) {
+        for j in (0..np).filter(|&j| !undetermined[j]) {
+            cov[i][j] = s2
+                * (0..sv.len())
+                    .filter(|&k| kept[k])
                     .map(|k| v_t[(k, i)] * v_t[(k, j)] / (sv[k] * sv[k]))
-                    .sum::<f64>();
+                    .sum::<f64>()
+                / (norms[i] * norms[j]);
         }
     }
     Some(cov)

@@ -514,3 +514,68 @@ fn a_callers_exact_jacobian_reaches_the_known_minimum_in_fewer_evaluations() {
         "{err:?}"
     );
 }
+
+#[test]
+fn an_undetermined_parameter_leaves_the_others_standard_errors() {
+    // A line a + b t through noisy points, with a third parameter that changes nothing (as an
+    // initial state whose effect has died out before the scored samples): its standard error
+    // is NaN, and a and b keep those of the fit without it.
+    let t: Vec<f64> = (0..50).map(|i| i as f64 / 49.0).collect();
+    let y: Vec<f64> = t
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| 1.0 + 2.0 * t + 0.01 * (((i * 37) % 11) as f64 / 11.0 - 0.5))
+        .collect();
+    let line = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        for i in 0..t.len() {
+            r[i] = p[0] + p[1] * t[i] - y[i];
+        }
+        Ok(())
+    };
+    let with_idle = |p: &[f64], r: &mut [f64]| -> Result<(), Never> { line(&p[..2], r) };
+    let opts = LmOptions::default();
+    let two = levenberg_marquardt(line, &[0.0, 0.0], t.len(), &opts).unwrap();
+    let three = levenberg_marquardt(with_idle, &[0.0, 0.0, 0.5], t.len(), &opts).unwrap();
+    let (s2, s3) = (two.stderr.unwrap(), three.stderr.unwrap());
+    assert!(s3[2].is_nan(), "{s3:?}");
+    assert_eq!(
+        three.params[2], 0.5,
+        "an idle parameter stays where it started"
+    );
+    // Nearly idle (its typical change moves the residuals by 1e-20 of them): held at its start
+    // instead of wandering along its vanishing column.
+    let faint = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        line(&p[..2], r)?;
+        r[0] += 1e-20 * p[2];
+        Ok(())
+    };
+    let held = levenberg_marquardt(faint, &[0.0, 0.0, 0.5], t.len(), &opts).unwrap();
+    assert_eq!(held.params[2], 0.5, "{:?}", held.params);
+    assert!(
+        (held.params[0] - two.params[0]).abs() < 1e-9,
+        "{:?}",
+        held.params
+    );
+    // The residual degrees of freedom differ by one (48 against 47): sqrt(48/47) = 1.0106.
+    for j in 0..2 {
+        let ratio = s3[j] / s2[j];
+        assert!(
+            (ratio - (48.0_f64 / 47.0).sqrt()).abs() < 1e-6,
+            "{j}: {ratio}"
+        );
+    }
+    // Columns of very different sizes (a slope in units a million times smaller) are still
+    // determined: the standard error scales with the unit.
+    let scaled = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
+        for i in 0..t.len() {
+            r[i] = p[0] + 1e-6 * p[1] * t[i] - y[i];
+        }
+        Ok(())
+    };
+    let fit = levenberg_marquardt(scaled, &[0.0, 1e6], t.len(), &opts).unwrap();
+    let s = fit.stderr.unwrap();
+    assert!(
+        (s[1] * 1e-6 / s2[1] - 1.0).abs() < 1e-6,
+        "{s:?} against {s2:?}"
+    );
+}
