@@ -556,16 +556,10 @@ fn solve<P: Residuals>(mut prob: P, p0: &[f64], m: usize, options: &LmOptions) -
         // of the box. They take no part in the step or in the gradient test (the projected
         // gradient), so a fit that ends on a bound converges as one inside the box does
         // instead of spending its iterations on steps the box clips away.
-        // Parameters without influence are held too: a change of their typical size moves
-        // the residuals by less than 1e-9 of their norm (an initial state whose effect has died
-        // out before the scored samples), so the data do not determine them, and the
-        // Marquardt scaling of their vanishing column would let them wander without limit.
         let held: Vec<bool> = (0..np)
             .map(|j| {
                 let (lo, hi) = bounds[j];
-                (x[j] <= lo && g[j] > 0.0)
-                    || (x[j] >= hi && g[j] < 0.0)
-                    || jac.column(j).norm() * typical[j] <= 1e-9 * rnorm
+                (x[j] <= lo && g[j] > 0.0) || (x[j] >= hi && g[j] < 0.0)
             })
             .collect();
         let cosine = (0..np)

@@ -538,29 +538,6 @@ fn an_undetermined_parameter_leaves_the_others_standard_errors() {
     let three = levenberg_marquardt(with_idle, &[0.0, 0.0, 0.5], t.len(), &opts).unwrap();
     let (s2, s3) = (two.stderr.unwrap(), three.stderr.unwrap());
     assert!(s3[2].is_nan(), "{s3:?}");
-    // Exactly: a held parameter takes no step at all.
-    assert!(
-        three.params[2].to_bits() == 0.5_f64.to_bits(),
-        "an idle parameter stays where it started"
-    );
-    // Nearly idle (its typical change moves the residuals by 1e-20 of them): held at its start
-    // instead of wandering along its vanishing column.
-    let faint = |p: &[f64], r: &mut [f64]| -> Result<(), Never> {
-        line(&p[..2], r)?;
-        r[0] += 1e-20 * p[2];
-        Ok(())
-    };
-    let held = levenberg_marquardt(faint, &[0.0, 0.0, 0.5], t.len(), &opts).unwrap();
-    assert!(
-        held.params[2].to_bits() == 0.5_f64.to_bits(),
-        "{:?}",
-        held.params
-    );
-    assert!(
-        (held.params[0] - two.params[0]).abs() < 1e-9,
-        "{:?}",
-        held.params
-    );
     // The residual degrees of freedom differ by one (48 against 47): sqrt(48/47) = 1.0106.
     for j in 0..2 {
         let ratio = s3[j] / s2[j];
