@@ -58,7 +58,7 @@ use serde::{Deserialize, Serialize};
 use crate::deriv::savitzky_golay;
 use crate::diagnose::{evaluate_driven, validation_inits_of};
 use crate::fit::{hac, Context, Driven, FitResult, ModelPoint, Segment};
-use crate::select::chi2_quantile;
+use crate::select::{chi2_quantile, likelihood_ratio};
 use crate::sim::{ExtraForce, Stepping};
 use crate::DiagnoseOptions;
 
@@ -504,13 +504,10 @@ impl Refit {
     /// critical value. Collinear terms (the input's recent past at several lags) can be
     /// demanded by the data together while no single coefficient stands out.
     fn joint_test(&self, base: &FitResult, n: usize, alpha: f64) -> (f64, f64) {
-        let ratio = base.rss / self.rss.max(f64::MIN_POSITIVE);
-        let lr = if ratio.is_finite() && ratio > 0.0 {
-            n as f64 * ratio.ln() / self.inflation
-        } else {
-            0.0
-        };
-        (lr, chi2_quantile(self.theta.len(), alpha))
+        (
+            likelihood_ratio(base.rss, self.rss, n, self.inflation),
+            chi2_quantile(self.theta.len(), alpha),
+        )
     }
 }
 

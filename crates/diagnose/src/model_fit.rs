@@ -374,13 +374,10 @@ fn simulate_outputs(
 /// inflation `kappa` of the bigger fit's correlated residuals; and `kappa`.
 fn nested_ratio(small_rss: f64, big_rss: f64, big_residuals: &[f64], n: usize) -> (f64, f64) {
     let kappa = correlation_inflation(big_residuals).powi(2);
-    let ratio = small_rss / big_rss.max(f64::MIN_POSITIVE);
-    let lr = if ratio.is_finite() && ratio > 0.0 {
-        n as f64 * ratio.ln() / kappa
-    } else {
-        0.0
-    };
-    (lr, kappa)
+    (
+        crate::select::likelihood_ratio(small_rss, big_rss, n, kappa),
+        kappa,
+    )
 }
 
 /// The fits that may explain the data as well as `tried[best]` (the best held-out score):

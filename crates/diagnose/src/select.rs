@@ -147,13 +147,22 @@ pub(crate) fn nested_test(small: &FitResult, big: &FitResult, n: usize, alpha: f
         .iter()
         .map(|&i| big.inflation.get(i).copied().unwrap_or(1.0))
         .fold(1.0_f64, f64::max);
-    let ratio = small.rss / big.rss.max(f64::MIN_POSITIVE);
-    let lr = if ratio.is_finite() && ratio > 0.0 {
+    (
+        likelihood_ratio(small.rss, big.rss, n, kappa),
+        chi2_quantile(added.len(), alpha),
+    )
+}
+
+/// The likelihood-ratio statistic of a fit with residual sum of squares `big_rss` against a
+/// nested one with `small_rss`, on `n` residuals, divided by the variance inflation `kappa` of
+/// the residuals' correlation; 0 where the ratio is not a positive number.
+pub(crate) fn likelihood_ratio(small_rss: f64, big_rss: f64, n: usize, kappa: f64) -> f64 {
+    let ratio = small_rss / big_rss.max(f64::MIN_POSITIVE);
+    if ratio.is_finite() && ratio > 0.0 {
         n as f64 * ratio.ln() / kappa
     } else {
         0.0
-    };
-    (lr, chi2_quantile(added.len(), alpha))
+    }
 }
 
 /// Effects that act alike on this kind of record: a lag on the input or the output side and a

@@ -8,8 +8,8 @@
 //! `S(t0) = [0, I]`. At a guard crossed at time `tau`, with `h` the guard, `R` the reset and
 //! `f-`, `f+` the vector fields before and after, the crossing time moves by
 //! `tau_theta = -(h_x S- + [h_p, 0]) / (h_x f- + h_t)`, and
-//! `S+ = R_x (S- + f- tau_theta) + [R_p, 0] + (R_t - f+) tau_theta`: the saltation matrix
-//! and its parameter terms. Every derivative is symbolic (the model's own, and
+//! `S+ = R_x (S- + f- tau_theta) + [R_p, 0] + (R_t - f+) tau_theta`, that is the saltation
+//! matrix applied to `S-` (built by `htfid_orbit::transition_jump`) plus the parameter terms. Every derivative is symbolic (the model's own, and
 //! [`Model::parameter_sensitivity`]). The outputs' derivatives are `dy/dtheta = C S +
 //! [dy/dp, 0]`.
 //!
@@ -20,6 +20,7 @@
 use std::cell::RefCell;
 
 use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
+use htfid_orbit::transition_jump;
 
 use crate::model::{Mode, Model, ParameterSensitivity};
 use crate::ModelError;
@@ -123,70 +124,44 @@ impl HybridSystem for Augmented<'_> {
         self.model.sliding_chart(mode, index)
     }
 
+    /// The state through the model's reset; the sensitivities through the saltation matrix
+    /// (`htfid_orbit::transition_jump`) with the parameter terms:
+    /// `S+ = DR S- + jump (h_x S- + h_p) / speed + R_p`.
     fn transition(&self, mode: Mode, index: usize, t: f64, x: &mut [f64]) -> Mode {
         let (n, k, m) = (self.n, self.k, self.m);
         let u = self.u(t);
         let before: Vec<f64> = x[..n].to_vec();
         let g = self.model.global_guard(mode, index);
-        let mut f_minus = vec![0.0; n];
-        self.model.vector_field(mode, t, &before, &mut f_minus);
-        let mut h_x = vec![0.0; n];
-        self.model.guard_gradient(mode, index, t, &before, &mut h_x);
-        let h_t = self
-            .model
-            .guard_time_derivative(mode, index, t, &before)
-            .unwrap_or(0.0);
-        let mut h_p = vec![0.0; k];
+        let jump = transition_jump(self.model, mode, index, t, &before);
+        let (mut h_p, mut r_p) = (vec![0.0; k], vec![0.0; n * k]);
         if k > 0 {
             self.sens.guard(g, t, &before, u, &mut h_p);
-        }
-        let mut r_x = vec![0.0; n * n];
-        self.model.reset_jacobian(mode, index, t, &before, &mut r_x);
-        let mut r_t = vec![0.0; n];
-        self.model
-            .reset_time_derivative(mode, index, t, &before, &mut r_t);
-        let mut r_p = vec![0.0; n * k];
-        if k > 0 {
             self.sens.reset(g, t, &before, u, &mut r_p);
         }
-        let to = self.model.transition(mode, index, t, &mut x[..n]);
-        let mut f_plus = vec![0.0; n];
-        self.model.vector_field(to, t, &x[..n], &mut f_plus);
-        let speed: f64 = h_x.iter().zip(&f_minus).map(|(a, b)| a * b).sum::<f64>() + h_t;
+        x[..n].copy_from_slice(&jump.x_plus);
         let s = &mut x[n..];
-        // The crossing time's derivative; a grazing crossing (zero speed) has none, and the
-        // sensitivities then pass as the reset's Jacobian maps them.
-        let tau: Vec<f64> = (0..m)
-            .map(|j| {
-                let hs: f64 = (0..n).map(|l| h_x[l] * s[l * m + j]).sum::<f64>()
-                    + if j < k { h_p[j] } else { 0.0 };
-                if speed != 0.0 && speed.is_finite() {
-                    -hs / speed
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        // S- + f- tau_theta, then through R_x.
-        let moved: Vec<f64> = (0..n * m)
-            .map(|idx| {
-                let (i, j) = (idx / m, idx % m);
-                s[idx] + f_minus[i] * tau[j]
-            })
-            .collect();
-        for i in 0..n {
-            for j in 0..m {
-                let mut acc = (r_t[i] - f_plus[i]) * tau[j];
+        // A grazing crossing (zero speed) moves no crossing time: the sensitivities then pass
+        // as the reset's Jacobian maps them.
+        let moves = jump.speed != 0.0 && jump.speed.is_finite();
+        let before_s = s.to_vec();
+        for j in 0..m {
+            let hs = (0..n)
+                .map(|l| jump.guard_gradient[l] * before_s[l * m + j])
+                .sum::<f64>()
+                + if j < k { h_p[j] } else { 0.0 };
+            let shift = if moves { hs / jump.speed } else { 0.0 };
+            for i in 0..n {
+                let mut acc = jump.jump[i] * shift;
                 if j < k {
                     acc += r_p[i * k + j];
                 }
                 for l in 0..n {
-                    acc += r_x[i * n + l] * moved[l * m + j];
+                    acc += jump.reset_jacobian[(i, l)] * before_s[l * m + j];
                 }
                 s[i * m + j] = acc;
             }
         }
-        to
+        jump.to
     }
 }
 

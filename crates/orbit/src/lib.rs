@@ -68,5 +68,6 @@ mod variational;
 pub use error::OrbitError;
 pub use shooting::{find_limit_cycle, period_map, LimitCycle, PeriodMap, ShootingOptions};
 pub use variational::{
-    guard_gradient, reset_jacobian, saltation, vector_field_jacobian, Variational,
+    guard_gradient, reset_jacobian, saltation, transition_jump, vector_field_jacobian,
+    TransitionJump, Variational,
 };

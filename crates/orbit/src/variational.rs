@@ -129,22 +129,39 @@ fn reset_time_derivative<S: HybridSystem>(
     )
 }
 
-/// The saltation matrix of the transition through guard `index` from chart `from` at time `t`,
-/// pre-event state `x_minus`. Returns the matrix and the post-event chart.
-///
-/// `S = DR + (f_to(x+) - DR f_from(x-) - dR/dt) grad(h)^T / (grad(h) . f_from(x-) + dh/dt)`.
-/// `dR/dt` is the partial derivative of the reset with respect to time at fixed `x` (a reset
-/// that involves a moving surface's velocity, as for a ball hitting a vibrating table); it is
-/// taken by central differences in `t`, which give exactly zero for resets that do not read `t`.
-/// A transversality failure (denominator zero: a grazing trajectory) gives non-finite entries;
-/// callers see them through the `NonFiniteState` check of the integrator.
-pub fn saltation<S: HybridSystem>(
+/// What a transition through guard `index` from chart `from` at time `t` (pre-event state
+/// `x_minus`) does to nearby motions: the post-event state and chart, the reset's Jacobian
+/// `DR`, the jump `f_to(x+) - DR f_from(x-) - dR/dt` of the field, the guard's gradient and the
+/// crossing speed `grad(h) . f_from(x-) + dh/dt`. [`saltation`] is built from them; a
+/// sensitivity to a parameter that moves the guard adds `jump dh/dp / speed` to it.
+#[derive(Debug, Clone)]
+pub struct TransitionJump<M> {
+    /// The state after the reset.
+    pub x_plus: Vec<f64>,
+    /// The chart after the transition.
+    pub to: M,
+    /// `DR`, the reset's Jacobian at `x_minus`.
+    pub reset_jacobian: DMatrix<f64>,
+    /// `f_to(x+) - DR f_from(x-) - dR/dt`.
+    pub jump: DVector<f64>,
+    /// `grad(h)` at `x_minus`.
+    pub guard_gradient: DVector<f64>,
+    /// `grad(h) . f_from(x-) + dh/dt`; zero for a grazing trajectory.
+    pub speed: f64,
+}
+
+/// The pieces of the transition through guard `index` from chart `from` at time `t`, pre-event
+/// state `x_minus` ([`TransitionJump`]). `dR/dt` is the partial derivative of the reset with
+/// respect to time at fixed `x` (a reset that involves a moving surface's velocity, as for a
+/// ball hitting a vibrating table): the system's own, else central differences in `t`, which
+/// give exactly zero for resets that do not read `t`.
+pub fn transition_jump<S: HybridSystem>(
     sys: &S,
     from: S::Mode,
     index: usize,
     t: f64,
     x_minus: &[f64],
-) -> (DMatrix<f64>, S::Mode) {
+) -> TransitionJump<S::Mode> {
     let n = sys.dim();
     let mut x_plus = x_minus.to_vec();
     let to = sys.transition(from, index, t, &mut x_plus);
@@ -156,10 +173,35 @@ pub fn saltation<S: HybridSystem>(
     let f_minus = DVector::from_vec(f_minus);
     let f_plus = DVector::from_vec(f_plus);
     let (grad, dhdt) = guard_gradient(sys, from, index, t, x_minus);
-    let denom = grad.dot(&f_minus) + dhdt;
+    let speed = grad.dot(&f_minus) + dhdt;
     let jump = &f_plus - &dr * &f_minus - reset_time_derivative(sys, from, index, t, x_minus);
-    let s = &dr + (jump * grad.transpose()) / denom;
-    (s, to)
+    TransitionJump {
+        x_plus,
+        to,
+        reset_jacobian: dr,
+        jump,
+        guard_gradient: grad,
+        speed,
+    }
+}
+
+/// The saltation matrix of the transition through guard `index` from chart `from` at time `t`,
+/// pre-event state `x_minus`. Returns the matrix and the post-event chart.
+///
+/// `S = DR + (f_to(x+) - DR f_from(x-) - dR/dt) grad(h)^T / (grad(h) . f_from(x-) + dh/dt)`,
+/// from [`transition_jump`]. A transversality failure (denominator zero: a grazing trajectory)
+/// gives non-finite entries; callers see them through the `NonFiniteState` check of the
+/// integrator.
+pub fn saltation<S: HybridSystem>(
+    sys: &S,
+    from: S::Mode,
+    index: usize,
+    t: f64,
+    x_minus: &[f64],
+) -> (DMatrix<f64>, S::Mode) {
+    let j = transition_jump(sys, from, index, t, x_minus);
+    let s = &j.reset_jacobian + (&j.jump * j.guard_gradient.transpose()) / j.speed;
+    (s, j.to)
 }
 
 /// A hybrid system augmented with its variational equations: the state is `[x, Phi]` with

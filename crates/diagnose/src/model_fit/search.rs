@@ -163,14 +163,9 @@ impl Search<'_, '_> {
                 break;
             }
             chosen.push(j);
-            reached = Reached {
-                ratios: {
-                    let mut r = reached.ratios.clone();
-                    r.push(lr);
-                    r
-                },
-                ..fitted
-            };
+            let mut fitted = fitted;
+            fitted.ratios.push(lr);
+            reached = fitted;
         }
         if chosen.is_empty() {
             return none(stop);
