@@ -310,6 +310,37 @@ fn start_state(
     }
 }
 
+/// Spans of the configured simulation's range of a state by which a fitted initial state may
+/// lie outside it ([`state_box`]).
+const STATE_BOX_SPANS: f64 = 10.0;
+
+/// Bounds of a fitted initial state: the range each state covers when the configured model is
+/// simulated from its start `guess` over the record (`samples`), widened by
+/// [`STATE_BOX_SPANS`] times that range on each side. Where a start's influence dies out before
+/// the scored samples, the output barely depends on it and an unbounded fit can wander to
+/// absurd values (a position of -2.5e5 m on a record of millimetres), whose simulation is stiff
+/// or fails; the bound keeps such a start among the states the system visits. A state that does
+/// not move in that simulation stays unbounded.
+fn state_box(guess: &[f64], samples: &[Vec<f64>]) -> Vec<(f64, f64)> {
+    guess
+        .iter()
+        .enumerate()
+        .map(|(i, &g)| {
+            let (lo, hi) = samples
+                .iter()
+                .filter_map(|x| x.get(i).copied())
+                .filter(|v| v.is_finite())
+                .fold((g, g), |(lo, hi), v| (lo.min(v), hi.max(v)));
+            let pad = STATE_BOX_SPANS * (hi - lo);
+            if pad > 0.0 && pad.is_finite() {
+                (lo - pad, hi + pad)
+            } else {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            }
+        })
+        .collect()
+}
+
 /// A second effect is tried beside the best one while the best one's held-out NRMSE is above
 /// this many times the noise floor: below it a second effect could not gain `min_gain`.
 pub const SECOND_EFFECT_FLOOR_RATIO: f64 = 1.2;
@@ -511,6 +542,8 @@ struct Prepared<'a> {
     mode0: htfid_lang::Mode,
     guess: Vec<f64>,
     sim_opts: Options,
+    /// Bounds of every fitted initial state ([`state_box`]).
+    state_box: Vec<(f64, f64)>,
 }
 
 impl<'a> Prepared<'a> {
@@ -558,16 +591,21 @@ impl<'a> Prepared<'a> {
             ..Options::default()
         };
         let (mode0, guess) = start_state(model, rec.time()[0], &sim_opts)?;
-        Ok(Prepared {
+        let mut prepared = Prepared {
             rec,
             signal,
             dt,
             rows,
             scale,
+            state_box: vec![(f64::NEG_INFINITY, f64::INFINITY); guess.len()],
             mode0,
             guess,
             sim_opts,
-        })
+        };
+        if let Ok(samples) = prepared.state_samples(model, &prepared.guess) {
+            prepared.state_box = state_box(&prepared.guess, &samples.x);
+        }
+        Ok(prepared)
     }
 
     /// The states of `model` from `x0` at (at most about 2000 of) the scored samples, with
@@ -753,6 +791,7 @@ impl<'a> Prepared<'a> {
         let typical: Vec<f64> = x0.iter().map(|v| v.abs().max(1e-3)).collect();
         let lm = LmOptions {
             scales: Some(typical.clone()),
+            bounds: Some(self.state_box.clone()),
             ..LmOptions::default()
         };
         let outputs = self.rec.outputs().len();
@@ -772,7 +811,7 @@ impl<'a> Prepared<'a> {
                 Ok(())
             };
             let every: Vec<usize> = (0..x.len()).collect();
-            let unbounded = vec![(f64::NEG_INFINITY, f64::INFINITY); x.len()];
+            let bounds = &self.state_box;
             // Once the sensitivities fail (the motion slides), the rest of the fit differences.
             let failed = std::cell::Cell::new(false);
             let jacobian = |z: &[f64], r: &[f64], jac: &mut [f64]| -> Result<(), String> {
@@ -789,7 +828,7 @@ impl<'a> Prepared<'a> {
                     z,
                     r,
                     &every,
-                    (self.fd_step(), &typical, &unbounded),
+                    (self.fd_step(), &typical, bounds),
                     jac,
                 )
             };
@@ -1843,7 +1882,7 @@ impl Joint<'_, '_> {
                 }
             }
         }
-        bounds.extend(std::iter::repeat((f64::NEG_INFINITY, f64::INFINITY)).take(x0.len()));
+        bounds.extend_from_slice(&est.state_box);
         scales.extend(x0.iter().map(|v| v.abs().max(1e-3)));
         // Exact columns for the model's parameters and the initial state; differences for the
         // boundary effects' own, and for all where the sensitivities do not hold (the motion

@@ -17,8 +17,11 @@ use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 use num_complex::Complex64;
 use serde_json::Value;
 
-fn dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/oracle/hidden_models")
+/// The oracle's directory of a round of hidden models (`hidden_models`, `hidden_models_2`).
+fn dir(round: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/oracle")
+        .join(round)
 }
 
 fn floats(v: &Value) -> Vec<f64> {
@@ -30,9 +33,14 @@ fn floats(v: &Value) -> Vec<f64> {
 }
 
 fn check(name: &str) {
-    let model = Model::from_file(&dir().join(format!("{name}.toml"))).unwrap();
+    check_in("hidden_models", name);
+}
+
+fn check_in(round: &str, name: &str) {
+    let dir = dir(round);
+    let model = Model::from_file(&dir.join(format!("{name}.toml"))).unwrap();
     let oracle: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir().join(format!("{name}.json"))).unwrap())
+        serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap())
             .unwrap();
     let opts = Options::default(); // DOP853, rtol 1e-10, atol 1e-12
     let shooting = ShootingOptions {
