@@ -117,3 +117,35 @@ pub(crate) fn segments(
         })
         .collect()
 }
+
+/// Consecutive windows of `len` samples over the scored samples of `segs`, each simulated from
+/// the state of a local cubic through the samples around its start (as [`segments`] starts a
+/// segment), nothing skipped: short simulations whose errors do not compound over the record.
+pub(crate) fn windows(
+    record: &TimeSeries,
+    segs: &[Segment],
+    len: usize,
+    half: usize,
+) -> Vec<Segment> {
+    let x = record.output();
+    let n = x.len();
+    let len = len.max(1);
+    let mut out = Vec::new();
+    for seg in segs {
+        let scored = seg.scored();
+        let mut start = scored.start;
+        while start + len <= scored.end {
+            let lo = start.saturating_sub(half);
+            let hi = (start + half + 1).min(n);
+            if let Some(k) = local_fit(x, lo, hi, start, record.dt(), 3) {
+                out.push(Segment {
+                    range: start..start + len,
+                    skip: 0,
+                    init: [k.x, k.v],
+                });
+            }
+            start += len;
+        }
+    }
+    out
+}

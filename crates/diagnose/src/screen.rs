@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use crate::deriv::{savitzky_golay, Kinematics};
 use crate::effect::Slot;
-use crate::fit::{Context, ModelPoint};
+use crate::fit::{Context, ModelPoint, Segment};
+use crate::ranges::windows;
 use crate::Effect;
 
 /// Most samples used by the regression (evenly thinned beyond).
@@ -22,6 +23,8 @@ const MAX_SAMPLES: usize = 20_000;
 pub(crate) struct Screening<'c, 'a> {
     ctx: &'c Context<'a>,
     samples: Vec<(f64, Kinematics)>,
+    /// Half-width (samples) of the smoothing window.
+    half: usize,
 }
 
 impl<'c, 'a> Screening<'c, 'a> {
@@ -37,7 +40,7 @@ impl<'c, 'a> Screening<'c, 'a> {
         }
         let stride = samples.len().div_ceil(MAX_SAMPLES).max(1);
         let samples = samples.into_iter().step_by(stride).collect();
-        Screening { ctx, samples }
+        Screening { ctx, samples, half }
     }
 
     /// Smoothed kinematics (for the data's extent).
@@ -141,7 +144,8 @@ impl<'c, 'a> Screening<'c, 'a> {
     /// - A switching threshold changes the force only while `|x'| < |v_th|`, too briefly for the
     ///   smoothed acceleration to resolve, and its effect grows about quadratically on both
     ///   sides of zero: the best threshold of each sign on a grid of output-error costs starts a
-    ///   fit of its own.
+    ///   fit of its own, and so does the best on short windows of the record
+    ///   ([`Screening::threshold_on_windows`]), for a threshold among the speed's extremes.
     /// - A contact position: for each of a grid of low quantiles of the position, the contact
     ///   stiffness comes from the regression; the two grid points of lowest output-error cost
     ///   start fits.
@@ -238,6 +242,9 @@ impl<'c, 'a> Screening<'c, 'a> {
                         starts.push(*p);
                     }
                 }
+                if let Some(p) = self.threshold_on_windows(base) {
+                    starts.push(p);
+                }
             }
             Effect::ActuatorLag | Effect::InputDelay | Effect::SensorLag => {
                 // The best start, and the best one at least a factor 3 away from it (another
@@ -260,6 +267,173 @@ impl<'c, 'a> Screening<'c, 'a> {
             starts.push(self.start(base, free, effect));
         }
         starts
+    }
+
+    /// The switching threshold of least error on short windows of the record, each simulated
+    /// from the data's own state at its start (two natural periods long).
+    ///
+    /// Where the threshold lies among the velocity's extremes (a large threshold, reached in
+    /// some periods and not in others), whether a period switches decides the motion after
+    /// it, and the output error over the whole record is rough in the threshold: minima a
+    /// fraction of a percent of the threshold wide, which no grid finds. On short windows the
+    /// error cannot compound and is smooth: thresholds at 16 quantiles of each sign's measured
+    /// speeds are scored on the windows, and the best is refined by golden-section search
+    /// between its neighbours. The windows start from smoothed states and leave the answer a
+    /// few tenths of a percent off, still outside the record's narrow minimum: it is polished
+    /// on a grid of the whole record's error spanning 1 % of the threshold either side, in
+    /// steps of a twelfth of a percent. `None` when there is nothing to score.
+    fn threshold_on_windows(&self, base: &ModelPoint) -> Option<ModelPoint> {
+        const QUANTILES: usize = 16;
+        const GOLDEN_STEPS: usize = 16;
+        const FINE_STEPS: usize = 24;
+        let dt = self.ctx.record.dt();
+        let (m, k) = (base.params.m, base.params.k);
+        let period = if k > 0.0 && m > 0.0 {
+            std::f64::consts::TAU * (m / k).sqrt()
+        } else {
+            self.ctx.forcing_period.unwrap_or(100.0 * dt)
+        };
+        let len = ((2.0 * period / dt).round() as usize).clamp(10, 2000);
+        let windows = windows(self.ctx.record, &self.ctx.fit, len, self.half);
+        if windows.is_empty() {
+            return None;
+        }
+        let cost = |v: f64| {
+            let mut p = *base;
+            p.set(Slot::VTh, v);
+            self.window_cost(&p, &windows).unwrap_or(f64::INFINITY)
+        };
+        // Candidate thresholds: quantiles of each sign's speeds, in increasing order.
+        let mut grid: Vec<f64> = Vec::new();
+        for side in [-1.0f64, 1.0] {
+            let mut speeds: Vec<f64> = self
+                .samples
+                .iter()
+                .map(|(_, k)| side * k.v)
+                .filter(|v| *v > 0.0 && v.is_finite())
+                .collect();
+            if speeds.len() < QUANTILES {
+                continue;
+            }
+            speeds.sort_by(f64::total_cmp);
+            for i in 0..QUANTILES {
+                let q = (i as f64 + 0.5) / QUANTILES as f64;
+                grid.push(side * speeds[((speeds.len() - 1) as f64 * q) as usize]);
+            }
+        }
+        grid.push(0.0);
+        grid.sort_by(f64::total_cmp);
+        grid.dedup();
+        let costs: Vec<f64> = grid.par_iter().map(|&v| cost(v)).collect();
+        let (best, &best_cost) = costs.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
+        if !best_cost.is_finite() {
+            return None;
+        }
+        // Golden-section search between the best grid point's neighbours.
+        let mut lo = if best > 0 { grid[best - 1] } else { grid[best] };
+        let mut hi = grid.get(best + 1).copied().unwrap_or(grid[best]);
+        let (mut v_best, mut c_best) = (grid[best], best_cost);
+        let r = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut a, mut b) = (hi - r * (hi - lo), lo + r * (hi - lo));
+        let (mut ca, mut cb) = (cost(a), cost(b));
+        for _ in 0..GOLDEN_STEPS {
+            if ca <= cb {
+                hi = b;
+                (b, cb) = (a, ca);
+                a = hi - r * (hi - lo);
+                ca = cost(a);
+            } else {
+                lo = a;
+                (a, ca) = (b, cb);
+                b = lo + r * (hi - lo);
+                cb = cost(b);
+            }
+        }
+        for (v, c) in [(a, ca), (b, cb)] {
+            if c < c_best {
+                (v_best, c_best) = (v, c);
+            }
+        }
+        // The whole record's error is rough in a large threshold: the window's answer, a
+        // little off from the smoothed starting states, is polished on a fine grid of the
+        // record's own error around it.
+        let span = 0.01 * v_best.abs().max(0.1 * self.ctx.scales.v_std);
+        let fine: Vec<f64> = (0..=FINE_STEPS)
+            .map(|i| v_best + span * (2.0 * i as f64 / FINE_STEPS as f64 - 1.0))
+            .collect();
+        let polished = fine
+            .par_iter()
+            .filter_map(|&v| {
+                let mut p = *base;
+                p.set(Slot::VTh, v);
+                self.ctx.fit_cost(&p).map(|c| (c, p))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))?;
+        Some(polished.1)
+    }
+
+    /// Output error on `windows` with each window's error in its starting state taken out:
+    /// the residual of every window is projected off its sensitivities to the starting
+    /// position and velocity (finite differences, simulated beside it), which a small error
+    /// in the starting state adds to first order. The data's state at a window's start is
+    /// smoothed and slightly off; uncorrected, that error would outweigh the threshold's.
+    fn window_cost(&self, p: &ModelPoint, windows: &[Segment]) -> Option<f64> {
+        let driven = self.ctx.hopper(p).ok()?;
+        let stepping = self.ctx.stepping(p);
+        let sc = &self.ctx.scales;
+        let (hx, hv) = (1e-4 * sc.x_std.max(1e-12), 1e-4 * sc.v_std.max(1e-12));
+        let inits: [Vec<[f64; 2]>; 3] = [
+            windows.iter().map(|s| s.init).collect(),
+            windows
+                .iter()
+                .map(|s| [s.init[0] + hx, s.init[1]])
+                .collect(),
+            windows
+                .iter()
+                .map(|s| [s.init[0], s.init[1] + hv])
+                .collect(),
+        ];
+        let n: usize = windows.iter().map(|s| s.scored().len()).sum();
+        let mut r = vec![vec![0.0; n]; 3];
+        let [r0, rx, rv] = &mut r[..] else {
+            return None;
+        };
+        let done = self.ctx.residuals_batch(
+            &[Some(&driven); 3],
+            windows,
+            &[&inits[0], &inits[1], &inits[2]],
+            &stepping,
+            &mut [r0.as_mut_slice(), rx.as_mut_slice(), rv.as_mut_slice()],
+        );
+        if done.iter().any(Result::is_err) {
+            return None;
+        }
+        let mut total = 0.0;
+        let mut at = 0;
+        for w in windows {
+            let span = at..at + w.scored().len();
+            at = span.end;
+            // Least squares on the two sensitivities by their 2x2 normal equations.
+            let (mut s11, mut s12, mut s22, mut b1, mut b2, mut rr) =
+                (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for i in span {
+                let (f1, f2, ri) = (rx[i] - r0[i], rv[i] - r0[i], r0[i]);
+                s11 += f1 * f1;
+                s12 += f1 * f2;
+                s22 += f2 * f2;
+                b1 += f1 * ri;
+                b2 += f2 * ri;
+                rr += ri * ri;
+            }
+            let det = s11 * s22 - s12 * s12;
+            let explained = if det > 1e-12 * s11 * s22 && det > 0.0 {
+                (s22 * b1 * b1 - 2.0 * s12 * b1 * b2 + s11 * b2 * b2) / det
+            } else {
+                0.0
+            };
+            total += (rr - explained).max(0.0);
+        }
+        total.is_finite().then_some(total)
     }
 
     /// A starting point for `effect`: the nominal fit with the effect's parameters from the

@@ -364,7 +364,15 @@ pub fn theory_model(
         Ok(())
     })?;
     if !no_plots {
-        stages.run("plots", || theory_plots(&mut outdir, settings, &grids[0]))?;
+        // The first output's figures; its name in the title where there are several.
+        let title = if outputs.len() > 1 {
+            format!("{} (output {})", settings.name, outputs[0])
+        } else {
+            settings.name.clone()
+        };
+        stages.run("plots", || {
+            theory_plots(&mut outdir, &title, settings, &grids[0])
+        })?;
     }
     let summary = json!({
         "name": settings.name,

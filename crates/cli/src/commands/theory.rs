@@ -206,7 +206,9 @@ pub fn run(
         write_theory_csv(&mut outdir, "theory.csv", &grid)
     })?;
     if !no_plots {
-        stages.run("plots", || theory_plots(&mut outdir, &settings, &grid))?;
+        stages.run("plots", || {
+            theory_plots(&mut outdir, &settings.name, &settings, &grid)
+        })?;
     }
     let mut htf = method;
     htf["harmonics"] = json!(harmonics);
@@ -238,8 +240,11 @@ fn column(grid: &HtfGrid, n: i32) -> Vec<Complex64> {
         .collect()
 }
 
+/// The theory figures of `grid`, titled `title` (the config's name, with the output's where a
+/// model has several).
 pub fn theory_plots(
     out: &mut htfid_data::OutputDir,
+    title: &str,
     settings: &Settings,
     grid: &HtfGrid,
 ) -> Result<()> {
@@ -259,7 +264,7 @@ pub fn theory_plots(
         .collect();
     if let Some((_, g0)) = cols.iter().find(|(n, _)| *n == 0) {
         let fig = plots::bode(
-            &format!("{}: G_0, theory", settings.name),
+            &format!("{title}: G_0, theory"),
             &[Curve {
                 label: "theory",
                 omega: &grid.omegas,
@@ -285,9 +290,9 @@ pub fn theory_plots(
             )
         })
         .collect();
-    let fig = plots::harmonics(&format!("{}: |G_n|, theory", settings.name), &per);
+    let fig = plots::harmonics(&format!("{title}: |G_n|, theory"), &per);
     plots::write(out, "theory_harmonics", &fig)?;
-    let fig = plots::harmonic_phases(&format!("{}: phase of G_n, theory", settings.name), &per);
+    let fig = plots::harmonic_phases(&format!("{title}: phase of G_n, theory"), &per);
     plots::write(out, "theory_phases", &fig)?;
     Ok(())
 }
