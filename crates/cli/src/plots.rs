@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use htfid_data::OutputDir;
 use htfid_plot::{
     add_magnitude_confidence, add_phase_confidence, bode_panels_each, grid_figure, magnitude_panel,
-    phase_panel, save, BodeSeries, Figure, Role, Style,
+    phase_panel, save, BodeSeries, Figure, Panel, Role, Style,
 };
 use num_complex::Complex64;
 
@@ -113,12 +113,42 @@ pub fn with_htf_unit(mut fig: Figure, unit: Option<&str>) -> Figure {
     fig
 }
 
+/// Smallest vertical span of a magnitude axis, dB. An HTF constant in frequency (an output
+/// that depends on the input statically, whose HTFs are the Fourier coefficients of its gain)
+/// would otherwise be stretched over the whole axis until its round-off, 1e-11 dB, looked like
+/// a response.
+const MIN_DB_SPAN: f64 = 6.0;
+
+/// Smallest vertical span of a phase axis, degrees (as [`MIN_DB_SPAN`]).
+const MIN_DEGREE_SPAN: f64 = 20.0;
+
+/// Widens an automatic vertical range narrower than `span` to `span`, about its middle.
+fn keep_span(p: &mut Panel, span: f64) {
+    if p.y_range.is_some() {
+        return;
+    }
+    let (lo, hi) = p
+        .series
+        .iter()
+        .flat_map(|s| s.y.iter().chain(&s.upper))
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo.is_finite() && hi - lo < span {
+        let mid = 0.5 * (lo + hi);
+        p.y_range = Some((mid - 0.5 * span, mid + 0.5 * span));
+    }
+}
+
 /// Magnitude and phase of one harmonic (the paper's figure 4 for `G_0`).
 pub fn bode(title: &str, curves: &[Curve<'_>]) -> Figure {
     let series: Vec<BodeSeries<'_>> = curves.iter().map(Curve::series).collect();
     let [mut mag, mut ph] = bode_panels_each(title, &series);
     confidence(&mut mag, curves, false);
     confidence(&mut ph, curves, true);
+    keep_span(&mut mag, MIN_DB_SPAN);
+    keep_span(&mut ph, MIN_DEGREE_SPAN);
     grid_figure(title, vec![mag, ph], 1)
 }
 
@@ -130,6 +160,7 @@ pub fn harmonics(title: &str, per_harmonic: &[(i32, Vec<Curve<'_>>)]) -> Figure 
             let series: Vec<BodeSeries<'_>> = curves.iter().map(Curve::series).collect();
             let mut p = magnitude_panel(&format!("G_{n}"), &series);
             confidence(&mut p, curves, false);
+            keep_span(&mut p, MIN_DB_SPAN);
             p
         })
         .collect::<Vec<_>>();
@@ -149,6 +180,7 @@ pub fn harmonic_phases(title: &str, per_harmonic: &[(i32, Vec<Curve<'_>>)]) -> F
             let series: Vec<BodeSeries<'_>> = curves.iter().map(Curve::series).collect();
             let mut p = phase_panel(&format!("G_{n}"), &series);
             confidence(&mut p, curves, true);
+            keep_span(&mut p, MIN_DEGREE_SPAN);
             p
         })
         .collect::<Vec<_>>();

@@ -334,10 +334,24 @@ pub fn theory_model(
     if outputs.len() > 1 {
         names.extend(outputs.iter().map(|o| format!("theory_{o}.csv")));
     }
+    // Figures of the first output under the plain names, of every further one with its name.
+    let suffixes: Vec<String> = outputs
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            if i == 0 {
+                String::new()
+            } else {
+                format!("_{o}")
+            }
+        })
+        .collect();
     if !no_plots {
-        for stem in ["theory_g0", "theory_harmonics", "theory_phases"] {
-            names.push(format!("{stem}.svg"));
-            names.push(format!("{stem}.png"));
+        for suffix in &suffixes {
+            for stem in ["theory_g0", "theory_harmonics", "theory_phases"] {
+                names.push(format!("{stem}{suffix}.svg"));
+                names.push(format!("{stem}{suffix}.png"));
+            }
         }
     }
     let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
@@ -364,14 +378,17 @@ pub fn theory_model(
         Ok(())
     })?;
     if !no_plots {
-        // The first output's figures; its name in the title where there are several.
-        let title = if outputs.len() > 1 {
-            format!("{} (output {})", settings.name, outputs[0])
-        } else {
-            settings.name.clone()
-        };
-        stages.run("plots", || {
-            theory_plots(&mut outdir, &title, settings, &grids[0])
+        // Each output's figures; its name in the title where there are several.
+        stages.run("plots", || -> Result<()> {
+            for ((output, suffix), grid) in outputs.iter().zip(&suffixes).zip(&grids) {
+                let title = if outputs.len() > 1 {
+                    format!("{} (output {output})", settings.name)
+                } else {
+                    settings.name.clone()
+                };
+                theory_plots(&mut outdir, &title, suffix, settings, grid)?;
+            }
+            Ok(())
         })?;
     }
     let summary = json!({

@@ -207,7 +207,7 @@ pub fn run(
     })?;
     if !no_plots {
         stages.run("plots", || {
-            theory_plots(&mut outdir, &settings.name, &settings, &grid)
+            theory_plots(&mut outdir, &settings.name, "", &settings, &grid)
         })?;
     }
     let mut htf = method;
@@ -240,11 +240,13 @@ fn column(grid: &HtfGrid, n: i32) -> Vec<Complex64> {
         .collect()
 }
 
-/// The theory figures of `grid`, titled `title` (the config's name, with the output's where a
-/// model has several).
+/// The theory figures of `grid` (`theory_g0{suffix}`, `theory_harmonics{suffix}`,
+/// `theory_phases{suffix}`), titled `title` (the config's name, with the output's where a model
+/// has several).
 pub fn theory_plots(
     out: &mut htfid_data::OutputDir,
     title: &str,
+    suffix: &str,
     settings: &Settings,
     grid: &HtfGrid,
 ) -> Result<()> {
@@ -273,7 +275,7 @@ pub fn theory_plots(
                 stderr: None,
             }],
         );
-        plots::write(out, "theory_g0", &fig)?;
+        plots::write(out, &format!("theory_g0{suffix}"), &fig)?;
     }
     let per: Vec<(i32, Vec<Curve<'_>>)> = cols
         .iter()
@@ -291,8 +293,8 @@ pub fn theory_plots(
         })
         .collect();
     let fig = plots::harmonics(&format!("{title}: |G_n|, theory"), &per);
-    plots::write(out, "theory_harmonics", &fig)?;
+    plots::write(out, &format!("theory_harmonics{suffix}"), &fig)?;
     let fig = plots::harmonic_phases(&format!("{title}: phase of G_n, theory"), &per);
-    plots::write(out, "theory_phases", &fig)?;
+    plots::write(out, &format!("theory_phases{suffix}"), &fig)?;
     Ok(())
 }
