@@ -298,18 +298,11 @@ impl Context<'_> {
     /// Sum of squared fit residuals with initial states from the data; `None` when the model
     /// cannot be simulated.
     pub(crate) fn fit_cost(&self, p: &ModelPoint) -> Option<f64> {
-        self.cost_on(p, &self.fit)
-    }
-
-    /// Sum of squared residuals over the scored samples of `segs`, each simulated from its
-    /// initial state taken from the data; `None` when the model cannot be simulated.
-    pub(crate) fn cost_on(&self, p: &ModelPoint, segs: &[Segment]) -> Option<f64> {
         let hopper = self.hopper(p).ok()?;
         let stepping = self.stepping(p);
-        let init: Vec<[f64; 2]> = segs.iter().map(|s| s.init).collect();
-        let n: usize = segs.iter().map(|s| s.scored().len()).sum();
-        let mut r = vec![0.0; n];
-        self.residuals(&hopper, segs, &init, &stepping, &mut r)
+        let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
+        let mut r = vec![0.0; self.n_fit()];
+        self.residuals(&hopper, &self.fit, &init, &stepping, &mut r)
             .ok()?;
         let c: f64 = r.iter().map(|v| v * v).sum();
         c.is_finite().then_some(c)

@@ -88,7 +88,6 @@ pub(crate) fn segments(
     burn_in_s: f64,
 ) -> Result<Vec<Segment>, DiagnoseError> {
     let x = record.output();
-    let n = x.len();
     ranges
         .iter()
         .map(|r| {
@@ -103,12 +102,7 @@ pub(crate) fn segments(
                     min: MIN_SCORED,
                 });
             }
-            // Position and velocity of a local cubic through the samples around the start
-            // (those before it are measured data too; only the state is taken from them).
-            let lo = r.start.saturating_sub(half);
-            let hi = (r.start + half + 1).min(n);
-            let init = local_fit(x, lo, hi, r.start, record.dt(), 3)
-                .map_or([x[r.start], 0.0], |k| [k.x, k.v]);
+            let init = data_state(record, r.start, half).unwrap_or([x[r.start], 0.0]);
             Ok(Segment {
                 range: r.clone(),
                 skip,
@@ -127,25 +121,31 @@ pub(crate) fn windows(
     len: usize,
     half: usize,
 ) -> Vec<Segment> {
-    let x = record.output();
-    let n = x.len();
     let len = len.max(1);
     let mut out = Vec::new();
     for seg in segs {
         let scored = seg.scored();
         let mut start = scored.start;
         while start + len <= scored.end {
-            let lo = start.saturating_sub(half);
-            let hi = (start + half + 1).min(n);
-            if let Some(k) = local_fit(x, lo, hi, start, record.dt(), 3) {
+            if let Some(init) = data_state(record, start, half) {
                 out.push(Segment {
                     range: start..start + len,
                     skip: 0,
-                    init: [k.x, k.v],
+                    init,
                 });
             }
             start += len;
         }
     }
     out
+}
+
+/// Position and velocity at sample `at` of a local cubic through the measured samples within
+/// `half` of it (those before a segment's start are measured data too; only the state is taken
+/// from them). `None` where the window has too few samples.
+fn data_state(record: &TimeSeries, at: usize, half: usize) -> Option<[f64; 2]> {
+    let x = record.output();
+    let lo = at.saturating_sub(half);
+    let hi = (at + half + 1).min(x.len());
+    local_fit(x, lo, hi, at, record.dt(), 3).map(|k| [k.x, k.v])
 }

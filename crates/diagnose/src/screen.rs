@@ -6,6 +6,7 @@
 //! parameters (finite differences of the model's own vector field). Parameters that do not
 //! enter linearly near zero (a switching threshold, a contact position) are searched on a grid.
 
+use htfid_estimate::golden_min;
 use htfid_hybrid::HybridSystem;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -329,31 +330,12 @@ impl<'c, 'a> Screening<'c, 'a> {
         if !best_cost.is_finite() {
             return None;
         }
-        // Golden-section search between the best grid point's neighbours.
-        let mut lo = if best > 0 { grid[best - 1] } else { grid[best] };
-        let mut hi = grid.get(best + 1).copied().unwrap_or(grid[best]);
-        let (mut v_best, mut c_best) = (grid[best], best_cost);
-        let r = 0.5 * (5f64.sqrt() - 1.0);
-        let (mut a, mut b) = (hi - r * (hi - lo), lo + r * (hi - lo));
-        let (mut ca, mut cb) = (cost(a), cost(b));
-        for _ in 0..GOLDEN_STEPS {
-            if ca <= cb {
-                hi = b;
-                (b, cb) = (a, ca);
-                a = hi - r * (hi - lo);
-                ca = cost(a);
-            } else {
-                lo = a;
-                (a, ca) = (b, cb);
-                b = lo + r * (hi - lo);
-                cb = cost(b);
-            }
-        }
-        for (v, c) in [(a, ca), (b, cb)] {
-            if c < c_best {
-                (v_best, c_best) = (v, c);
-            }
-        }
+        // Golden-section search between the best grid point's neighbours, GOLDEN_STEPS steps.
+        let lo = if best > 0 { grid[best - 1] } else { grid[best] };
+        let hi = grid.get(best + 1).copied().unwrap_or(grid[best]);
+        let shrink = (0.5 * (5f64.sqrt() - 1.0)).powi(GOLDEN_STEPS as i32);
+        let (v, c) = golden_min(cost, lo, hi, (1.0 + 1e-9) * shrink * (hi - lo));
+        let v_best = if c < best_cost { v } else { grid[best] };
         // The whole record's error is rough in a large threshold: the window's answer, a
         // little off from the smoothed starting states, is polished on a fine grid of the
         // record's own error around it.
@@ -394,10 +376,7 @@ impl<'c, 'a> Screening<'c, 'a> {
                 .collect(),
         ];
         let n: usize = windows.iter().map(|s| s.scored().len()).sum();
-        let mut r = vec![vec![0.0; n]; 3];
-        let [r0, rx, rv] = &mut r[..] else {
-            return None;
-        };
+        let [mut r0, mut rx, mut rv] = [(); 3].map(|()| vec![0.0; n]);
         let done = self.ctx.residuals_batch(
             &[Some(&driven); 3],
             windows,

@@ -122,7 +122,7 @@ pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSpli
 pub use record::{deviation_record, dft};
 pub use siddiqi::{siddiqi, SiddiqiDesign};
 pub use size::estimator_bytes;
-pub use smooth::Alpha;
+pub use smooth::{golden_min, Alpha};
 pub use uncertainty::{
     contiguous_clusters, uncertainty_budget, ErrorSource, FitBias, FitBudgetInput, ParameterBudget,
     UncertaintyBudget,

@@ -476,14 +476,9 @@ fn check_weight(a: f64) -> Result<()> {
 /// Golden-section search for a minimum of a unimodal `f` on `[lo, hi]`, until the bracket is
 /// narrower than `tol`: the better of the two interior points and its value.
 ///
-/// At most [`GOLDEN_MAX_ITERATIONS`] steps: a `tol` below the spacing of floating-point numbers
+/// At most 300 steps: a `tol` below the spacing of floating-point numbers
 /// near the bracket (zero, or relative to a tiny scale) would otherwise never be met.
-pub(crate) fn golden_min(
-    mut f: impl FnMut(f64) -> f64,
-    mut lo: f64,
-    mut hi: f64,
-    tol: f64,
-) -> (f64, f64) {
+pub fn golden_min(mut f: impl FnMut(f64) -> f64, mut lo: f64, mut hi: f64, tol: f64) -> (f64, f64) {
     let phi = (5f64.sqrt() - 1.0) / 2.0;
     let mut x1 = hi - phi * (hi - lo);
     let mut x2 = lo + phi * (hi - lo);
