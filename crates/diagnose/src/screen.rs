@@ -153,6 +153,8 @@ impl<'c, 'a> Screening<'c, 'a> {
     /// - A lag or delay: beside the regression's first-order estimate, a grid across decades
     ///   (0.3 to 1000 sample intervals, up to a tenth of the record) is scored by output error;
     ///   the best start fits, and so does the best one at least a factor 3 away from it.
+    /// - Any other effect starts from the regression ([`Screening::start`]); where that start
+    ///   fits the record worse than `base` itself (the effect absent), from `base` as well.
     pub(crate) fn starts(
         &self,
         base: &ModelPoint,
@@ -228,7 +230,25 @@ impl<'c, 'a> Screening<'c, 'a> {
                     grid.push((p, 0));
                 }
             }
-            _ => return vec![self.start(base, free, effect)],
+            _ => {
+                // The regression's start can lie in another basin than the model before it
+                // (a cubic spring regressed beside a contact whose fit is still settling):
+                // where it fits worse than that model, a second fit starts from the model
+                // itself, with the effect absent, so that the better of the two can only
+                // improve on it. The regression's start stays: from a worse start a fit can
+                // still find the better optimum (a wrong stiffness beside a contact).
+                let regressed = self.start(base, free, effect);
+                let worse = match (self.ctx.fit_cost(&regressed), self.ctx.fit_cost(base)) {
+                    (Some(r), Some(b)) => r > b,
+                    (None, Some(_)) => true,
+                    _ => false,
+                };
+                return if worse {
+                    vec![regressed, *base]
+                } else {
+                    vec![regressed]
+                };
+            }
         }
         let mut scored: Vec<(f64, ModelPoint, i8)> = grid
             .into_par_iter()
@@ -287,15 +307,12 @@ impl<'c, 'a> Screening<'c, 'a> {
         const QUANTILES: usize = 16;
         const GOLDEN_STEPS: usize = 16;
         const FINE_STEPS: usize = 24;
-        let dt = self.ctx.record.dt();
-        let (m, k) = (base.params.m, base.params.k);
-        let period = if k > 0.0 && m > 0.0 {
-            std::f64::consts::TAU * (m / k).sqrt()
-        } else {
-            self.ctx.forcing_period.unwrap_or(100.0 * dt)
-        };
-        let len = ((2.0 * period / dt).round() as usize).clamp(10, 2000);
-        let windows = windows(self.ctx.record, &self.ctx.fit, len, self.half);
+        let windows = windows(
+            self.ctx.record,
+            &self.ctx.fit,
+            self.window_len(base),
+            self.half,
+        );
         if windows.is_empty() {
             return None;
         }
@@ -352,6 +369,47 @@ impl<'c, 'a> Screening<'c, 'a> {
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))?;
         Some(polished.1)
+    }
+
+    /// Samples in a window of two natural periods of `base` (of the forcing period, or 100
+    /// samples, where it has no natural period), between 10 and 2000.
+    fn window_len(&self, base: &ModelPoint) -> usize {
+        let dt = self.ctx.record.dt();
+        let (m, k) = (base.params.m, base.params.k);
+        let period = if k > 0.0 && m > 0.0 {
+            std::f64::consts::TAU * (m / k).sqrt()
+        } else {
+            self.ctx.forcing_period.unwrap_or(100.0 * dt)
+        };
+        ((2.0 * period / dt).round() as usize).clamp(10, 2000)
+    }
+
+    /// Held-out RMS errors of `before` and `after` on windows of the held-out ranges, two
+    /// natural periods of `before` long, each simulated from the data's smoothed state with
+    /// that state's error projected out ([`Screening::window_cost`]): a prediction a few
+    /// periods ahead, whose error cannot compound over the held-out range. `None` without
+    /// windows or where either model cannot be simulated on them.
+    pub(crate) fn held_out_on_windows(
+        &self,
+        before: &ModelPoint,
+        after: &ModelPoint,
+    ) -> Option<(f64, f64)> {
+        let windows = windows(
+            self.ctx.record,
+            &self.ctx.validation,
+            self.window_len(before),
+            self.half,
+        );
+        let n: usize = windows.iter().map(|w| w.scored().len()).sum();
+        if n == 0 {
+            return None;
+        }
+        let (b, a) = rayon::join(
+            || self.window_cost(before, &windows),
+            || self.window_cost(after, &windows),
+        );
+        let rms = |c: f64| (c / n as f64).sqrt();
+        Some((rms(b?), rms(a?)))
     }
 
     /// Output error on `windows` with each window's error in its starting state taken out:

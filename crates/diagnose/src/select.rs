@@ -9,10 +9,13 @@
 //!   added parameter (Newey-West against classical; 1 for white residuals), so a correlated
 //!   residual cannot fake significance;
 //! - a held-out improvement of at least `min_gain` over the model of the round before, as a
-//!   share of the error above the noise floor (see [`held_out_gain`]).
+//!   share of the error above the noise floor (see [`held_out_gain`]). A significant switching
+//!   threshold that fails it may pass on held-out windows a few periods long instead (see
+//!   `judge`); the model then holding it, later candidates, the backward pass and the share
+//!   of the explained error are judged on those windows too.
 //!
 //! Later rounds try again every candidate but an effect on the whole motion whose first-round
-//! fit did not move it (see `tried_again`): an effect that gains too little held out beside a
+//! fit did not move it, off its bounds (see `tried_again`): an effect that gains too little held out beside a
 //! larger one still missing (a late switch beside an unmodelled cubic spring; a delay behind a
 //! wrong stiffness) or that does not move at all while another hides it (a threshold masked by
 //! damping in flight) is found once that one is modelled. The passing candidate with the lowest
@@ -45,6 +48,9 @@ pub(crate) struct Judged {
     pub passes: bool,
     /// Why it does not pass, or the test's numbers.
     pub note: String,
+    /// Held-out RMS errors before and after on windows of the held-out ranges, where the
+    /// candidate passed on them only (a threshold among the speed's extremes).
+    pub windows: Option<(f64, f64)>,
 }
 
 /// One effect of the selected model.
@@ -67,6 +73,10 @@ pub(crate) struct Selection {
     pub rivals: Vec<(Effect, Effect)>,
     pub evidence: Vec<String>,
     pub evaluations: usize,
+    /// Where the model holds a threshold judged on held-out windows: the nominal's and the
+    /// final model's held-out RMS errors on those windows, which the answer's share of the
+    /// explained error uses in place of the whole held-out simulation's.
+    pub on_windows: Option<(f64, f64)>,
 }
 
 /// Upper `alpha` quantile of the chi-square distribution with `df` degrees of freedom: exact
@@ -224,13 +234,19 @@ pub(crate) fn held_out_gain(after: f64, before: f64, noise: Option<f64>) -> f64 
     }
 }
 
+/// Judges a candidate against the model `before` it. With `windowed`, the model already holds
+/// a threshold judged on held-out windows, and every candidate's held-out gain is measured on
+/// them too.
+#[allow(clippy::too_many_arguments)]
 fn judge(
     ctx: &Context<'_>,
+    screening: &Screening<'_, '_>,
     before: &FitResult,
     before_rmse: f64,
     noise: Option<f64>,
     outcome: Outcome,
     opts: &DiagnoseOptions,
+    windowed: bool,
 ) -> Judged {
     let Some(fit) = outcome.fit.as_ref() else {
         let note = outcome.note.clone();
@@ -238,27 +254,62 @@ fn judge(
             outcome,
             passes: false,
             note,
+            windows: None,
         };
     };
     let (lr, critical) = nested_test(before, fit, ctx.n_fit(), opts.alpha);
     let gain = held_out_gain(outcome.val_rmse, before_rmse, noise);
+    let significant = !lr.is_nan() && lr >= critical;
+    // A threshold among the speed's extremes decides, period by period, whether the damper
+    // switches, and that decides the motion after it: the whole held-out simulation of a
+    // threshold a fraction of a percent off, or beside an effect still missing, parts from
+    // the data, however clearly the fit data demand the threshold. Such a threshold is judged
+    // held out on windows a few periods long, where errors cannot compound; so is every
+    // candidate once the model holds such a threshold.
+    let windows = if windowed {
+        significant
+            .then(|| screening.held_out_on_windows(&before.point, &fit.point))
+            .flatten()
+    } else {
+        let fails = gain.is_nan() || gain < opts.min_gain;
+        (outcome.effect == Effect::SwitchThreshold && significant && fails)
+            .then(|| screening.held_out_on_windows(&before.point, &fit.point))
+            .flatten()
+            .filter(|&(b, a)| held_out_gain(a, b, noise) >= opts.min_gain)
+    };
+    let window_gain = windows.map(|(b, a)| held_out_gain(a, b, noise));
     let mut reasons = Vec::new();
-    if lr.is_nan() || lr < critical {
+    if !significant {
         reasons.push(format!(
             "the fit improves by a likelihood ratio of only {lr:.1} (at least {critical:.1} needed)"
         ));
     }
-    if gain.is_nan() || gain < opts.min_gain {
-        reasons.push(format!(
+    match window_gain {
+        Some(g) if g.is_nan() || g < opts.min_gain => reasons.push(format!(
+            "held-out gain on windows {:.1} % below {:.1} %",
+            100.0 * g,
+            100.0 * opts.min_gain
+        )),
+        Some(_) => {}
+        None if windowed || gain.is_nan() || gain < opts.min_gain => reasons.push(format!(
             "held-out gain {:.1} % below {:.1} %",
             100.0 * gain,
             100.0 * opts.min_gain
-        ));
+        )),
+        None => {}
     }
     let mut note = format!(
         "likelihood ratio {lr:.1} (critical {critical:.1}); held-out gain {:.1} %",
         100.0 * gain
     );
+    if let Some(g) = window_gain {
+        note.push_str(&format!(
+            " on the whole held-out simulation, {:.1} % on held-out windows of two natural \
+             periods (a threshold among the speed's extremes: whether a period switches \
+             decides the motion after it)",
+            100.0 * g
+        ));
+    }
     for (i, s) in fit.slots.iter().enumerate() {
         if !before.slots.contains(s) {
             let (v, e) = (fit.values[i], fit.stderr[i]);
@@ -324,6 +375,7 @@ fn judge(
         outcome,
         passes,
         note,
+        windows,
     }
 }
 
@@ -361,7 +413,9 @@ fn negative_friction(fit: &FitResult) -> Option<String> {
 /// smooth, one that does not move alone is absent, and trying it beside others would only let
 /// it compensate for them. One that moved without passing may gain too little held out beside a
 /// larger effect still missing (a delay behind a wrong stiffness) and is found once that one is
-/// modelled.
+/// modelled. A parameter held on its bound did not stay by choice: the fit wanted to cross it
+/// (damping in flight pushed below zero by a wrong stiffness, a cubic spring or a gain error
+/// beside it), so that effect is tried again as well.
 fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> bool {
     if matches!(j.outcome.effect, Effect::SwitchThreshold | Effect::HardStop) {
         return true;
@@ -372,7 +426,7 @@ fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> bool {
     !fit.slots.iter().enumerate().all(|(i, s)| {
         before.contains(s)
             || !fit.stderr[i].is_finite()
-            || (fit.values[i] - absent.get(*s)).abs() <= fit.stderr[i]
+            || (!fit.at_bound[i] && (fit.values[i] - absent.get(*s)).abs() <= fit.stderr[i])
     })
 }
 
@@ -419,6 +473,8 @@ pub(crate) fn select(
     let mut evidence = Vec::new();
     let mut evaluations = 0;
     let mut retried: Vec<Effect> = Vec::new();
+    // Whether the model holds a threshold judged on held-out windows (see `judge`).
+    let mut windowed = false;
 
     for round in 0..opts.max_effects {
         // Nothing left above the noise floor: there is nothing more to explain.
@@ -456,7 +512,18 @@ pub(crate) fn select(
             .sum::<usize>();
         let mut judged: Vec<Judged> = outcomes
             .into_iter()
-            .map(|o| judge(ctx, &current, current_score.rmse, noise, o, opts))
+            .map(|o| {
+                judge(
+                    ctx,
+                    screening,
+                    &current,
+                    current_score.rmse,
+                    noise,
+                    o,
+                    opts,
+                    windowed,
+                )
+            })
             .collect();
         judged.sort_by(
             |a, b| match (a.outcome.fit.is_some(), b.outcome.fit.is_some()) {
@@ -474,7 +541,26 @@ pub(crate) fn select(
                 j.note
             ));
         }
-        let passing: Vec<usize> = (0..judged.len()).filter(|&i| judged[i].passes).collect();
+        let mut passing: Vec<usize> = (0..judged.len()).filter(|&i| judged[i].passes).collect();
+        // Where a candidate passed on held-out windows only, the whole held-out simulation
+        // cannot rank it: every passing candidate is ranked by its error on those windows.
+        if passing.iter().any(|&i| judged[i].windows.is_some()) {
+            let on_windows: Vec<f64> = passing
+                .par_iter()
+                .map(|&i| match judged[i].windows {
+                    Some((_, a)) => a,
+                    None => judged[i]
+                        .outcome
+                        .fit
+                        .as_ref()
+                        .and_then(|f| screening.held_out_on_windows(&current.point, &f.point))
+                        .map_or(f64::INFINITY, |(_, a)| a),
+                })
+                .collect();
+            let mut order: Vec<usize> = (0..passing.len()).collect();
+            order.sort_by(|&a, &b| on_windows[a].total_cmp(&on_windows[b]));
+            passing = order.into_iter().map(|k| passing[k]).collect();
+        }
         if round == 0 {
             retried = judged
                 .iter()
@@ -534,6 +620,7 @@ pub(crate) fn select(
             }
         }
         let effect = judged[w].outcome.effect;
+        windowed |= judged[w].windows.is_some();
         evidence.push(format!(
             "round {}: {} added: {}",
             round + 1,
@@ -776,15 +863,22 @@ pub(crate) fn select(
                 continue;
             };
             let (lr, crit) = nested_test(&reduced, &current, ctx.n_fit(), opts.alpha);
-            let gain = reduced_score.map_or(f64::NAN, |s| {
-                held_out_gain(current_score.rmse, s.rmse, noise)
-            });
+            let gain = if windowed {
+                screening
+                    .held_out_on_windows(&reduced.point, &current.point)
+                    .map_or(f64::NAN, |(b, a)| held_out_gain(a, b, noise))
+            } else {
+                reduced_score.map_or(f64::NAN, |s| {
+                    held_out_gain(current_score.rmse, s.rmse, noise)
+                })
+            };
             if lr < crit || gain.is_nan() || gain < opts.min_gain {
                 evidence.push(format!(
                     "backward pass: {} dropped (without it the likelihood ratio is {lr:.1}, \
-                     critical {crit:.1}, and the held-out gain {:.1} %)",
+                     critical {crit:.1}, and the held-out gain {:.1} %{})",
                     e.name(),
-                    100.0 * gain
+                    100.0 * gain,
+                    if windowed { " on held-out windows" } else { "" }
                 ));
                 chosen.remove(k);
                 if let Some(s) = reduced_score {
@@ -873,7 +967,11 @@ pub(crate) fn select(
         .map(|(effect, rise)| Chosen { effect, rise })
         .collect();
     chosen.sort_by(|a, b| b.rise.total_cmp(&a.rise));
+    let on_windows = windowed
+        .then(|| screening.held_out_on_windows(&nominal.point, &current.point))
+        .flatten();
     Selection {
+        on_windows,
         chosen,
         fit: current,
         held_out: current_score,

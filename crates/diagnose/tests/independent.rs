@@ -309,6 +309,32 @@ fn a_threshold_among_the_speed_extremes_is_named() {
         .unwrap();
 }
 
+/// Damping while the damper is off (`c_f = 0.11 N s/m`) beside a cubic spring: fitted alone
+/// it sits on its bound at zero, pushed there by the unmodelled spring. Seed 7's record 146,
+/// missed until a candidate held by a bound was tried again in later rounds.
+#[test]
+fn damping_in_flight_held_on_its_bound_is_tried_again() {
+    let s = catalogue(7, 200)
+        .into_iter()
+        .find(|s| s.name == "146-random-pair")
+        .expect("seed 7's record 146");
+    run(&s).0.unwrap();
+}
+
+/// A threshold among the speed's extremes (`v_th = -0.037 m/s`) beside a small input offset:
+/// the threshold alone improves the fit data by a likelihood ratio of 34757, yet its whole
+/// held-out simulation parts from the data (the offset still missing decides which periods
+/// switch). Judged on held-out windows of two natural periods, it gains 76 %, and the offset
+/// beside it 98 %. Seed 7's record 137.
+#[test]
+fn a_threshold_beside_an_offset_is_judged_on_windows() {
+    let s = catalogue(7, 200)
+        .into_iter()
+        .find(|s| s.name == "137-random-pair")
+        .expect("seed 7's record 137");
+    run(&s).0.unwrap();
+}
+
 #[test]
 fn a_sensor_side_effect_is_named() {
     let (verdict, parameters) = run(&cell("-sensor_lag-large"));
