@@ -292,17 +292,21 @@ fn a_single_effect_is_named() {
         .unwrap();
 }
 
+/// The record `name` of the catalogue drawn with seed 7 (200 records).
+fn seed_7(name: &str) -> Scenario {
+    catalogue(7, 200)
+        .into_iter()
+        .find(|s| s.name == name)
+        .unwrap_or_else(|| panic!("seed 7 has no record {name}"))
+}
+
 /// A negative threshold among the speed's extremes (`v_th = -0.038 m/s`, reached in some
 /// periods of a multisine record and not in others), whose whole-record error is rough in the
 /// threshold: minima a twentieth of a percent wide. Seed 7's record 055, missed until the
 /// threshold was searched on short windows (`Screening::threshold_on_windows`).
 #[test]
 fn a_threshold_among_the_speed_extremes_is_named() {
-    let s = catalogue(7, 100)
-        .into_iter()
-        .find(|s| s.name == "055-switch_threshold-large")
-        .expect("seed 7's record 055");
-    let (verdict, parameters) = run(&s);
+    let (verdict, parameters) = run(&seed_7("055-switch_threshold-large"));
     verdict.unwrap();
     parameters
         .expect("a single effect named by its own name")
@@ -314,11 +318,7 @@ fn a_threshold_among_the_speed_extremes_is_named() {
 /// missed until a candidate held by a bound was tried again in later rounds.
 #[test]
 fn damping_in_flight_held_on_its_bound_is_tried_again() {
-    let s = catalogue(7, 200)
-        .into_iter()
-        .find(|s| s.name == "146-random-pair")
-        .expect("seed 7's record 146");
-    run(&s).0.unwrap();
+    run(&seed_7("146-random-pair")).0.unwrap();
 }
 
 /// A threshold among the speed's extremes (`v_th = -0.037 m/s`) beside a small input offset:
@@ -328,11 +328,7 @@ fn damping_in_flight_held_on_its_bound_is_tried_again() {
 /// beside it 98 %. Seed 7's record 137.
 #[test]
 fn a_threshold_beside_an_offset_is_judged_on_windows() {
-    let s = catalogue(7, 200)
-        .into_iter()
-        .find(|s| s.name == "137-random-pair")
-        .expect("seed 7's record 137");
-    run(&s).0.unwrap();
+    run(&seed_7("137-random-pair")).0.unwrap();
 }
 
 #[test]
