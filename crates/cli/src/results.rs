@@ -451,6 +451,17 @@ pub fn diagnose(d: &Value, hopper_units: bool, dir: &Path, files: &[PathBuf]) {
             pct(f(&d["gain"]))
         ),
     );
+    let w = &d["held_out_on_windows"];
+    if w.is_object() {
+        t.row(
+            "on windows",
+            format!(
+                "{} lower RMS error on held-out windows of two natural periods (a threshold \
+                 among the speed's extremes: see report.md)",
+                pct(f(&w["gain"]))
+            ),
+        );
+    }
     if let Some(params) = d["parameters"].as_object() {
         let lines = params
             .iter()

@@ -102,6 +102,24 @@ pub struct Diagnosis {
     /// the cause, never a cause: absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub discovered: Option<Discovered>,
+    /// Where the answer holds a switching threshold among the speed's extremes, judged on
+    /// held-out windows of two natural periods (the whole held-out simulation parts from the
+    /// data however right the threshold): the refitted nominal's and the final model's RMS
+    /// errors on those windows. Absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held_out_on_windows: Option<WindowScore>,
+}
+
+/// Held-out RMS errors on windows a few periods long, each simulated from the data's smoothed
+/// state with that state's error projected out.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WindowScore {
+    /// The refitted nominal model's RMS error on the windows.
+    pub nominal_rmse: f64,
+    /// The final model's.
+    pub extended_rmse: f64,
+    /// `1 - extended_rmse / nominal_rmse`.
+    pub gain: f64,
 }
 
 /// One effect of the selected model.

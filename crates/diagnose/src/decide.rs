@@ -3,7 +3,7 @@
 use htfid_number::{percent, sig, Quantity};
 use std::collections::BTreeMap;
 
-use crate::answer::{Candidate, Cause, Diagnosis, Score};
+use crate::answer::{Candidate, Cause, Diagnosis, Score, WindowScore};
 use crate::diagnose::{evaluate, Evaluation};
 use crate::effect::Slot;
 use crate::fit::{Context, FitResult, ModelPoint};
@@ -207,6 +207,7 @@ pub(crate) fn conclude(
     let mut extended = *nominal_score;
     let mut candidates = Vec::new();
     let mut evaluations = 0;
+    let mut held_out_on_windows = None;
 
     // The configured free parameters are off when the final model's values of them differ
     // significantly from the configured ones and resetting them costs held-out accuracy.
@@ -349,6 +350,11 @@ pub(crate) fn conclude(
         // A threshold among the speed's extremes makes the whole held-out simulation part
         // from the data however right the model: its share is read on held-out windows.
         let (nominal_rmse, final_rmse) = sel.on_windows.unwrap_or((nominal_rmse, extended.rmse));
+        held_out_on_windows = sel.on_windows.map(|(n, e)| WindowScore {
+            nominal_rmse: n,
+            extended_rmse: e,
+            gain: 1.0 - e / n,
+        });
         let on = if sel.on_windows.is_some() {
             " on held-out windows of two natural periods"
         } else {
@@ -446,6 +452,7 @@ pub(crate) fn conclude(
             gain_vs_configured: 1.0 - extended.rmse / configured.rmse,
             mismatch,
             discovered: None,
+            held_out_on_windows,
         },
         extended: extended_fit,
         evaluations,

@@ -630,6 +630,7 @@ mod tests {
             gain_vs_configured: 1.0 - extended / configured,
             mismatch: Vec::new(),
             discovered: None,
+            held_out_on_windows: None,
         }
     }
 

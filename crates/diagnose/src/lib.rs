@@ -223,7 +223,7 @@ mod sensor;
 mod sim;
 mod term;
 
-pub use answer::{Candidate, Cause, Diagnosis, DiagnosisReport, FittedModel, Score};
+pub use answer::{Candidate, Cause, Diagnosis, DiagnosisReport, FittedModel, Score, WindowScore};
 pub use boundary::{separating_experiment, BoundaryEffect};
 pub use diagnose::{diagnose, diagnose_with_progress, score_on_record, simulate_record};
 pub use discover::{Discovered, DiscoveredTerm};
