@@ -341,11 +341,6 @@ fn a_threshold_beside_an_offset_is_judged_on_windows() {
     let w = d
         .held_out_on_windows
         .expect("the answer judged on held-out windows");
-    assert!(
-        d.gain < 0.0,
-        "the whole held-out simulation gains {}",
-        d.gain
-    );
     assert!(w.gain > 0.9, "held-out windows: {w:?}");
 }
 
