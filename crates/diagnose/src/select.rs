@@ -15,8 +15,8 @@
 //!   of the explained error are judged on those windows too.
 //!
 //! Later rounds try again every candidate but an effect on the whole motion whose first-round
-//! fit did not move it, off its bounds (see `tried_again`): an effect that gains too little held out beside a
-//! larger one still missing (a late switch beside an unmodelled cubic spring; a delay behind a
+//! fit did not move it off its absent value, nor pressed it against a bound (see
+//! `tried_again`): an effect that gains too little held out beside a larger one still missing (a late switch beside an unmodelled cubic spring; a delay behind a
 //! wrong stiffness) or that does not move at all while another hides it (a threshold masked by
 //! damping in flight) is found once that one is modelled. The passing candidate with the lowest
 //! held-out error is added, except that a candidate
@@ -49,7 +49,8 @@ pub(crate) struct Judged {
     /// Why it does not pass, or the test's numbers.
     pub note: String,
     /// Held-out RMS errors before and after on windows of the held-out ranges, where the
-    /// candidate passed on them only (a threshold among the speed's extremes).
+    /// candidate was judged on them: a threshold among the speed's extremes that passed there
+    /// only, or any significant candidate once the model holds such a threshold.
     pub windows: Option<(f64, f64)>,
 }
 
