@@ -57,6 +57,7 @@ struct RawOptions {
     unexplained_ratio: Option<Spanned<f64>>,
     min_explained: Option<Spanned<f64>>,
     max_effects: Option<Spanned<f64>>,
+    input_noise_share: Option<Spanned<f64>>,
     terms: Option<Vec<Spanned<RawTerm>>>,
 }
 
@@ -230,6 +231,12 @@ impl ModelDiagnoseSettings {
             options.min_explained = src.number(v, "diagnose.min_explained", "in [0, 1]", |x| {
                 (0.0..=1.0).contains(&x)
             })?;
+        }
+        if let Some(v) = o.and_then(|o| o.input_noise_share.as_ref()) {
+            options.input_noise_share =
+                src.number(v, "diagnose.input_noise_share", "in [0, 1]", |x| {
+                    (0.0..=1.0).contains(&x)
+                })?;
         }
         if let Some(v) = o.and_then(|o| o.max_effects.as_ref()) {
             options.max_effects = src.number(

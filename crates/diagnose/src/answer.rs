@@ -149,6 +149,16 @@ pub struct FittedModel {
     pub sensor: Sensor,
 }
 
+/// The measured input's own noise, as it enters the noise floor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct InputNoise {
+    /// Standard deviation of the input's white noise, in the input's units: the level of its
+    /// spectrum in the noise band.
+    pub sigma: f64,
+    /// RMS response of the nominal model to white noise of that level, in the output's units.
+    pub propagated: f64,
+}
+
 /// [`Diagnosis`] plus what a caller needs to plot and check it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagnosisReport {
@@ -168,6 +178,11 @@ pub struct DiagnosisReport {
     /// Noise floor (m) estimated from the nominal residual spectrum; `None` when the ranges
     /// are too short for it (64 samples).
     pub noise_floor: Option<f64>,
+    /// The measured input's noise and the model's response to it, which the noise floor
+    /// includes (`noise_floor^2` is the reading's floor squared plus `propagated^2`); `None`
+    /// where the input's noise cannot be told from the input
+    /// ([`DiagnoseOptions::input_noise_share`](crate::DiagnoseOptions::input_noise_share)).
+    pub input_noise: Option<InputNoise>,
     /// Burn-in used (s).
     pub burn_in_s: f64,
     /// Fit ranges used.

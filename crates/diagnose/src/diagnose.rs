@@ -5,6 +5,9 @@ use std::collections::BTreeMap;
 use std::ops::Range;
 
 use htfid_model::HopperParams;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 
 use crate::deriv::window_half_width;
@@ -12,13 +15,13 @@ use crate::discover::{self};
 use crate::effect::Slot;
 use crate::fit::{Context, Driven, FitResult, ModelPoint, Scales, Segment};
 use crate::interp::Interpolation;
-use crate::noise::noise_floor;
+use crate::noise::{input_noise_level, noise_floor};
 use crate::screen::Screening;
 use crate::select;
 use crate::sim::{Extent, MeasuredForce, SimMethod, Stepping};
 use crate::{DiagnoseError, Effect, NominalModel, TimeSeries};
 
-use crate::answer::{DiagnosisReport, FittedModel, Score};
+use crate::answer::{DiagnosisReport, FittedModel, InputNoise, Score};
 use crate::decide::{check_parameters, conclude, mismatch_checks};
 use crate::options::DiagnoseOptions;
 use crate::ranges::{auto_burn_in, resolve_ranges, segments};
@@ -129,16 +132,25 @@ pub fn diagnose_with_progress(
             time: e.0,
             reason: e.1,
         })?;
-    let noise = {
+    let reading_noise = {
         let mut parts: Vec<&[f64]> = nominal_fit_eval.residuals.iter().map(|r| &r[..]).collect();
         parts.extend(nominal_val.residuals.iter().map(|r| &r[..]));
         let floor = opts.resolution * ctx.scales.x_std;
         noise_floor(&parts, opts.noise_band).map(|s| s.max(floor))
     };
+    let input_noise = input_noise(&ctx, &nominal_fit, opts);
+    // A perfect model driven by the noisy measured force still leaves the response to that
+    // noise: it is part of the floor.
+    let noise = reading_noise.map(|s| input_noise.map_or(s, |i| s.hypot(i.propagated)));
     progress(&format!(
-        "nominal fit: held-out RMSE {}, noise floor {}",
+        "nominal fit: held-out RMSE {}, noise floor {}{}",
         sig(nominal_val.score.rmse, 4),
-        noise.map_or("unknown".to_string(), |s| sig(s, 3))
+        noise.map_or("unknown".to_string(), |s| sig(s, 3)),
+        input_noise.map_or(String::new(), |i| format!(
+            " (the input's noise {} through the model: {})",
+            sig(i.sigma, 3),
+            sig(i.propagated, 3)
+        ))
     ));
 
     let configured_val = ctx
@@ -168,7 +180,11 @@ pub fn diagnose_with_progress(
             &nominal_fit,
             nominal_val.score,
             &start,
-            noise,
+            // The selection stops at the whole floor, but a candidate's gain is the share of
+            // the error above the reading's noise alone that it removes: the response to the
+            // input's noise is no floor a model cannot go below, since a model that smooths
+            // the measured force (a lag, more damping) removes part of it.
+            (noise, reading_noise),
             opts,
             progress,
         )
@@ -189,6 +205,20 @@ pub fn diagnose_with_progress(
         opts,
         nominal,
     );
+    if let (Some(i), Some(r)) = (input_noise, reading_noise) {
+        let at = decision.diagnosis.evidence.len().min(1);
+        decision.diagnosis.evidence.insert(
+            at,
+            format!(
+                "the noise floor holds the reading's {} and the nominal model's response to the \
+                 measured input's own noise, {} (the input's spectrum in the same band is white \
+                 noise of {} RMS)",
+                sig(r, 3),
+                sig(i.propagated, 3),
+                sig(i.sigma, 3)
+            ),
+        );
+    }
     let extended_fit = decision.extended.as_ref().unwrap_or(&nominal_fit);
     // Outside the library: a term search on what the final model leaves, run only while clear
     // structure remains (module `discover`). It adds a hint, never changes the cause.
@@ -239,11 +269,77 @@ pub fn diagnose_with_progress(
         extended_output,
         nominal_fit_score: nominal_fit_eval.score,
         noise_floor: noise,
+        input_noise,
         burn_in_s,
         fit_ranges,
         validation_ranges: val_ranges,
         evaluations,
     })
+}
+
+/// Seed of the white noise whose response [`input_noise`] simulates (fixed, so a diagnosis
+/// is repeatable).
+pub(crate) const INPUT_NOISE_SEED: u64 = 0x5EED;
+
+/// The measured input's white-noise level ([`input_noise_level`], on the fit and validation
+/// ranges) and the RMS response of the model `fit` to it: the model simulated on every fit
+/// and validation range from the same initial states, driven by the measured force and by the
+/// measured force plus white noise of that level, scored on the ranges' scored samples. `None`
+/// where the level cannot be told from the input (see
+/// [`DiagnoseOptions::input_noise_share`]) or a simulation fails.
+fn input_noise(ctx: &Context<'_>, fit: &FitResult, opts: &DiagnoseOptions) -> Option<InputNoise> {
+    if opts.input_noise_share <= 0.0 {
+        return None;
+    }
+    let f = ctx.record.input();
+    let parts: Vec<&[f64]> = ctx
+        .fit
+        .iter()
+        .chain(&ctx.validation)
+        .map(|s| &f[s.range.clone()])
+        .collect();
+    let sigma = input_noise_level(&parts, opts.noise_band, opts.input_noise_share)?;
+    let normal = Normal::new(0.0, sigma).ok()?;
+    let mut rng = ChaCha8Rng::seed_from_u64(INPUT_NOISE_SEED);
+    let noisy: Vec<f64> = f.iter().map(|v| v + normal.sample(&mut rng)).collect();
+    let t = ctx.record.time();
+    let noisy = MeasuredForce::new(t[0], ctx.record.dt(), &noisy, opts.interpolation);
+    let p = fit.point;
+    let clean = ctx.hopper(&p).ok()?;
+    let (hopper, force) = noisy.drive_with(p.params, ctx.damper, p.effects).ok()?;
+    let driven = Driven {
+        hopper,
+        force: Some(force),
+        sensor: p.sensor,
+        extra: None,
+    };
+    let stepping = ctx.stepping(&p);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for segs in [&ctx.fit, &ctx.validation] {
+        let n: usize = segs.iter().map(|s| s.scored().len()).sum();
+        let inits: Vec<[f64; 2]> = segs.iter().map(|s| s.init).collect();
+        let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+        let done = ctx.residuals_batch(
+            &[Some(&clean), Some(&driven)],
+            segs,
+            &[&inits, &inits],
+            &stepping,
+            &mut [&mut a, &mut b],
+        );
+        if done.iter().any(Result::is_err) {
+            return None;
+        }
+        sum += a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (y - x) * (y - x))
+            .sum::<f64>();
+        count += n;
+    }
+    let propagated = (sum / count.max(1) as f64).sqrt();
+    propagated
+        .is_finite()
+        .then_some(InputNoise { sigma, propagated })
 }
 
 /// The score of `model` simulated on the samples `range` of `record` (from the state

@@ -9,6 +9,7 @@ use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
 use nalgebra::DMatrix;
 
 use crate::effect::Slot;
+use crate::select::likelihood_ratio;
 use crate::sim::{
     simulate_positions_batch, simulate_positions_with, Extent, ExtraForce, Force, MeasuredForce,
     SimFailure, SimLane, SimMethod, Stepping,
@@ -17,6 +18,9 @@ use crate::{Sensor, TimeSeries};
 
 /// Relative finite-difference step of the Jacobians.
 const FD_STEP: f64 = 1e-7;
+/// Step of [`Context::score`]'s derivative, in typical sizes: large beside the integration's
+/// rounding, small beside the curvature of any effect at its absent value.
+const SCORE_STEP: f64 = 1e-4;
 /// Refits allowed when the fitted model needs a finer integration than its start.
 const MAX_REFITS: usize = 2;
 
@@ -306,6 +310,51 @@ impl Context<'_> {
             .ok()?;
         let c: f64 = r.iter().map(|v| v * v).sum();
         c.is_finite().then_some(c)
+    }
+
+    /// The score statistic of freeing `s` beside the fitted model `at`, which holds it at its
+    /// absent value: the likelihood ratio that a Gauss-Newton step of `s` alone would gain,
+    /// `n ln(rss / (rss - (J r)^2 / (J J)))`, with `J` the residuals' derivative by `s` (a
+    /// forward difference of `SCORE_STEP` typical sizes). Zero where the cost rises as `s`
+    /// leaves a lower bound it sits on. The other parameters held where they are and the
+    /// residuals taken as independent, it is a screen, not the test; `None` where a model
+    /// cannot be simulated.
+    pub(crate) fn score(&self, at: &FitResult, s: Slot) -> Option<f64> {
+        let v = at.point.get(s);
+        let h = SCORE_STEP
+            * if s.log_scaled() && v > 0.0 {
+                v
+            } else {
+                self.typical(s, &at.point)
+            };
+        let mut moved = at.point;
+        moved.set(s, v + h);
+        let (base, step) = (self.hopper(&at.point).ok()?, self.hopper(&moved).ok()?);
+        let n = self.n_fit();
+        let (mut r0, mut r1) = (vec![0.0; n], vec![0.0; n]);
+        let done = self.residuals_batch(
+            &[Some(&base), Some(&step)],
+            &self.fit,
+            &[&at.init, &at.init],
+            &at.stepping,
+            &mut [&mut r0, &mut r1],
+        );
+        if done.iter().any(Result::is_err) {
+            return None;
+        }
+        let (mut g, mut jj, mut rss) = (0.0, 0.0, 0.0);
+        for (a, b) in r0.iter().zip(&r1) {
+            let j = (b - a) / h;
+            g += j * a;
+            jj += j * j;
+            rss += a * a;
+        }
+        let on_bound = v <= s.lower_bound();
+        if !(jj > 0.0 && rss > 0.0) || (on_bound && g >= 0.0) {
+            return Some(0.0);
+        }
+        let gain = (g * g / jj).min(rss * (1.0 - 1e-12));
+        Some(likelihood_ratio(rss, rss - gain, n, 1.0))
     }
 
     /// Typical size of a parameter, for finite-difference steps.

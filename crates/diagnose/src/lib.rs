@@ -74,8 +74,12 @@
 //! `sigma` the noise floor (the level of the nominal residual spectrum between 60 % and 95 %
 //! of the Nyquist frequency: the median of the Welch periodogram there, so spectral lines do
 //! not raise it, and never below `resolution` (1e-4) times the spread of the measured output,
-//! the simulation's own accuracy with an interpolated force), `RSS` the fit residual sum of
-//! squares on the `N` fitted samples.
+//! the simulation's own accuracy with an interpolated force; where the measured input's own
+//! noise can be read from the same band of its spectrum, flat and small beside the input, the
+//! nominal model's simulated response to white noise of that level is added in quadrature:
+//! a perfect model driven by a noisy force leaves that error, see
+//! [`DiagnoseOptions::input_noise_share`]), `RSS` the fit residual sum of squares on the `N`
+//! fitted samples.
 //!
 //! A candidate **passes** against the model before it when both:
 //! - `N ln(RSS_before / RSS_after) / kappa` exceeds the chi-square quantile of the number of
@@ -87,7 +91,9 @@
 //!   the held-out data: the share of the error above the noise floor that it removes (the
 //!   plain `1 - rmse_after / rmse_before` far above the floor; near it, where an effect's part
 //!   of the error is a fraction of the noise, the plain ratio could not show what the data
-//!   demand). The same gain judges the simplification and the backward pass;
+//!   demand; here `sigma` is the reading's floor alone, without the response to the
+//!   input's noise, which a model that smooths the measured force partly removes). The same
+//!   gain judges the simplification and the backward pass;
 //! - every added parameter is determined (a finite standard error), and the effect acts where
 //!   the data are: a contact position inside the measured positions, a switching threshold
 //!   inside the measured velocities (beyond them it only mimics a change of the nominal
@@ -223,7 +229,9 @@ mod sensor;
 mod sim;
 mod term;
 
-pub use answer::{Candidate, Cause, Diagnosis, DiagnosisReport, FittedModel, Score, WindowScore};
+pub use answer::{
+    Candidate, Cause, Diagnosis, DiagnosisReport, FittedModel, InputNoise, Score, WindowScore,
+};
 pub use boundary::{separating_experiment, BoundaryEffect};
 pub use diagnose::{diagnose, diagnose_with_progress, score_on_record, simulate_record};
 pub use discover::{Discovered, DiscoveredTerm};

@@ -4,6 +4,10 @@
 
 use std::sync::Arc;
 
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
 use htfid_estimate::{levenberg_marquardt_with_jacobian, LmOptions};
 use htfid_hybrid::{simulate, HybridSystem, Options};
 use htfid_lang::{output_sensitivities, ForwardError, InputFn, Model};
@@ -12,7 +16,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::boundary::{Boundary, BoundaryEffect};
+use crate::diagnose::INPUT_NOISE_SEED;
 use crate::interp::{Interpolation, SampledSignal};
+use crate::noise::input_noise_level;
 use crate::sensor::Sensor;
 use crate::term::{term_library, TermEffect, TermKind};
 use crate::{DiagnoseError, TimeSeries};
@@ -71,6 +77,12 @@ pub struct ModelFitOptions {
     pub resolution: f64,
     /// Most effects named together (forward selection stops there); at least 1.
     pub max_effects: usize,
+    /// As the built-in diagnosis's
+    /// [`input_noise_share`](crate::DiagnoseOptions::input_noise_share): the measured input's
+    /// own noise, read from its spectrum, is propagated through the refitted model into the
+    /// noise floor unless white noise of that level would carry more than this share of the
+    /// input's variance; 0 leaves it out. Default 0.1.
+    pub input_noise_share: f64,
 }
 
 impl Default for ModelFitOptions {
@@ -92,6 +104,7 @@ impl Default for ModelFitOptions {
             min_explained: 0.999,
             resolution: 1e-4,
             max_effects: 3,
+            input_noise_share: 0.1,
         }
     }
 }
@@ -254,8 +267,14 @@ pub struct ModelDiagnosis {
     /// With `ambiguous`: the effects that fit equally well, the best first.
     pub alternatives: Vec<String>,
     /// Noise floor of the best model's residual on the fit data, in NRMSE units (the white
-    /// noise level of its spectrum between 60 % and 95 % of the Nyquist frequency).
+    /// noise level of its spectrum between 60 % and 95 % of the Nyquist frequency, with
+    /// `input_noise`'s response added in quadrature).
     pub noise_floor: f64,
+    /// The measured input's own noise, when it could be read from its spectrum: its level
+    /// `sigma` in the input's units and the refitted model's RMS response to it, `propagated`,
+    /// in NRMSE units (the root mean square over the outputs), which `noise_floor` includes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub input_noise: Option<crate::InputNoise>,
     /// Share of the refit's held-out error above the noise floor that the chosen effect
     /// removes (0 without one).
     pub explained: f64,
@@ -851,6 +870,53 @@ impl<'a> Prepared<'a> {
     }
 
     /// Per output: RMS error and RMS error over the output's scale, on `range`.
+    /// The input's white-noise level on the scored rows ([`input_noise_level`]) and the RMS
+    /// response of `model` (from `x0`) to white noise of that level added to the input, in
+    /// NRMSE units over the outputs; `None` where the level cannot be told from the input or a
+    /// simulation fails.
+    fn input_noise(&self, model: &Model, x0: &[f64], max_share: f64) -> Option<crate::InputNoise> {
+        if max_share <= 0.0 {
+            return None;
+        }
+        let u = self.rec.input();
+        let sigma = input_noise_level(&[&u[self.rows.clone()]], (0.6, 0.95), max_share)?;
+        let normal = Normal::new(0.0, sigma).ok()?;
+        let mut rng = ChaCha8Rng::seed_from_u64(INPUT_NOISE_SEED);
+        let noisy: Vec<f64> = u.iter().map(|v| v + normal.sample(&mut rng)).collect();
+        let signal = Arc::new(SampledSignal::new(
+            self.rec.time()[0],
+            self.dt,
+            &noisy,
+            Interpolation::CubicSpline,
+        ));
+        let ideal = Boundary::default();
+        let clean = self.simulate(model, x0, &ideal).ok()?;
+        let driven = simulate_outputs(
+            model,
+            self.rec,
+            &ideal.input(&signal),
+            (self.mode0, x0),
+            &self.sim_opts,
+            self.rec.len(),
+        )
+        .ok()?;
+        let n = self.rows.len().max(1) as f64;
+        let mean_square = (0..clean.len())
+            .map(|o| {
+                self.rows
+                    .clone()
+                    .map(|i| ((driven[o][i] - clean[o][i]) / self.scale[o]).powi(2))
+                    .sum::<f64>()
+                    / n
+            })
+            .sum::<f64>()
+            / clean.len().max(1) as f64;
+        let propagated = mean_square.sqrt();
+        propagated
+            .is_finite()
+            .then_some(crate::InputNoise { sigma, propagated })
+    }
+
     fn errors(&self, sim: &[Vec<f64>], range: std::ops::Range<usize>) -> (Vec<f64>, Vec<f64>) {
         let n = range.len().max(1) as f64;
         (0..self.rec.outputs().len())
@@ -1179,7 +1245,10 @@ pub fn diagnose_model(
     };
     let rows = est.rows.len().max(1);
     let per_output: Vec<&[f64]> = best_residuals.chunks(rows).collect();
-    let noise_floor = crate::noise::noise_floor(&per_output, (0.6, 0.95)).unwrap_or(f64::NAN);
+    let reading_floor = crate::noise::noise_floor(&per_output, (0.6, 0.95)).unwrap_or(f64::NAN);
+    // A perfect model driven by a noisy input still leaves its response to that noise.
+    let input_noise = est.input_noise(&refitted_model, &base.state, opts.input_noise_share);
+    let noise_floor = input_noise.map_or(reading_floor, |i| reading_floor.hypot(i.propagated));
     let best_score = best.map_or(refitted.validation(), |b| {
         candidates[b].candidate.nrmse_validation
     });
@@ -1596,6 +1665,7 @@ pub fn diagnose_model(
         extended,
         alternatives,
         noise_floor,
+        input_noise,
         explained,
         simulated: refitted_sim,
         simulated_configured: configured_sim,

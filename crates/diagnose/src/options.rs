@@ -79,6 +79,13 @@ pub struct DiagnoseOptions {
     /// error by about this much on the paper's protocol, so a residual this small is not
     /// evidence of structure. Default 1e-4.
     pub resolution: f64,
+    /// The measured input's own noise, read from the same band of its spectrum as the
+    /// output's, is propagated through the nominal model into the noise floor (a perfect model
+    /// driven by a noisy force leaves that much error), unless white noise of that level would
+    /// carry more than this share of the input's variance: an input with content up to its
+    /// Nyquist frequency, whose noise no spectrum tells from it. In `[0, 1]`; 0 leaves the
+    /// input's noise out. Default 0.1.
+    pub input_noise_share: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -102,6 +109,7 @@ impl Default for DiagnoseOptions {
             alpha: 1e-4,
             max_effects: 3,
             resolution: 1e-4,
+            input_noise_share: 0.1,
         }
     }
 }
@@ -155,6 +163,9 @@ impl DiagnoseOptions {
         }
         if !(self.resolution.is_finite() && self.resolution >= 0.0) {
             return bad("resolution", ">= 0 and finite", self.resolution);
+        }
+        if !(0.0..=1.0).contains(&self.input_noise_share) {
+            return bad("input_noise_share", "in [0, 1]", self.input_noise_share);
         }
         if self.max_effects == 0 {
             return bad("max_effects", ">= 1", 0.0);

@@ -16,9 +16,12 @@
 //!
 //! Later rounds try again every candidate but an effect on the whole motion whose first-round
 //! fit did not move it off its absent value, nor pressed it against a bound (see
-//! `tried_again`): an effect that gains too little held out beside a larger one still missing (a late switch beside an unmodelled cubic spring; a delay behind a
-//! wrong stiffness) or that does not move at all while another hides it (a threshold masked by
-//! damping in flight) is found once that one is modelled. The passing candidate with the lowest
+//! `tried_again`): an effect that gains too little held out beside a larger one still missing
+//! (a late switch beside an unmodelled cubic spring; a delay behind a wrong stiffness) or that
+//! does not move at all while another hides it (a threshold masked by damping in flight) is
+//! found once that one is modelled. One pressed against its bound is fitted again only in a
+//! round whose model the data pull it away from (its score statistic, `Context::score`, at
+//! the critical value of one added parameter). The passing candidate with the lowest
 //! held-out error is added, except that a candidate
 //! nested in it (its added parameters a subset) that passes too is preferred unless the
 //! richer one is itself a significant improvement over it. Selection stops when no candidate
@@ -244,7 +247,7 @@ fn judge(
     screening: &Screening<'_, '_>,
     before: &FitResult,
     before_rmse: f64,
-    noise: Option<f64>,
+    gain_floor: Option<f64>,
     outcome: Outcome,
     opts: &DiagnoseOptions,
     windowed: bool,
@@ -259,7 +262,7 @@ fn judge(
         };
     };
     let (lr, critical) = nested_test(before, fit, ctx.n_fit(), opts.alpha);
-    let gain = held_out_gain(outcome.val_rmse, before_rmse, noise);
+    let gain = held_out_gain(outcome.val_rmse, before_rmse, gain_floor);
     let significant = !lr.is_nan() && lr >= critical;
     // A threshold among the speed's extremes decides, period by period, whether the damper
     // switches, and that decides the motion after it: the whole held-out simulation of a
@@ -276,9 +279,9 @@ fn judge(
         (outcome.effect == Effect::SwitchThreshold && significant && fails)
             .then(|| screening.held_out_on_windows(&before.point, &fit.point))
             .flatten()
-            .filter(|&(b, a)| held_out_gain(a, b, noise) >= opts.min_gain)
+            .filter(|&(b, a)| held_out_gain(a, b, gain_floor) >= opts.min_gain)
     };
-    let window_gain = windows.map(|(b, a)| held_out_gain(a, b, noise));
+    let window_gain = windows.map(|(b, a)| held_out_gain(a, b, gain_floor));
     let mut reasons = Vec::new();
     if !significant {
         reasons.push(format!(
@@ -416,19 +419,46 @@ fn negative_friction(fit: &FitResult) -> Option<String> {
 /// larger effect still missing (a delay behind a wrong stiffness) and is found once that one is
 /// modelled. A parameter held on its bound did not stay by choice: the fit wanted to cross it
 /// (damping in flight pushed below zero by a wrong stiffness, a cubic spring or a gain error
-/// beside it), so that effect is tried again as well.
-fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> bool {
+/// beside it), so that effect is tried again as well, in each round whose model the data pull
+/// it away from that bound ([`Retry::IfPulledOff`]).
+fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> Retry {
     if matches!(j.outcome.effect, Effect::SwitchThreshold | Effect::HardStop) {
-        return true;
+        return Retry::Always;
     }
     let Some(fit) = j.outcome.fit.as_ref() else {
-        return true;
+        return Retry::Always;
     };
-    !fit.slots.iter().enumerate().all(|(i, s)| {
-        before.contains(s)
-            || !fit.stderr[i].is_finite()
-            || (!fit.at_bound[i] && (fit.values[i] - absent.get(*s)).abs() <= fit.stderr[i])
-    })
+    let added: Vec<usize> = (0..fit.slots.len())
+        .filter(|&i| !before.contains(&fit.slots[i]) && fit.stderr[i].is_finite())
+        .collect();
+    let moved = added.iter().any(|&i| {
+        !fit.at_bound[i] && (fit.values[i] - absent.get(fit.slots[i])).abs() > fit.stderr[i]
+    });
+    let held: Vec<Slot> = added
+        .iter()
+        .filter(|&&i| fit.at_bound[i])
+        .map(|&i| fit.slots[i])
+        .collect();
+    if moved {
+        Retry::Always
+    } else if held.is_empty() {
+        Retry::Never
+    } else {
+        Retry::IfPulledOff(held)
+    }
+}
+
+/// Whether a first-round candidate is fitted again in later rounds (see [`tried_again`]).
+#[derive(Debug, Clone, PartialEq)]
+enum Retry {
+    Always,
+    Never,
+    /// It ended the first round with these parameters on their bound: it is fitted again in a
+    /// round where the data, beside the model then chosen, pull one of them off its bound
+    /// (its score statistic, [`Context::score`], reaches the critical value of one added
+    /// parameter). Where they still press it against the bound, a full fit (a lag's or a
+    /// delay's starts across decades) would only find the bound again.
+    IfPulledOff(Vec<Slot>),
 }
 
 /// Fits `slots` from `from` with the slots of `drop` reset to their values in `absent`.
@@ -462,7 +492,7 @@ pub(crate) fn select(
     nominal: &FitResult,
     nominal_score: Score,
     absent: &ModelPoint,
-    noise: Option<f64>,
+    (noise, gain_floor): (Option<f64>, Option<f64>),
     opts: &DiagnoseOptions,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Selection {
@@ -473,7 +503,7 @@ pub(crate) fn select(
     let mut rivals: Vec<(Effect, Effect)> = Vec::new();
     let mut evidence = Vec::new();
     let mut evaluations = 0;
-    let mut retried: Vec<Effect> = Vec::new();
+    let mut retried: Vec<(Effect, Retry)> = Vec::new();
     // Whether the model holds a threshold judged on held-out windows (see `judge`).
     let mut windowed = false;
 
@@ -490,8 +520,10 @@ pub(crate) fn select(
         // Candidates that add something, each set of added parameters tried once.
         let mut seen: Vec<Vec<Slot>> = Vec::new();
         let mut tried = Vec::new();
+        let mut held = Vec::new();
         for &e in &opts.candidates {
-            if chosen.contains(&e) || (round > 0 && !retried.contains(&e)) {
+            let retry = retried.iter().find(|(r, _)| *r == e).map(|(_, how)| how);
+            if chosen.contains(&e) || (round > 0 && retry.is_none()) {
                 continue;
             }
             let mut added = added_slots(e, &slots);
@@ -500,7 +532,37 @@ pub(crate) fn select(
                 continue;
             }
             seen.push(added);
-            tried.push(e);
+            match retry {
+                Some(Retry::IfPulledOff(on_bound)) => held.push((e, on_bound.clone())),
+                _ => tried.push(e),
+            }
+        }
+        // A candidate held on its bound in the first round is fitted again only where the data
+        // now pull it off.
+        let critical = chi2_quantile(1, opts.alpha);
+        let scores: Vec<(Effect, f64)> = held
+            .par_iter()
+            .map(|(e, on_bound)| {
+                let score = on_bound
+                    .iter()
+                    .filter(|s| slots.iter().all(|c| c != *s))
+                    .map(|&s| ctx.score(&current, s).unwrap_or(f64::INFINITY))
+                    .fold(0.0, f64::max);
+                (*e, score)
+            })
+            .collect();
+        for (e, score) in scores {
+            if score >= critical {
+                tried.push(e);
+            } else {
+                progress(&format!(
+                    "round {}: {}: not fitted again: held on its bound in round 1, and the data \
+                     beside this model still do not pull it off (score {score:.1}, critical \
+                     {critical:.1})",
+                    round + 1,
+                    e.name()
+                ));
+            }
         }
         let outcomes: Vec<Outcome> = tried
             .par_iter()
@@ -519,7 +581,7 @@ pub(crate) fn select(
                     screening,
                     &current,
                     current_score.rmse,
-                    noise,
+                    gain_floor,
                     o,
                     opts,
                     windowed,
@@ -565,8 +627,8 @@ pub(crate) fn select(
         if round == 0 {
             retried = judged
                 .iter()
-                .filter(|j| tried_again(j, &slots, absent))
-                .map(|j| j.outcome.effect)
+                .map(|j| (j.outcome.effect, tried_again(j, &slots, absent)))
+                .filter(|(_, how)| *how != Retry::Never)
                 .collect();
         }
         let Some(&first) = passing.first() else {
@@ -674,7 +736,7 @@ pub(crate) fn select(
                 else {
                     continue;
                 };
-                let gain = held_out_gain(current_score.rmse, reduced_score.rmse, noise);
+                let gain = held_out_gain(current_score.rmse, reduced_score.rmse, gain_floor);
                 if lr < crit || gain < opts.min_gain {
                     evidence.push(format!(
                         "simplification: {} replaced by {}, which explains the data as well \
@@ -867,10 +929,10 @@ pub(crate) fn select(
             let gain = if windowed {
                 screening
                     .held_out_on_windows(&reduced.point, &current.point)
-                    .map_or(f64::NAN, |(b, a)| held_out_gain(a, b, noise))
+                    .map_or(f64::NAN, |(b, a)| held_out_gain(a, b, gain_floor))
             } else {
                 reduced_score.map_or(f64::NAN, |s| {
-                    held_out_gain(current_score.rmse, s.rmse, noise)
+                    held_out_gain(current_score.rmse, s.rmse, gain_floor)
                 })
             };
             if lr < crit || gain.is_nan() || gain < opts.min_gain {

@@ -368,6 +368,37 @@ fn an_effect_outside_the_library_is_not_claimed() {
     run(&cell("-second_mode-large")).0.unwrap();
 }
 
+/// White noise on the recorded force (not on the force applied), 1 % of the paper chirps'
+/// RMS of 0.707 N: the simulation driven by the noisy force leaves the model's response to
+/// it, 24 to 50 times the position's noise of 1e-6 m, which no effect explains.
+const FORCE_NOISE: f64 = 0.00707;
+
+/// `s` with [`FORCE_NOISE`] on its recorded force.
+fn with_force_noise(s: &Scenario) -> Scenario {
+    let mut s = s.clone();
+    s.noise.sigma_f = FORCE_NOISE;
+    s
+}
+
+/// A clean record whose recorded force carries white noise is still clean: the noise floor
+/// holds the model's response to the force's noise, read from the force's spectrum. The
+/// level read must be the generator's (within 10 %: the band's median over 13 segments
+/// scatters by about 3 %).
+#[test]
+fn a_noisy_force_leaves_clean_data_clean() {
+    let s = with_force_noise(&cell("-clean-1e-6-200"));
+    let r = generate(&s).expect("generator");
+    let record = TimeSeries::new(r.t, r.f, r.x, "test").expect("record");
+    let report = diagnose(&record, &nominal(), &DiagnoseOptions::default()).expect("diagnosis");
+    judge(&s, &report.diagnosis).unwrap();
+    let noise = report.input_noise.expect("the force's noise read");
+    assert!(
+        (noise.sigma / FORCE_NOISE - 1.0).abs() < 0.1,
+        "{noise:?} against {FORCE_NOISE}"
+    );
+    assert!(report.noise_floor.is_some_and(|f| f >= noise.propagated));
+}
+
 /// Data the model cannot describe at all are named as such, with the likely reason, and no
 /// effect is claimed: the position column's sign flipped, and the position in mm instead of m.
 #[test]
@@ -440,6 +471,52 @@ fn independent_catalogue_sweep() {
     }
     assert!(low.is_empty(), "{}", low.join("; "));
 }
+
+/// The core cells' clean records and single effects again, each with [`FORCE_NOISE`] on its
+/// recorded force: every clean record must stay `none`; the single effects' score is printed
+/// and held to the floor below (see `docs/diagnosis.md` for what a noisy force hides).
+#[test]
+#[ignore = "57 records with a noisy force, a few minutes on 2 cores: run with --ignored"]
+fn a_noisy_force_sweep() {
+    let mut tally = [(0usize, 0usize); 2];
+    for s in catalogue(sweep_seed(), htfid_truth::core_size()) {
+        let g = match group(&s) {
+            "clean" => 0,
+            "single effect" => 1,
+            _ => continue,
+        };
+        let s = with_force_noise(&s);
+        let (verdict, _) = run(&s);
+        eprintln!(
+            "{:<40} {}",
+            s.name,
+            verdict
+                .as_ref()
+                .map_or_else(|e| format!("FAIL {e}"), |()| "ok".into())
+        );
+        tally[g].1 += 1;
+        tally[g].0 += usize::from(verdict.is_ok());
+    }
+    let [clean, single] = tally;
+    eprintln!(
+        "clean: {} of {}; single effect: {} of {}",
+        clean.0, clean.1, single.0, single.1
+    );
+    assert_eq!(
+        clean.0, clean.1,
+        "a clean record with a noisy force named something"
+    );
+    assert!(
+        single.0 as f64 >= NOISY_FORCE_SINGLE_FLOOR * single.1 as f64,
+        "single effects with a noisy force: {} of {}",
+        single.0,
+        single.1
+    );
+}
+
+/// Share of single effects named with [`FORCE_NOISE`] on the recorded force, a little below
+/// the share measured (see `docs/diagnosis.md`).
+const NOISY_FORCE_SINGLE_FLOOR: f64 = 0.85;
 
 /// The same record at 1 kHz, 200 Hz and 50 Hz gives the same cause, with its parameter within
 /// 10 % at every rate: the rules' noise floor comes from the residual's spectrum relative to

@@ -108,6 +108,32 @@ fn the_nominal_hopper_gives_none() {
     }
 }
 
+/// A record of the nominal hopper whose recorded force carries white noise (0.007 N, 1 % of
+/// the paper chirps' RMS; 2e-6 m on the position) still names nothing: the noise floor holds
+/// the refitted model's response to the force's noise, read from the force's spectrum, which
+/// must be the generator's level within 10 % (the band's median over a few segments scatters
+/// by a few percent).
+#[test]
+fn a_noisy_input_leaves_the_nominal_hopper_at_none() {
+    let scenario = Scenario {
+        noise: htfid_truth::Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.007,
+        },
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
+    assert_eq!(d.cause, ModelCause::None, "{}", candidate_table(&d));
+    let noise = d.input_noise.expect("the force's noise read");
+    assert!((noise.sigma / 0.007 - 1.0).abs() < 0.1, "{noise:?}");
+    assert!(
+        d.noise_floor >= noise.propagated,
+        "{} {noise:?}",
+        d.noise_floor
+    );
+}
+
 /// Effects on the boundary of a model file, on records of the independent truth generator
 /// (90 s of the paper's protocol, 2e-6 m of noise): the effect is named (alone, or among the
 /// names of an `ambiguous` answer where an input-side and an output-side lag fit equally well)

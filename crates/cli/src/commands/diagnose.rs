@@ -117,6 +117,9 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "units": settings.data.format.units_json(),
     });
     json["noise_floor"] = json!(report.noise_floor);
+    if let Some(i) = report.input_noise {
+        json["input_noise"] = serde_json::to_value(i)?;
+    }
     json["burn_in_s"] = json!(report.burn_in_s);
     json["nominal_fit"] = serde_json::to_value(report.nominal_fit_score)?;
     json["nominal_model"] = serde_json::to_value(report.nominal_model)?;
@@ -431,6 +434,9 @@ fn options(s: &DiagnoseSettings, n: usize) -> Result<DiagnoseOptions> {
     }
     if let Some(v) = t.fit_tolerance {
         opts.fit_tolerance = v;
+    }
+    if let Some(v) = t.input_noise_share {
+        opts.input_noise_share = v;
     }
     Ok(opts)
 }
@@ -940,7 +946,7 @@ fn report_md(
     let _ = writeln!(m, "## 1. What the nominal model gets wrong\n");
     let _ = writeln!(
         m,
-        "The nominal model ({}) with {} refitted: held-out NRMSE **{}** (RMSE {} {unit}); the noise floor of the residual is {}.\n",
+        "The nominal model ({}) with {} refitted: held-out NRMSE **{}** (RMSE {} {unit}); the noise floor of the residual is {}{}.\n",
         match s.damper {
             htfid_model::DamperLaw::Switching => "the switching hopper",
             htfid_model::DamperLaw::AlwaysOn => "a linear spring-mass-damper",
@@ -950,7 +956,14 @@ fn report_md(
         cell(d.nominal.rmse),
         report
             .noise_floor
-            .map_or("not estimable (ranges too short)".into(), |v| format!("{} {unit}", num(v, 4)))
+            .map_or("not estimable (ranges too short)".into(), |v| format!("{} {unit}", num(v, 4))),
+        report.input_noise.map_or(String::new(), |i| format!(
+            ", of which {} {unit} is the model's response to the noise on the measured {inp} (its spectrum in the same band is that of white noise of {}{in_unit} RMS, and the simulation is driven by the measured {inp})",
+            num(i.propagated, 3),
+            num(i.sigma, 3),
+            inp = s.data.input,
+            in_unit = s.data.format.unit(&s.data.input).map_or(String::new(), |u| format!(" {u}")),
+        ))
     );
     let _ = writeln!(
         m,

@@ -65,6 +65,7 @@ pub struct RawDiagnoseOptions {
     pub unexplained_ratio: OptNum,
     pub min_explained: OptNum,
     pub fit_tolerance: OptNum,
+    pub input_noise_share: OptNum,
 }
 
 /// Where the measured data are and how to read them.
@@ -112,6 +113,7 @@ pub struct Thresholds {
     pub unexplained_ratio: Option<f64>,
     pub min_explained: Option<f64>,
     pub fit_tolerance: Option<f64>,
+    pub input_noise_share: Option<f64>,
 }
 
 fn ranges(
@@ -375,6 +377,12 @@ impl DiagnoseSettings {
                     "diagnose.fit_tolerance",
                     "> 0",
                     |v| v > 0.0,
+                )?,
+                input_noise_share: opt(
+                    o.map(|o| &o.input_noise_share),
+                    "diagnose.input_noise_share",
+                    "in [0, 1]",
+                    |v| (0.0..=1.0).contains(&v),
                 )?,
             },
         })
