@@ -222,6 +222,16 @@ fn p_text(p: f64) -> String {
     }
 }
 
+/// What the validation section says when the measured input carries noise the diagnosis read
+/// from its spectrum: the residual then holds the model's response to that noise.
+pub fn noisy_input_note(input: &str) -> String {
+    format!(
+        "The measured {input} carries noise (see the noise floor above): the residual holds the \
+         model's response to it, a filtered noise, so it is neither white nor independent of \
+         the measured {input}, however right the model.\n"
+    )
+}
+
 /// The validation section of a report.
 pub fn report(heading: &str, vs: &[&OutputValidation], residual_of: &str, input: &str) -> String {
     let mut m = String::new();

@@ -159,6 +159,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         &format!("{} model", ext_label(&report)),
         &format!("input `{}`", settings.data.input),
     ));
+    if report.input_noise.is_some() {
+        text.push('\n');
+        text.push_str(&crate::validation::noisy_input_note(&format!(
+            "`{}`",
+            settings.data.input
+        )));
+    }
     outdir.write_text("report.md", &text)?;
     let written = outdir.commit()?;
     crate::results::diagnose(&json, htf_unit(&settings).is_some(), &dir, &written);

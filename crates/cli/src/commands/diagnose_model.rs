@@ -163,6 +163,9 @@ pub fn run(
     if let Some(sentence) = &d.term_search {
         json["term_search"] = serde_json::Value::String(sentence.clone());
     }
+    if let Some(noise) = d.input_noise {
+        json["input_noise"] = serde_json::to_value(noise)?;
+    }
     outdir.write_text("diagnosis.json", &json_text(&json))?;
     outdir.write_text("report.md", &report(&s, &d, &checks))?;
     // A few forcing periods at the end of the held-out part: measured, configured, refitted.
@@ -538,6 +541,19 @@ fn report(
             " The refitted model's residual is white: no structure is left for an effect the \
              model lacks.",
         );
+    } else if d.input_noise.is_some() && matches!(d.cause, ModelCause::None) {
+        // The response to the input's noise is filtered noise: not white, and not an effect.
+        decision.push_str(&format!(
+            " The refitted model's residual in {} is not white, and need not be: its held-out \
+             NRMSE is {} times the noise floor, which holds the model's response to the noise \
+             on the measured input, a filtered noise (see below).",
+            structured
+                .iter()
+                .map(|o| format!("`{o}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            sig(d.refitted.validation() / d.noise_floor, 3)
+        ));
     } else {
         let next = match (&d.cause, &d.extended) {
             (ModelCause::Effect(_) | ModelCause::Ambiguous, Some(c)) => format!(
@@ -566,6 +582,18 @@ fn report(
         ));
     }
     r.para(&decision);
+    if let Some(noise) = d.input_noise {
+        r.para(&format!(
+            "The noise floor, {} of the outputs' spread, holds the refitted model's response to \
+             the noise on the measured input, {}: the input's spectrum between 60 % and 95 % of \
+             the Nyquist frequency is that of white noise of {} RMS, and the simulation is \
+             driven by the measured input, so no model driven by it predicts the outputs closer \
+             than that (`input_noise` in `diagnosis.json`).",
+            percent(d.noise_floor, 3),
+            percent(noise.propagated, 3),
+            sig(noise.sigma, 3)
+        ));
+    }
     if let Some(sentence) = &d.term_search {
         r.para(&match &d.discovered {
             Some(found) => format!(
@@ -820,5 +848,8 @@ fn report(
         "refitted model",
         &format!("input `{}`", s.input),
     ));
+    if d.input_noise.is_some() {
+        r.para(crate::validation::noisy_input_note(&format!("input `{}`", s.input)).trim_end());
+    }
     r.finish()
 }
