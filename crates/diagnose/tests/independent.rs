@@ -473,8 +473,8 @@ fn independent_catalogue_sweep() {
 }
 
 /// The core cells' clean records and single effects again, each with [`FORCE_NOISE`] on its
-/// recorded force: every clean record must stay `none`; the single effects' score is printed
-/// and held to the floor below (see `docs/diagnosis.md` for what a noisy force hides).
+/// recorded force: the clean records must stay `none` and the single effects be named, each
+/// group held to a floor below (see `docs/diagnosis.md` for what a noisy force hides).
 #[test]
 #[ignore = "57 records with a noisy force, a few minutes on 2 cores: run with --ignored"]
 fn a_noisy_force_sweep() {
@@ -502,9 +502,11 @@ fn a_noisy_force_sweep() {
         "clean: {} of {}; single effect: {} of {}",
         clean.0, clean.1, single.0, single.1
     );
-    assert_eq!(
-        clean.0, clean.1,
-        "a clean record with a noisy force named something"
+    assert!(
+        clean.0 as f64 >= NOISY_FORCE_CLEAN_FLOOR * clean.1 as f64,
+        "clean records with a noisy force: {} of {} `none`",
+        clean.0,
+        clean.1
     );
     assert!(
         single.0 as f64 >= NOISY_FORCE_SINGLE_FLOOR * single.1 as f64,
@@ -514,8 +516,10 @@ fn a_noisy_force_sweep() {
     );
 }
 
-/// Share of single effects named with [`FORCE_NOISE`] on the recorded force, a little below
-/// the share measured (see `docs/diagnosis.md`).
+/// Shares of clean records left at `none` and of single effects named with [`FORCE_NOISE`] on
+/// the recorded force, a little below the shares measured (10 of 10 and 44 of 47, see
+/// `docs/diagnosis.md`), as the wide sweep's floors are.
+const NOISY_FORCE_CLEAN_FLOOR: f64 = 0.9;
 const NOISY_FORCE_SINGLE_FLOOR: f64 = 0.85;
 
 /// The same record at 1 kHz, 200 Hz and 50 Hz gives the same cause, with its parameter within
