@@ -155,7 +155,9 @@ pub struct InputNoise {
     /// Standard deviation of the input's white noise, in the input's units: the level of its
     /// spectrum in the noise band.
     pub sigma: f64,
-    /// RMS response of the nominal model to white noise of that level, in the output's units.
+    /// RMS response of the model to white noise of that level: the refitted nominal's, in the
+    /// output's units ([`DiagnosisReport::input_noise`]); the refitted model's, in NRMSE units,
+    /// in the model-file diagnosis.
     pub propagated: f64,
 }
 
@@ -175,8 +177,9 @@ pub struct DiagnosisReport {
     pub extended_output: Vec<f64>,
     /// The nominal fit's score on the fit ranges.
     pub nominal_fit_score: Score,
-    /// Noise floor (m) estimated from the nominal residual spectrum; `None` when the ranges
-    /// are too short for it (64 samples).
+    /// Noise floor (m) estimated from the nominal residual spectrum, with the response to the
+    /// input's noise added in quadrature where it was read (`input_noise`); `None` when the
+    /// ranges are too short for it (64 samples).
     pub noise_floor: Option<f64>,
     /// The measured input's noise and the model's response to it, which the noise floor
     /// includes (`noise_floor^2` is the reading's floor squared plus `propagated^2`); `None`

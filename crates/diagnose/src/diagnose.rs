@@ -5,9 +5,6 @@ use std::collections::BTreeMap;
 use std::ops::Range;
 
 use htfid_model::HopperParams;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 
 use crate::deriv::window_half_width;
@@ -15,7 +12,7 @@ use crate::discover::{self};
 use crate::effect::Slot;
 use crate::fit::{Context, Driven, FitResult, ModelPoint, Scales, Segment};
 use crate::interp::Interpolation;
-use crate::noise::{input_noise_level, noise_floor};
+use crate::noise::{input_noise_level, noise_floor, with_white_noise};
 use crate::screen::Screening;
 use crate::select;
 use crate::sim::{Extent, MeasuredForce, SimMethod, Stepping};
@@ -277,10 +274,6 @@ pub fn diagnose_with_progress(
     })
 }
 
-/// Seed of the white noise whose response [`input_noise`] simulates (fixed, so a diagnosis
-/// is repeatable).
-pub(crate) const INPUT_NOISE_SEED: u64 = 0x5EED;
-
 /// The measured input's white-noise level ([`input_noise_level`], on the fit and validation
 /// ranges) and the RMS response of the model `fit` to it: the model simulated on every fit
 /// and validation range from the same initial states, driven by the measured force and by the
@@ -288,9 +281,6 @@ pub(crate) const INPUT_NOISE_SEED: u64 = 0x5EED;
 /// where the level cannot be told from the input (see
 /// [`DiagnoseOptions::input_noise_share`]) or a simulation fails.
 fn input_noise(ctx: &Context<'_>, fit: &FitResult, opts: &DiagnoseOptions) -> Option<InputNoise> {
-    if opts.input_noise_share <= 0.0 {
-        return None;
-    }
     let f = ctx.record.input();
     let parts: Vec<&[f64]> = ctx
         .fit
@@ -299,9 +289,7 @@ fn input_noise(ctx: &Context<'_>, fit: &FitResult, opts: &DiagnoseOptions) -> Op
         .map(|s| &f[s.range.clone()])
         .collect();
     let sigma = input_noise_level(&parts, opts.noise_band, opts.input_noise_share)?;
-    let normal = Normal::new(0.0, sigma).ok()?;
-    let mut rng = ChaCha8Rng::seed_from_u64(INPUT_NOISE_SEED);
-    let noisy: Vec<f64> = f.iter().map(|v| v + normal.sample(&mut rng)).collect();
+    let noisy = with_white_noise(f, sigma)?;
     let t = ctx.record.time();
     let noisy = MeasuredForce::new(t[0], ctx.record.dt(), &noisy, opts.interpolation);
     let p = fit.point;

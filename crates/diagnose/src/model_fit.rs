@@ -4,10 +4,6 @@
 
 use std::sync::Arc;
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
-
 use htfid_estimate::{levenberg_marquardt_with_jacobian, LmOptions};
 use htfid_hybrid::{simulate, HybridSystem, Options};
 use htfid_lang::{output_sensitivities, ForwardError, InputFn, Model};
@@ -16,9 +12,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::boundary::{Boundary, BoundaryEffect};
-use crate::diagnose::INPUT_NOISE_SEED;
 use crate::interp::{Interpolation, SampledSignal};
-use crate::noise::input_noise_level;
+use crate::noise::{input_noise_level, with_white_noise};
 use crate::sensor::Sensor;
 use crate::term::{term_library, TermEffect, TermKind};
 use crate::{DiagnoseError, TimeSeries};
@@ -869,20 +864,14 @@ impl<'a> Prepared<'a> {
         }
     }
 
-    /// Per output: RMS error and RMS error over the output's scale, on `range`.
     /// The input's white-noise level on the scored rows ([`input_noise_level`]) and the RMS
     /// response of `model` (from `x0`) to white noise of that level added to the input, in
     /// NRMSE units over the outputs; `None` where the level cannot be told from the input or a
     /// simulation fails.
     fn input_noise(&self, model: &Model, x0: &[f64], max_share: f64) -> Option<crate::InputNoise> {
-        if max_share <= 0.0 {
-            return None;
-        }
         let u = self.rec.input();
         let sigma = input_noise_level(&[&u[self.rows.clone()]], (0.6, 0.95), max_share)?;
-        let normal = Normal::new(0.0, sigma).ok()?;
-        let mut rng = ChaCha8Rng::seed_from_u64(INPUT_NOISE_SEED);
-        let noisy: Vec<f64> = u.iter().map(|v| v + normal.sample(&mut rng)).collect();
+        let noisy = with_white_noise(u, sigma)?;
         let signal = Arc::new(SampledSignal::new(
             self.rec.time()[0],
             self.dt,
@@ -917,6 +906,7 @@ impl<'a> Prepared<'a> {
             .then_some(crate::InputNoise { sigma, propagated })
     }
 
+    /// Per output: RMS error and RMS error over the output's scale, on `range`.
     fn errors(&self, sim: &[Vec<f64>], range: std::ops::Range<usize>) -> (Vec<f64>, Vec<f64>) {
         let n = range.len().max(1) as f64;
         (0..self.rec.outputs().len())

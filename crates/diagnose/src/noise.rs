@@ -1,5 +1,8 @@
 //! The noise floor of a residual from the high-frequency band of its spectrum.
 
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
 use rustfft::{num_complex::Complex64, FftPlanner};
 
 /// Longest Welch segment.
@@ -97,6 +100,9 @@ const WHITE_SPREAD: f64 = 1.5;
 /// Nyquist frequency, whose noise no spectrum separates). `None` otherwise, or when the parts
 /// are too short.
 pub(crate) fn input_noise_level(parts: &[&[f64]], band: (f64, f64), max_share: f64) -> Option<f64> {
+    if max_share <= 0.0 {
+        return None;
+    }
     let (power, segments) = band_power(parts, band)?;
     let per_band = power.len() / SUB_BANDS;
     if per_band < 4 {
@@ -124,13 +130,22 @@ pub(crate) fn input_noise_level(parts: &[&[f64]], band: (f64, f64), max_share: f
     (level > 0.0 && level * level <= max_share * variance).then_some(level)
 }
 
+/// Seed of the white noise [`with_white_noise`] adds (fixed, so a diagnosis is repeatable).
+const INPUT_NOISE_SEED: u64 = 0x5EED;
+
+/// `u` plus white Gaussian noise of standard deviation `sigma` from a fixed seed: the input a
+/// model is driven with to measure its response to the input's noise. `None` for a `sigma`
+/// that is not a finite non-negative number.
+pub(crate) fn with_white_noise(u: &[f64], sigma: f64) -> Option<Vec<f64>> {
+    let normal = Normal::new(0.0, sigma).ok()?;
+    let mut rng = ChaCha8Rng::seed_from_u64(INPUT_NOISE_SEED);
+    Some(u.iter().map(|v| v + normal.sample(&mut rng)).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
-    use rand_distr::{Distribution, Normal};
 
     #[test]
     fn recovers_white_noise_level_under_a_strong_low_frequency_signal() {
