@@ -1965,6 +1965,151 @@ fn a_record_on_the_wrong_time_scale_is_refused() {
     assert!(!out.exists());
 }
 
+/// Every threshold of both diagnoses is a config key: a value out of range is refused at its
+/// line with the key named, and a value in range reaches the decision (the noise floor rises
+/// with `resolution`) and is echoed under `options` in `diagnosis.json`.
+#[test]
+fn every_decision_threshold_is_a_config_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("d.toml");
+    let built_in = fs::read_to_string(root().join("configs/diagnose-hopper.toml"))
+        .unwrap()
+        .replace(
+            "\"../data/hopper-protocol.csv\"",
+            &format!("{:?}", root().join("data/hopper-protocol.csv")),
+        );
+    let model_file = fs::read_to_string(root().join("configs/diagnose-hopper-model.toml"))
+        .unwrap()
+        .replace(
+            "\"../data/hopper-protocol.csv\"",
+            &format!("{:?}", root().join("data/hopper-protocol.csv")),
+        )
+        .replace(
+            "\"../models/hopper.toml\"",
+            &format!("{:?}", root().join("models/hopper.toml")),
+        );
+    let refused: &[(&str, &str, &str)] = &[
+        (
+            &built_in,
+            "noise_band = [0.9, 0.5]",
+            "diagnose.noise_band: must be two fractions",
+        ),
+        (
+            &built_in,
+            "noise_band = [0.6]",
+            "diagnose.noise_band: must be two fractions",
+        ),
+        (
+            &built_in,
+            "resolution = -1",
+            "diagnose.resolution: must be >= 0",
+        ),
+        (
+            &built_in,
+            "max_delay_periods = 0",
+            "diagnose.max_delay_periods: must be in (0, 1]",
+        ),
+        (
+            &built_in,
+            "input_noise_flatness = 0.5",
+            "diagnose.input_noise_flatness: must be >= 1",
+        ),
+        (
+            &built_in,
+            "max_iterations = 2.5",
+            "diagnose.max_iterations: must be a whole number",
+        ),
+        (
+            &model_file,
+            "noise_band = [0.5, 1.5]",
+            "diagnose.noise_band: must be two fractions",
+        ),
+        (
+            &model_file,
+            "resolution = -1",
+            "diagnose.resolution: must be >= 0",
+        ),
+        (
+            &model_file,
+            "input_noise_flatness = 0.5",
+            "diagnose.input_noise_flatness: must be >= 1",
+        ),
+        (
+            &model_file,
+            "second_effect_floor_ratio = 0.5",
+            "diagnose.second_effect_floor_ratio: must be >= 1",
+        ),
+    ];
+    for (base, line, needle) in refused {
+        let text = base.replacen("min_gain = 0.05", &format!("min_gain = 0.05\n{line}"), 1);
+        let at = text.lines().position(|l| l == *line).unwrap() + 1;
+        fs::write(&path, text).unwrap();
+        let out = tmp.path().join("refused");
+        let o = htfid(&[
+            "diagnose",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{line}: {}", stderr(&o));
+        let err = stderr(&o);
+        assert!(
+            err.contains(&format!("d.toml:{at}:")) && err.contains(needle),
+            "{line}: {err}"
+        );
+        assert!(!out.exists(), "{line}");
+    }
+    // In range: read, used and echoed.
+    let run = |base: &str, lines: &str, name: &str| -> serde_json::Value {
+        let text = base.replacen("min_gain = 0.05", &format!("min_gain = 0.05\n{lines}"), 1);
+        fs::write(&path, text).unwrap();
+        let out = tmp.path().join(name);
+        htfid_ok(&[
+            "diagnose",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        serde_json::from_str(&fs::read_to_string(out.join("diagnosis.json")).unwrap()).unwrap()
+    };
+    let plain = run(&built_in, "", "plain");
+    let set = run(
+        &built_in,
+        "noise_band = [0.5, 0.9]\nresolution = 0.05\nmax_delay_periods = 0.5\n\
+         input_noise_flatness = 2.0\nmax_iterations = 60",
+        "set",
+    );
+    let o = &set["options"];
+    assert_eq!(o["noise_band"], serde_json::json!([0.5, 0.9]));
+    assert_eq!(o["resolution"], 0.05);
+    assert_eq!(o["max_delay_periods"], 0.5);
+    assert_eq!(o["input_noise_flatness"], 2.0);
+    assert_eq!(o["max_iterations"], 60);
+    assert_eq!(plain["options"]["resolution"], 1e-4);
+    // The record's residual floor is far below 5 % of the position's spread: with that
+    // resolution the floor is the resolution's.
+    let (floor_plain, floor_set) = (
+        plain["noise_floor"].as_f64().unwrap(),
+        set["noise_floor"].as_f64().unwrap(),
+    );
+    assert!(
+        floor_set > 10.0 * floor_plain,
+        "{floor_plain} -> {floor_set}"
+    );
+    let model = run(
+        &model_file,
+        "noise_band = [0.5, 0.9]\ninput_noise_flatness = 2.0\nsecond_effect_floor_ratio = 1.5\n\
+         resolution = 0.001",
+        "model",
+    );
+    let o = &model["options"];
+    assert_eq!(o["noise_band"], serde_json::json!([0.5, 0.9]));
+    assert_eq!(o["input_noise_flatness"], 2.0);
+    assert_eq!(o["second_effect_floor_ratio"], 1.5);
+    assert_eq!(o["resolution"], 0.001);
+}
+
 // ---- One run per output directory, results on the terminal ----
 
 /// Every file below `dir` but htfid's own hidden ones (manifest, lock, staging), relative, with

@@ -147,6 +147,25 @@ impl Source {
         }
     }
 
+    /// A band of the spectrum as fractions of the Nyquist frequency: two numbers,
+    /// `0 < lo < hi <= 1`.
+    pub fn band(&self, value: &Spanned<Vec<f64>>, key: &str) -> Result<(f64, f64), ConfigError> {
+        match value.get_ref().as_slice() {
+            &[lo, hi] if lo.is_finite() && hi.is_finite() && lo > 0.0 && lo < hi && hi <= 1.0 => {
+                Ok((lo, hi))
+            }
+            v => Err(self.error(
+                Some(&value.span()),
+                key,
+                format!(
+                    "must be two fractions of the Nyquist frequency [lo, hi] with 0 < lo < hi \
+                     <= 1 (got [{}])",
+                    v.iter().map(|&x| show(x)).collect::<Vec<_>>().join(", ")
+                ),
+            )),
+        }
+    }
+
     pub fn positive(&self, value: &Spanned<f64>, key: &str) -> Result<f64, ConfigError> {
         self.number(value, key, "> 0", |v| v > 0.0)
     }

@@ -58,6 +58,10 @@ struct RawOptions {
     min_explained: Option<Spanned<f64>>,
     max_effects: Option<Spanned<f64>>,
     input_noise_share: Option<Spanned<f64>>,
+    input_noise_flatness: Option<Spanned<f64>>,
+    noise_band: Option<Spanned<Vec<f64>>>,
+    resolution: Option<Spanned<f64>>,
+    second_effect_floor_ratio: Option<Spanned<f64>>,
     terms: Option<Vec<Spanned<RawTerm>>>,
 }
 
@@ -236,6 +240,22 @@ impl ModelDiagnoseSettings {
             options.input_noise_share =
                 src.number(v, "diagnose.input_noise_share", "in [0, 1]", |x| {
                     (0.0..=1.0).contains(&x)
+                })?;
+        }
+        if let Some(v) = o.and_then(|o| o.input_noise_flatness.as_ref()) {
+            options.input_noise_flatness =
+                src.number(v, "diagnose.input_noise_flatness", ">= 1", |x| x >= 1.0)?;
+        }
+        if let Some(v) = o.and_then(|o| o.noise_band.as_ref()) {
+            options.noise_band = src.band(v, "diagnose.noise_band")?;
+        }
+        if let Some(v) = o.and_then(|o| o.resolution.as_ref()) {
+            options.resolution = src.non_negative(v, "diagnose.resolution")?;
+        }
+        if let Some(v) = o.and_then(|o| o.second_effect_floor_ratio.as_ref()) {
+            options.second_effect_floor_ratio =
+                src.number(v, "diagnose.second_effect_floor_ratio", ">= 1", |x| {
+                    x >= 1.0
                 })?;
         }
         if let Some(v) = o.and_then(|o| o.max_effects.as_ref()) {

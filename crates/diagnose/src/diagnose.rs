@@ -288,7 +288,12 @@ fn input_noise(ctx: &Context<'_>, fit: &FitResult, opts: &DiagnoseOptions) -> Op
         .chain(&ctx.validation)
         .map(|s| &f[s.range.clone()])
         .collect();
-    let sigma = input_noise_level(&parts, opts.noise_band, opts.input_noise_share)?;
+    let sigma = input_noise_level(
+        &parts,
+        opts.noise_band,
+        opts.input_noise_share,
+        opts.input_noise_flatness,
+    )?;
     let noisy = with_white_noise(f, sigma)?;
     let t = ctx.record.time();
     let noisy = MeasuredForce::new(t[0], ctx.record.dt(), &noisy, opts.interpolation);

@@ -66,7 +66,10 @@
 //!    effect on the whole motion whose first-round fit did not move it (an effect that gains
 //!    little beside a larger one still missing is found once that one is modelled). A simpler library effect nested in a chosen one
 //!    replaces it when the data do not need the difference, and a backward pass drops any
-//!    chosen effect whose removal the same test does not reject.
+//!    chosen effect whose removal the same test does not reject, unless the model left
+//!    without it does as well only with another effect outside the data (a contact beyond
+//!    every measured position, a threshold beyond every measured speed, a delay of
+//!    `max_delay_periods` or more), the same test that refuses such a candidate.
 //!
 //! # Decision rule
 //!

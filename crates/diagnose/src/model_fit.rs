@@ -78,6 +78,19 @@ pub struct ModelFitOptions {
     /// noise floor unless white noise of that level would carry more than this share of the
     /// input's variance; 0 leaves it out. Default 0.1.
     pub input_noise_share: f64,
+    /// As the built-in diagnosis's
+    /// [`input_noise_flatness`](crate::DiagnoseOptions::input_noise_flatness): the input's
+    /// noise band is read as white noise only where its quarters' levels lie within this
+    /// factor of each other, `>= 1`. Default 1.5.
+    pub input_noise_flatness: f64,
+    /// Band of the residual's (and the input's) spectrum whose level is the noise floor, as
+    /// fractions of the Nyquist frequency, `0 < lo < hi <= 1`. Default (0.6, 0.95), as the
+    /// built-in diagnosis's [`noise_band`](crate::DiagnoseOptions::noise_band).
+    pub noise_band: (f64, f64),
+    /// A second effect is tried beside the best one while the best one's held-out residual
+    /// stays above this many times the noise floor, `>= 1`: below it a second effect could
+    /// not gain `min_gain`. Default 1.2.
+    pub second_effect_floor_ratio: f64,
 }
 
 impl Default for ModelFitOptions {
@@ -100,6 +113,9 @@ impl Default for ModelFitOptions {
             resolution: 1e-4,
             max_effects: 3,
             input_noise_share: 0.1,
+            input_noise_flatness: crate::noise::WHITE_SPREAD,
+            noise_band: (0.6, 0.95),
+            second_effect_floor_ratio: SECOND_EFFECT_FLOOR_RATIO,
         }
     }
 }
@@ -355,9 +371,8 @@ fn state_box(guess: &[f64], samples: &[Vec<f64>]) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// A second effect is tried beside the best one while the best one's held-out NRMSE is above
-/// this many times the noise floor: below it a second effect could not gain `min_gain`.
-pub const SECOND_EFFECT_FLOOR_RATIO: f64 = 1.2;
+/// The default [`ModelFitOptions::second_effect_floor_ratio`].
+const SECOND_EFFECT_FLOOR_RATIO: f64 = 1.2;
 
 /// Share of the scored samples on which the initial state is fitted first
 /// ([`Prepared::fit_state`]).
@@ -868,9 +883,19 @@ impl<'a> Prepared<'a> {
     /// response of `model` (from `x0`) to white noise of that level added to the input, in
     /// NRMSE units over the outputs; `None` where the level cannot be told from the input or a
     /// simulation fails.
-    fn input_noise(&self, model: &Model, x0: &[f64], max_share: f64) -> Option<crate::InputNoise> {
+    fn input_noise(
+        &self,
+        model: &Model,
+        x0: &[f64],
+        opts: &ModelFitOptions,
+    ) -> Option<crate::InputNoise> {
         let u = self.rec.input();
-        let sigma = input_noise_level(&[&u[self.rows.clone()]], (0.6, 0.95), max_share)?;
+        let sigma = input_noise_level(
+            &[&u[self.rows.clone()]],
+            opts.noise_band,
+            opts.input_noise_share,
+            opts.input_noise_flatness,
+        )?;
         let noisy = with_white_noise(u, sigma)?;
         let signal = Arc::new(SampledSignal::new(
             self.rec.time()[0],
@@ -951,6 +976,35 @@ pub fn diagnose_model(
             name: "max_effects",
             expected: ">= 1",
             value: 0.0,
+        });
+    }
+    let (lo, hi) = opts.noise_band;
+    let checks = [
+        (
+            "noise_band.0",
+            "> 0 and below noise_band.1",
+            lo,
+            lo > 0.0 && lo < hi,
+        ),
+        ("noise_band.1", "<= 1", hi, hi <= 1.0),
+        (
+            "input_noise_flatness",
+            ">= 1 and finite",
+            opts.input_noise_flatness,
+            opts.input_noise_flatness.is_finite() && opts.input_noise_flatness >= 1.0,
+        ),
+        (
+            "second_effect_floor_ratio",
+            ">= 1 and finite",
+            opts.second_effect_floor_ratio,
+            opts.second_effect_floor_ratio.is_finite() && opts.second_effect_floor_ratio >= 1.0,
+        ),
+    ];
+    if let Some(&(name, expected, value, _)) = checks.iter().find(|c| !c.3) {
+        return Err(DiagnoseError::InvalidOption {
+            name,
+            expected,
+            value,
         });
     }
     let n = rec.len();
@@ -1235,9 +1289,9 @@ pub fn diagnose_model(
     };
     let rows = est.rows.len().max(1);
     let per_output: Vec<&[f64]> = best_residuals.chunks(rows).collect();
-    let reading_floor = crate::noise::noise_floor(&per_output, (0.6, 0.95)).unwrap_or(f64::NAN);
+    let reading_floor = crate::noise::noise_floor(&per_output, opts.noise_band).unwrap_or(f64::NAN);
     // A perfect model driven by a noisy input still leaves its response to that noise.
-    let input_noise = est.input_noise(&refitted_model, &base.state, opts.input_noise_share);
+    let input_noise = est.input_noise(&refitted_model, &base.state, opts);
     let noise_floor = input_noise.map_or(reading_floor, |i| reading_floor.hypot(i.propagated));
     let best_score = best.map_or(refitted.validation(), |b| {
         candidates[b].candidate.nrmse_validation
@@ -1433,8 +1487,9 @@ pub fn diagnose_model(
             .nrmse_validation
             .total_cmp(&b.candidate.nrmse_validation)
     };
-    let room =
-        |score: f64| noise_floor.is_finite() && score > SECOND_EFFECT_FLOOR_RATIO * noise_floor;
+    let room = |score: f64| {
+        noise_floor.is_finite() && score > opts.second_effect_floor_ratio * noise_floor
+    };
     let mut pairs: Vec<Tried> = Vec::new();
     let firsts: Vec<usize> = match best {
         Some(b) if room(best_score) && opts.max_effects >= 2 => std::iter::once(b)

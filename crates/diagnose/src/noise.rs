@@ -86,20 +86,26 @@ fn level(power: &[f64], segments: usize) -> f64 {
 
 /// Sub-bands whose levels must agree for an input's band to be read as white noise.
 const SUB_BANDS: usize = 4;
-/// Largest ratio of the highest to the lowest sub-band level of white noise. On the shortest
-/// records read (a few segments, a few dozen bins per sub-band) the sub-band medians of white
-/// noise scatter by about 5 % each; the tail of an excitation's spectrum falls by a factor 3
-/// or more across the band.
-const WHITE_SPREAD: f64 = 1.5;
+/// The default largest ratio of the highest to the lowest sub-band level of white noise
+/// ([`crate::DiagnoseOptions::input_noise_flatness`]). On the shortest records read (a few
+/// segments, a few dozen bins per sub-band) the sub-band medians of white noise scatter by
+/// about 5 % each; the tail of an excitation's spectrum falls by a factor 3 or more across
+/// the band.
+pub(crate) const WHITE_SPREAD: f64 = 1.5;
 
 /// The white-noise level of a measured input, read from the same band of its spectrum as a
 /// residual's floor ([`noise_floor`]), where it can be told from the input itself: the band
-/// must be flat (its [`SUB_BANDS`] sub-bands' levels within [`WHITE_SPREAD`] of each other;
+/// must be flat (its [`SUB_BANDS`] sub-bands' levels within a factor `flatness` of each other;
 /// the tail of an excitation's spectrum falls across it), and white noise of that level must
 /// carry at most `max_share` of the input's variance (an input with content up to its
 /// Nyquist frequency, whose noise no spectrum separates). `None` otherwise, or when the parts
 /// are too short.
-pub(crate) fn input_noise_level(parts: &[&[f64]], band: (f64, f64), max_share: f64) -> Option<f64> {
+pub(crate) fn input_noise_level(
+    parts: &[&[f64]],
+    band: (f64, f64),
+    max_share: f64,
+    flatness: f64,
+) -> Option<f64> {
     if max_share <= 0.0 {
         return None;
     }
@@ -116,7 +122,7 @@ pub(crate) fn input_noise_level(parts: &[&[f64]], band: (f64, f64), max_share: f
     let (lo, hi) = levels
         .iter()
         .fold((f64::INFINITY, 0.0_f64), |(a, b), &v| (a.min(v), b.max(v)));
-    if !(lo > 0.0 && hi <= WHITE_SPREAD * lo) {
+    if !(lo > 0.0 && hi <= flatness * lo) {
         return None;
     }
     let level = level(&power, segments);
@@ -181,11 +187,14 @@ mod tests {
                 (std::f64::consts::PI * 0.1 * n as f64 * t * t).sin() + noise.sample(&mut rng)
             })
             .collect();
-        let s = input_noise_level(&[&chirp], (0.6, 0.95), 0.1).unwrap();
+        let s = input_noise_level(&[&chirp], (0.6, 0.95), 0.1, WHITE_SPREAD).unwrap();
         assert_relative_eq!(s, 0.00707, max_relative = 0.08);
         let white = Normal::new(0.0, 1.0).unwrap();
         let broadband: Vec<f64> = (0..n).map(|_| white.sample(&mut rng)).collect();
-        assert_eq!(input_noise_level(&[&broadband], (0.6, 0.95), 0.1), None);
+        assert_eq!(
+            input_noise_level(&[&broadband], (0.6, 0.95), 0.1, WHITE_SPREAD),
+            None
+        );
         // A tail of tones falling as the fourth power of frequency across the band (the
         // excitation's own high-frequency content, not noise) is not read as noise either.
         let tail: Vec<f64> = (0..n)
@@ -199,8 +208,14 @@ mod tests {
             })
             .collect();
         let with_tail: Vec<f64> = chirp.iter().zip(&tail).map(|(c, t)| c + 0.01 * t).collect();
-        assert_eq!(input_noise_level(&[&with_tail], (0.6, 0.95), 0.1), None);
+        assert_eq!(
+            input_noise_level(&[&with_tail], (0.6, 0.95), 0.1, WHITE_SPREAD),
+            None
+        );
         // A share of 0 never reads one.
-        assert_eq!(input_noise_level(&[&chirp], (0.6, 0.95), 0.0), None);
+        assert_eq!(
+            input_noise_level(&[&chirp], (0.6, 0.95), 0.0, WHITE_SPREAD),
+            None
+        );
     }
 }

@@ -86,6 +86,15 @@ pub struct DiagnoseOptions {
     /// Nyquist frequency, whose noise no spectrum tells from it. In `[0, 1]`; 0 leaves the
     /// input's noise out. Default 0.1.
     pub input_noise_share: f64,
+    /// The input's noise band is read as white noise only where it is this flat: the highest
+    /// of its four quarters' levels at most this multiple of the lowest, `>= 1`. Default 1.5
+    /// (the quarters of white noise scatter by about 5 % on short records; the tail of an
+    /// excitation's spectrum falls by a factor 3 or more across the band).
+    pub input_noise_flatness: f64,
+    /// A fitted input delay of at least this many forcing periods is not an actuator's: delayed
+    /// that far the measured force lines the periodic forcing up with itself again. In
+    /// `(0, 1]`; default 0.25. Records without a forcing period are not limited.
+    pub max_delay_periods: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -110,6 +119,8 @@ impl Default for DiagnoseOptions {
             max_effects: 3,
             resolution: 1e-4,
             input_noise_share: 0.1,
+            input_noise_flatness: crate::noise::WHITE_SPREAD,
+            max_delay_periods: 0.25,
         }
     }
 }
@@ -166,6 +177,16 @@ impl DiagnoseOptions {
         }
         if !(0.0..=1.0).contains(&self.input_noise_share) {
             return bad("input_noise_share", "in [0, 1]", self.input_noise_share);
+        }
+        if !(self.input_noise_flatness.is_finite() && self.input_noise_flatness >= 1.0) {
+            return bad(
+                "input_noise_flatness",
+                ">= 1 and finite",
+                self.input_noise_flatness,
+            );
+        }
+        if !(self.max_delay_periods > 0.0 && self.max_delay_periods <= 1.0) {
+            return bad("max_delay_periods", "in (0, 1]", self.max_delay_periods);
         }
         if self.max_effects == 0 {
             return bad("max_effects", ">= 1", 0.0);

@@ -41,9 +41,6 @@ use crate::fit::{Context, FitResult, ModelPoint};
 use crate::screen::Screening;
 use crate::{DiagnoseOptions, Effect, Score};
 
-/// Longest input delay taken for an actuator's, in forcing periods.
-const MAX_DELAY_PERIODS: f64 = 0.25;
-
 /// A candidate judged against the model before it.
 #[derive(Debug)]
 pub(crate) struct Judged {
@@ -330,39 +327,8 @@ fn judge(
         if !fit.stderr[i].is_finite() {
             reasons.push(format!("the data do not determine {}", s.name()));
         }
-        // An effect must act where the data are: a contact inside the visited positions, a
-        // threshold inside the visited velocities. Beyond them it only mimics a change of the
-        // nominal structure (a contact touched everywhere is a stiffer spring).
-        let v = fit.values[i];
-        let e = &ctx.extent;
-        match s {
-            Slot::XStop if !(v > e.x_min && v < e.x_max) => reasons.push(format!(
-                "the contact position {} lies outside the measured positions [{}, {}]",
-                sig(v, 4),
-                sig(e.x_min, 4),
-                sig(e.x_max, 4)
-            )),
-            // The measured force repeats with the forcing: delayed by a large part of its
-            // period, it lines the forcing up with itself again, a match that says nothing of
-            // an actuator.
-            Slot::Delay
-                if ctx
-                    .forcing_period
-                    .is_some_and(|p| v >= MAX_DELAY_PERIODS * p) =>
-            {
-                reasons.push(format!(
-                    "the delay {} s is {} forcing periods: a delay that long aligns the periodic \
-                     forcing with itself rather than describing an actuator",
-                    sig(v, 4),
-                    sig(v / ctx.forcing_period.unwrap_or(f64::NAN), 2)
-                ))
-            }
-            Slot::VTh if v.is_nan() || v.abs() >= e.v_max => reasons.push(format!(
-                "the threshold {} lies outside the measured velocities (|v| < {})",
-                sig(v, 4),
-                sig(e.v_max, 4)
-            )),
-            _ => {}
+        if let Some(reason) = outside_the_data(ctx, opts, *s, fit.values[i]) {
+            reasons.push(reason);
         }
     }
     if fit.at_limit {
@@ -380,6 +346,42 @@ fn judge(
         passes,
         note,
         windows,
+    }
+}
+
+/// Why an effect's parameter `s` at `v` does not act where the data are, if it does not: a
+/// contact inside the visited positions, a threshold inside the visited velocities, a delay
+/// short of the forcing's repeat. Beyond them an effect only mimics a change of the nominal
+/// structure (a contact touched everywhere is a stiffer spring).
+fn outside_the_data(ctx: &Context<'_>, opts: &DiagnoseOptions, s: Slot, v: f64) -> Option<String> {
+    let e = &ctx.extent;
+    match s {
+        Slot::XStop if !(v > e.x_min && v < e.x_max) => Some(format!(
+            "the contact position {} lies outside the measured positions [{}, {}]",
+            sig(v, 4),
+            sig(e.x_min, 4),
+            sig(e.x_max, 4)
+        )),
+        // The measured force repeats with the forcing: delayed by a large part of its period,
+        // it lines the forcing up with itself again, a match that says nothing of an actuator.
+        Slot::Delay
+            if ctx
+                .forcing_period
+                .is_some_and(|p| v >= opts.max_delay_periods * p) =>
+        {
+            Some(format!(
+                "the delay {} s is {} forcing periods: a delay that long aligns the periodic \
+                 forcing with itself rather than describing an actuator",
+                sig(v, 4),
+                sig(v / ctx.forcing_period.unwrap_or(f64::NAN), 2)
+            ))
+        }
+        Slot::VTh if v.is_nan() || v.abs() >= e.v_max => Some(format!(
+            "the threshold {} lies outside the measured velocities (|v| < {})",
+            sig(v, 4),
+            sig(e.v_max, 4)
+        )),
+        _ => None,
     }
 }
 
@@ -935,7 +937,24 @@ pub(crate) fn select(
                     held_out_gain(current_score.rmse, s.rmse, gain_floor)
                 })
             };
-            if lr < crit || gain.is_nan() || gain < opts.min_gain {
+            // Without the effect, another may explain the data only by leaving them (a
+            // contact moved above every position is a stiffer spring): that model is not one
+            // of the library's effects, and the effect stays.
+            let leaves = reduced
+                .slots
+                .iter()
+                .zip(&reduced.values)
+                .filter(|(s, _)| !nominal.slots.contains(s))
+                .find_map(|(&s, &v)| outside_the_data(ctx, opts, s, v));
+            let not_needed = lr < crit || gain.is_nan() || gain < opts.min_gain;
+            if let Some(why) = leaves.as_ref().filter(|_| not_needed) {
+                evidence.push(format!(
+                    "backward pass: {} kept: the model without it would do (likelihood ratio \
+                     {lr:.1}, critical {crit:.1}; held-out gain {:.1} %) only where {why}",
+                    e.name(),
+                    100.0 * gain
+                ));
+            } else if not_needed {
                 evidence.push(format!(
                     "backward pass: {} dropped (without it the likelihood ratio is {lr:.1}, \
                      critical {crit:.1}, and the held-out gain {:.1} %{})",

@@ -121,6 +121,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         json["input_noise"] = serde_json::to_value(i)?;
     }
     json["burn_in_s"] = json!(report.burn_in_s);
+    // The settings the decision used, defaults included (the ranges are under `data`).
+    let mut used = serde_json::to_value(&opts)?;
+    if let Some(o) = used.as_object_mut() {
+        o.remove("fit");
+        o.remove("validation");
+    }
+    json["options"] = used;
     json["nominal_fit"] = serde_json::to_value(report.nominal_fit_score)?;
     json["nominal_model"] = serde_json::to_value(report.nominal_model)?;
     json["extended_model"] = serde_json::to_value(report.extended_model)?;
@@ -444,6 +451,21 @@ fn options(s: &DiagnoseSettings, n: usize) -> Result<DiagnoseOptions> {
     }
     if let Some(v) = t.input_noise_share {
         opts.input_noise_share = v;
+    }
+    if let Some(v) = t.input_noise_flatness {
+        opts.input_noise_flatness = v;
+    }
+    if let Some(v) = t.noise_band {
+        opts.noise_band = v;
+    }
+    if let Some(v) = t.resolution {
+        opts.resolution = v;
+    }
+    if let Some(v) = t.max_delay_periods {
+        opts.max_delay_periods = v;
+    }
+    if let Some(v) = t.max_iterations {
+        opts.max_iterations = v;
     }
     Ok(opts)
 }

@@ -122,6 +122,11 @@ pub fn run(
         "unexplained_ratio": s.options.unexplained_ratio,
         "min_explained": s.options.min_explained,
         "max_effects": s.options.max_effects,
+        "input_noise_share": s.options.input_noise_share,
+        "input_noise_flatness": s.options.input_noise_flatness,
+        "noise_band": [s.options.noise_band.0, s.options.noise_band.1],
+        "resolution": s.options.resolution,
+        "second_effect_floor_ratio": s.options.second_effect_floor_ratio,
         "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
         "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
         "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({

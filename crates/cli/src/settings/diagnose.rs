@@ -66,6 +66,11 @@ pub struct RawDiagnoseOptions {
     pub min_explained: OptNum,
     pub fit_tolerance: OptNum,
     pub input_noise_share: OptNum,
+    pub input_noise_flatness: OptNum,
+    pub noise_band: Option<Spanned<Vec<f64>>>,
+    pub resolution: OptNum,
+    pub max_delay_periods: OptNum,
+    pub max_iterations: OptNum,
 }
 
 /// Where the measured data are and how to read them.
@@ -114,6 +119,11 @@ pub struct Thresholds {
     pub min_explained: Option<f64>,
     pub fit_tolerance: Option<f64>,
     pub input_noise_share: Option<f64>,
+    pub input_noise_flatness: Option<f64>,
+    pub noise_band: Option<(f64, f64)>,
+    pub resolution: Option<f64>,
+    pub max_delay_periods: Option<f64>,
+    pub max_iterations: Option<usize>,
 }
 
 fn ranges(
@@ -384,6 +394,35 @@ impl DiagnoseSettings {
                     "in [0, 1]",
                     |v| (0.0..=1.0).contains(&v),
                 )?,
+                input_noise_flatness: opt(
+                    o.map(|o| &o.input_noise_flatness),
+                    "diagnose.input_noise_flatness",
+                    ">= 1",
+                    |v| v >= 1.0,
+                )?,
+                noise_band: o
+                    .and_then(|o| o.noise_band.as_ref())
+                    .map(|b| src.band(b, "diagnose.noise_band"))
+                    .transpose()?,
+                resolution: opt(
+                    o.map(|o| &o.resolution),
+                    "diagnose.resolution",
+                    ">= 0",
+                    |v| v >= 0.0,
+                )?,
+                max_delay_periods: opt(
+                    o.map(|o| &o.max_delay_periods),
+                    "diagnose.max_delay_periods",
+                    "in (0, 1]",
+                    |v| v > 0.0 && v <= 1.0,
+                )?,
+                max_iterations: opt(
+                    o.map(|o| &o.max_iterations),
+                    "diagnose.max_iterations",
+                    "a whole number from 1 to 10000",
+                    |v| v.fract() == 0.0 && (1.0..=10_000.0).contains(&v),
+                )?
+                .map(|v| v as usize),
             },
         })
     }
