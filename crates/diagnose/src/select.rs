@@ -625,6 +625,35 @@ pub(crate) fn select(
             let mut order: Vec<usize> = (0..passing.len()).collect();
             order.sort_by(|&a, &b| on_windows[a].total_cmp(&on_windows[b]));
             passing = order.into_iter().map(|k| passing[k]).collect();
+        } else if let Some(s) = gain_floor {
+            // Held-out errors at or below the noise floor cannot rank candidates: each removes
+            // all the excess error the held-out data can show. Those are ranked by their fit
+            // BIC instead (the fit data still tell them apart), ahead of the rest.
+            let (mut at_floor, rest): (Vec<usize>, Vec<usize>) = passing
+                .iter()
+                .partition(|&&i| judged[i].outcome.val_rmse <= s);
+            if at_floor.len() >= 2 {
+                let bic = |i: usize| {
+                    judged[i]
+                        .outcome
+                        .fit
+                        .as_ref()
+                        .map_or(f64::INFINITY, |f| f.bic)
+                };
+                at_floor.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
+                evidence.push(format!(
+                    "round {}: {} candidates reach the noise floor held out ({}), ranked by their \
+                     fit BIC",
+                    round + 1,
+                    at_floor.len(),
+                    at_floor
+                        .iter()
+                        .map(|&i| judged[i].outcome.effect.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+                passing = at_floor.into_iter().chain(rest).collect();
+            }
         }
         if round == 0 {
             retried = judged
