@@ -62,8 +62,9 @@
 //! 5. **Nested tests and held-out judgement.** A candidate passes when it improves the model
 //!    of the round before both on the fit data, by a likelihood-ratio test corrected for
 //!    correlated residuals, and on the held-out data, by at least `min_gain`. The best passing
-//!    candidate (lowest held-out error; among two or more at or below the noise floor held
-//!    out, the lowest fit BIC) is added; later rounds try every candidate again but an
+//!    candidate (lowest held-out error; among two or more at the noise floor held out within
+//!    the sampling error of the best one's mean square, the lowest fit BIC) is added; later
+//!    rounds try every candidate again but an
 //!    effect on the whole motion whose first-round fit did not move it (an effect that gains
 //!    little beside a larger one still missing is found once that one is modelled). A simpler library effect nested in a chosen one
 //!    replaces it when the data do not need the difference, and a backward pass drops any

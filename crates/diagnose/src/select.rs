@@ -625,14 +625,21 @@ pub(crate) fn select(
             let mut order: Vec<usize> = (0..passing.len()).collect();
             order.sort_by(|&a, &b| on_windows[a].total_cmp(&on_windows[b]));
             passing = order.into_iter().map(|k| passing[k]).collect();
-        } else if let Some(s) = gain_floor {
-            // Held-out errors at or below the noise floor cannot rank candidates: each removes
-            // all the excess error the held-out data can show. Those are ranked by their fit
-            // BIC instead (the fit data still tell them apart), ahead of the rest.
-            let (mut at_floor, rest): (Vec<usize>, Vec<usize>) = passing
-                .iter()
-                .partition(|&&i| judged[i].outcome.val_rmse <= s);
-            if at_floor.len() >= 2 {
+        } else if let (Some(s), Some(&best)) = (gain_floor, passing.first()) {
+            // At the noise floor, held-out errors within the sampling error of the best one's
+            // mean square (`2 sqrt(2 / N)` of it, `N` the held-out samples, the residual
+            // there being the noise) cannot rank candidates: each removes all the excess the
+            // held-out data can show. Those are ranked on the fit data instead, by their BIC,
+            // ahead of the rest. (A floor read too high leaves residuals well below it, which
+            // still rank.)
+            let best_rmse = judged[best].outcome.val_rmse;
+            let n_held_out: usize = ctx.validation.iter().map(|v| v.scored().len()).sum();
+            let tolerance = 1.0 + 2.0 * (2.0 / n_held_out.max(1) as f64).sqrt();
+            let (mut tied, rest): (Vec<usize>, Vec<usize>) = passing.iter().partition(|&&i| {
+                best_rmse <= s
+                    && judged[i].outcome.val_rmse.powi(2) <= tolerance * best_rmse.powi(2)
+            });
+            if tied.len() >= 2 {
                 let bic = |i: usize| {
                     judged[i]
                         .outcome
@@ -640,19 +647,18 @@ pub(crate) fn select(
                         .as_ref()
                         .map_or(f64::INFINITY, |f| f.bic)
                 };
-                at_floor.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
+                tied.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
                 evidence.push(format!(
-                    "round {}: {} candidates reach the noise floor held out ({}), ranked by their \
-                     fit BIC",
+                    "round {}: {} candidates reach the noise floor held out within its sampling \
+                     error ({}), ranked by their fit BIC",
                     round + 1,
-                    at_floor.len(),
-                    at_floor
-                        .iter()
+                    tied.len(),
+                    tied.iter()
                         .map(|&i| judged[i].outcome.effect.name())
                         .collect::<Vec<_>>()
                         .join(", ")
                 ));
-                passing = at_floor.into_iter().chain(rest).collect();
+                passing = tied.into_iter().chain(rest).collect();
             }
         }
         if round == 0 {

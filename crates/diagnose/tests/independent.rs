@@ -384,7 +384,7 @@ fn diagnosed(s: &Scenario, opts: &DiagnoseOptions) -> Diagnosis {
 /// A sensor gain beside a stiffness error, recorded for 90 s instead of 270 s: the refitted
 /// parameters leave a constant offset, and once they are in the model five candidates reach
 /// the noise floor held out. Ranked by their held-out noise, a weak contact came first and the
-/// offset was never named; ranked by their fit BIC, the offset is.
+/// offset was never named; ranked on the fit data, the offset is.
 #[test]
 fn candidates_at_the_noise_floor_are_ranked_on_the_fit_data() {
     let s = Scenario {
