@@ -76,8 +76,8 @@
 //! # Decision rule
 //!
 //! Notation: `rmse_0` is the nominal fit's held-out RMSE, `rmse_f` the selected model's,
-//! `sigma` the noise floor (the level of the nominal residual spectrum between 60 % and 95 %
-//! of the Nyquist frequency: the median of the Welch periodogram there, so spectral lines do
+//! `sigma` the noise floor (the level of the nominal residual spectrum in `noise_band`, by
+//! default between 60 % and 95 % of the Nyquist frequency: the median of the Welch periodogram there, so spectral lines do
 //! not raise it, and never below `resolution` (1e-4) times the spread of the measured output,
 //! the simulation's own accuracy with an interpolated force; where the measured input's own
 //! noise can be read from the same band of its spectrum, flat and small beside the input, the

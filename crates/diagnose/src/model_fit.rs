@@ -978,33 +978,12 @@ pub fn diagnose_model(
             value: 0.0,
         });
     }
-    let (lo, hi) = opts.noise_band;
-    let checks = [
-        (
-            "noise_band.0",
-            "> 0 and below noise_band.1",
-            lo,
-            lo > 0.0 && lo < hi,
-        ),
-        ("noise_band.1", "<= 1", hi, hi <= 1.0),
-        (
-            "input_noise_flatness",
-            ">= 1 and finite",
-            opts.input_noise_flatness,
-            opts.input_noise_flatness.is_finite() && opts.input_noise_flatness >= 1.0,
-        ),
-        (
-            "second_effect_floor_ratio",
-            ">= 1 and finite",
-            opts.second_effect_floor_ratio,
-            opts.second_effect_floor_ratio.is_finite() && opts.second_effect_floor_ratio >= 1.0,
-        ),
-    ];
-    if let Some(&(name, expected, value, _)) = checks.iter().find(|c| !c.3) {
+    crate::noise::check_reading(opts.noise_band, opts.input_noise_flatness)?;
+    if !(opts.second_effect_floor_ratio.is_finite() && opts.second_effect_floor_ratio >= 1.0) {
         return Err(DiagnoseError::InvalidOption {
-            name,
-            expected,
-            value,
+            name: "second_effect_floor_ratio",
+            expected: ">= 1 and finite",
+            value: opts.second_effect_floor_ratio,
         });
     }
     let n = rec.len();

@@ -5,6 +5,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use rustfft::{num_complex::Complex64, FftPlanner};
 
+use crate::DiagnoseError;
+
 /// Longest Welch segment.
 const MAX_SEGMENT: usize = 1024;
 /// Shortest Welch segment.
@@ -134,6 +136,29 @@ pub(crate) fn input_noise_level(
     }
     let variance = sum / count.max(1) as f64;
     (level > 0.0 && level * level <= max_share * variance).then_some(level)
+}
+
+/// Checks the settings of a noise reading shared by both diagnoses: the band `(lo, hi)` of
+/// the spectrum, `0 < lo < hi <= 1`, and the flatness an input's band must have, `>= 1`.
+pub(crate) fn check_reading(band: (f64, f64), flatness: f64) -> Result<(), DiagnoseError> {
+    let bad = |name, expected, value| {
+        Err(DiagnoseError::InvalidOption {
+            name,
+            expected,
+            value,
+        })
+    };
+    let (lo, hi) = band;
+    if !(lo > 0.0 && lo < hi) {
+        return bad("noise_band.0", "> 0 and below noise_band.1", lo);
+    }
+    if hi.is_nan() || hi > 1.0 {
+        return bad("noise_band.1", "<= 1", hi);
+    }
+    if !(flatness.is_finite() && flatness >= 1.0) {
+        return bad("input_noise_flatness", ">= 1 and finite", flatness);
+    }
+    Ok(())
 }
 
 /// Seed of the white noise [`with_white_noise`] adds (fixed, so a diagnosis is repeatable).

@@ -178,26 +178,13 @@ impl DiagnoseOptions {
         if !(0.0..=1.0).contains(&self.input_noise_share) {
             return bad("input_noise_share", "in [0, 1]", self.input_noise_share);
         }
-        if !(self.input_noise_flatness.is_finite() && self.input_noise_flatness >= 1.0) {
-            return bad(
-                "input_noise_flatness",
-                ">= 1 and finite",
-                self.input_noise_flatness,
-            );
-        }
         if !(self.max_delay_periods > 0.0 && self.max_delay_periods <= 1.0) {
             return bad("max_delay_periods", "in (0, 1]", self.max_delay_periods);
         }
         if self.max_effects == 0 {
             return bad("max_effects", ">= 1", 0.0);
         }
-        let (lo, hi) = self.noise_band;
-        if !(lo > 0.0 && lo < hi) {
-            return bad("noise_band.0", "> 0 and below noise_band.1", lo);
-        }
-        if hi.is_nan() || hi > 1.0 {
-            return bad("noise_band.1", "<= 1", hi);
-        }
+        crate::noise::check_reading(self.noise_band, self.input_noise_flatness)?;
         match self.sim {
             SimMethod::FixedStep { max_rate_step } => {
                 if !(max_rate_step.is_finite() && max_rate_step > 0.0) {

@@ -625,19 +625,21 @@ pub(crate) fn select(
             let mut order: Vec<usize> = (0..passing.len()).collect();
             order.sort_by(|&a, &b| on_windows[a].total_cmp(&on_windows[b]));
             passing = order.into_iter().map(|k| passing[k]).collect();
-        } else if let (Some(s), Some(&best)) = (gain_floor, passing.first()) {
+        } else if let Some(best_rmse) = passing
+            .first()
+            .map(|&b| judged[b].outcome.val_rmse)
+            .filter(|&r| gain_floor.is_some_and(|s| r <= s))
+        {
             // At the noise floor, held-out errors within the sampling error of the best one's
             // mean square (`2 sqrt(2 / N)` of it, `N` the held-out samples, the residual
             // there being the noise) cannot rank candidates: each removes all the excess the
             // held-out data can show. Those are ranked on the fit data instead, by their BIC,
             // ahead of the rest. (A floor read too high leaves residuals well below it, which
             // still rank.)
-            let best_rmse = judged[best].outcome.val_rmse;
             let n_held_out: usize = ctx.validation.iter().map(|v| v.scored().len()).sum();
             let tolerance = 1.0 + 2.0 * (2.0 / n_held_out.max(1) as f64).sqrt();
             let (mut tied, rest): (Vec<usize>, Vec<usize>) = passing.iter().partition(|&&i| {
-                best_rmse <= s
-                    && judged[i].outcome.val_rmse.powi(2) <= tolerance * best_rmse.powi(2)
+                judged[i].outcome.val_rmse.powi(2) <= tolerance * best_rmse.powi(2)
             });
             if tied.len() >= 2 {
                 let bic = |i: usize| {

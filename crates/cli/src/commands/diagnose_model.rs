@@ -590,12 +590,15 @@ fn report(
     if let Some(noise) = d.input_noise {
         r.para(&format!(
             "The noise floor, {} of the outputs' spread, holds the refitted model's response to \
-             the noise on the measured input, {}: the input's spectrum between 60 % and 95 % of \
+             the noise on the measured input, {}: the input's spectrum between {} % and {} % of \
              the Nyquist frequency is that of white noise of {} RMS, and the simulation is \
              driven by the measured input, so no model driven by it predicts the outputs closer \
              than that (`input_noise` in `diagnosis.json`).",
             percent(d.noise_floor, 3),
             percent(noise.propagated, 3),
+            // Percentages of the band's edges, rounded off the binary fractions' tails.
+            (1e6 * s.options.noise_band.0).round() / 1e4,
+            (1e6 * s.options.noise_band.1).round() / 1e4,
             sig(noise.sigma, 3)
         ));
     }
