@@ -487,7 +487,10 @@ fn refit_without(
 }
 
 /// Runs the selection from the refitted nominal model `nominal` (held-out score
-/// `nominal_score`); `absent` holds every effect's absent value.
+/// `nominal_score`); `absent` holds every effect's absent value. The steps: the rounds of
+/// forward selection, the simplification of an effect to a simpler one it holds, the
+/// look-alikes refitted in place of the chosen effects, a mass error weighed against a constant
+/// force, the backward pass, and the rivals kept only where the final fit cannot separate them.
 pub(crate) fn select(
     ctx: &Context<'_>,
     screening: &Screening<'_, '_>,
@@ -498,606 +501,710 @@ pub(crate) fn select(
     opts: &DiagnoseOptions,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Selection {
-    let mut current = nominal.clone();
-    let mut current_score = nominal_score;
-    let mut chosen: Vec<Effect> = Vec::new();
-    let mut first_round: Vec<Judged> = Vec::new();
-    let mut rivals: Vec<(Effect, Effect)> = Vec::new();
-    let mut evidence = Vec::new();
-    let mut evaluations = 0;
-    let mut retried: Vec<(Effect, Retry)> = Vec::new();
-    // Whether the model holds a threshold judged on held-out windows (see `judge`).
-    let mut windowed = false;
+    let mut s = Selector {
+        ctx,
+        screening,
+        nominal,
+        nominal_score,
+        absent,
+        noise,
+        gain_floor,
+        opts,
+        progress,
+        current: nominal.clone(),
+        current_score: nominal_score,
+        chosen: Vec::new(),
+        first_round: Vec::new(),
+        rivals: Vec::new(),
+        evidence: Vec::new(),
+        evaluations: 0,
+        retried: Vec::new(),
+        windowed: false,
+    };
+    s.forward();
+    s.simplify();
+    s.replace_look_alikes();
+    s.weigh_mass_against_force();
+    s.rename_negative_friction();
+    let (without, without_fits) = s.backward();
+    s.prune_rivals(&without_fits);
+    s.finish(without)
+}
 
-    for round in 0..opts.max_effects {
-        // Nothing left above the noise floor: there is nothing more to explain.
-        if noise.is_some_and(|s| current_score.rmse <= s) {
-            evidence.push(format!(
-                "the held-out residual {} is at the noise floor: nothing more to explain",
-                sig(current_score.rmse, 4)
-            ));
-            break;
-        }
-        let slots = current.slots.clone();
-        // Candidates that add something, each set of added parameters tried once.
-        let mut seen: Vec<Vec<Slot>> = Vec::new();
-        let mut tried = Vec::new();
-        let mut held = Vec::new();
-        for &e in &opts.candidates {
-            let retry = retried.iter().find(|(r, _)| *r == e).map(|(_, how)| how);
-            if chosen.contains(&e) || (round > 0 && retry.is_none()) {
-                continue;
-            }
-            let mut added = added_slots(e, &slots);
-            added.sort();
-            if round > 0 && (added.is_empty() || seen.contains(&added)) {
-                continue;
-            }
-            seen.push(added);
-            match retry {
-                Some(Retry::IfPulledOff(on_bound)) => held.push((e, on_bound.clone())),
-                _ => tried.push(e),
-            }
-        }
-        // A candidate held on its bound in the first round is fitted again only where the data
-        // now pull it off.
-        let critical = chi2_quantile(1, opts.alpha);
-        let scores: Vec<(Effect, f64)> = held
-            .par_iter()
-            .map(|(e, on_bound)| {
-                let score = on_bound
-                    .iter()
-                    .filter(|s| slots.iter().all(|c| c != *s))
-                    .map(|&s| ctx.score(&current, s).unwrap_or(f64::INFINITY))
-                    .fold(0.0, f64::max);
-                (*e, score)
-            })
-            .collect();
-        for (e, score) in scores {
-            if score >= critical {
-                tried.push(e);
-            } else {
-                progress(&format!(
-                    "round {}: {}: not fitted again: held on its bound in round 1, and the data \
-                     beside this model still do not pull it off (score {score:.1}, critical \
-                     {critical:.1})",
-                    round + 1,
-                    e.name()
+/// The selection's inputs and the state its steps change: the model chosen so far and its
+/// held-out score, the effects chosen, the first round, the rivals, the evidence, the count of
+/// simulations, the candidates tried again in later rounds and whether the model holds a
+/// threshold judged on held-out windows (see `judge`).
+struct Selector<'a, 'c, 's, 'r> {
+    ctx: &'a Context<'c>,
+    screening: &'a Screening<'s, 'r>,
+    nominal: &'a FitResult,
+    nominal_score: Score,
+    absent: &'a ModelPoint,
+    noise: Option<f64>,
+    gain_floor: Option<f64>,
+    opts: &'a DiagnoseOptions,
+    progress: &'a (dyn Fn(&str) + Sync),
+    current: FitResult,
+    current_score: Score,
+    chosen: Vec<Effect>,
+    first_round: Vec<Judged>,
+    rivals: Vec<(Effect, Effect)>,
+    evidence: Vec<String>,
+    evaluations: usize,
+    retried: Vec<(Effect, Retry)>,
+    windowed: bool,
+}
+
+impl Selector<'_, '_, '_, '_> {
+    /// The rounds of forward selection: every remaining candidate fitted beside the effects
+    /// chosen so far and judged against their model; the best that passes is added.
+    fn forward(&mut self) {
+        for round in 0..self.opts.max_effects {
+            // Nothing left above the noise floor: there is nothing more to explain.
+            if self.noise.is_some_and(|s| self.current_score.rmse <= s) {
+                self.evidence.push(format!(
+                    "the held-out residual {} is at the noise floor: nothing more to explain",
+                    sig(self.current_score.rmse, 4)
                 ));
+                break;
             }
-        }
-        let outcomes: Vec<Outcome> = tried
-            .par_iter()
-            .map(|&e| run_candidate(ctx, screening, &current, &slots, e))
-            .collect();
-        evaluations += outcomes
-            .iter()
-            .filter_map(|o| o.fit.as_ref())
-            .map(|f| f.evaluations)
-            .sum::<usize>();
-        let mut judged: Vec<Judged> = outcomes
-            .into_iter()
-            .map(|o| {
-                judge(
-                    ctx,
-                    screening,
-                    &current,
-                    current_score.rmse,
-                    gain_floor,
-                    o,
-                    opts,
-                    windowed,
-                )
-            })
-            .collect();
-        judged.sort_by(
-            |a, b| match (a.outcome.fit.is_some(), b.outcome.fit.is_some()) {
-                (true, true) => a.outcome.val_rmse.total_cmp(&b.outcome.val_rmse),
-                (true, false) => std::cmp::Ordering::Less,
-                (false, true) => std::cmp::Ordering::Greater,
-                (false, false) => a.outcome.effect.cmp(&b.outcome.effect),
-            },
-        );
-        for j in &judged {
-            progress(&format!(
-                "round {}: {}: {}",
-                round + 1,
-                j.outcome.effect.name(),
-                j.note
-            ));
-        }
-        let mut passing: Vec<usize> = (0..judged.len()).filter(|&i| judged[i].passes).collect();
-        // Where a candidate passed on held-out windows only, the whole held-out simulation
-        // cannot rank it: every passing candidate is ranked by its error on those windows.
-        if passing.iter().any(|&i| judged[i].windows.is_some()) {
-            let on_windows: Vec<f64> = passing
+            let slots = self.current.slots.clone();
+            // Candidates that add something, each set of added parameters tried once.
+            let mut seen: Vec<Vec<Slot>> = Vec::new();
+            let mut tried = Vec::new();
+            let mut held = Vec::new();
+            for &e in &self.opts.candidates {
+                let retry = self
+                    .retried
+                    .iter()
+                    .find(|(r, _)| *r == e)
+                    .map(|(_, how)| how);
+                if self.chosen.contains(&e) || (round > 0 && retry.is_none()) {
+                    continue;
+                }
+                let mut added = added_slots(e, &slots);
+                added.sort();
+                if round > 0 && (added.is_empty() || seen.contains(&added)) {
+                    continue;
+                }
+                seen.push(added);
+                match retry {
+                    Some(Retry::IfPulledOff(on_bound)) => held.push((e, on_bound.clone())),
+                    _ => tried.push(e),
+                }
+            }
+            // A candidate held on its bound in the first round is fitted again only where the data
+            // now pull it off.
+            let critical = chi2_quantile(1, self.opts.alpha);
+            let scores: Vec<(Effect, f64)> = held
                 .par_iter()
-                .map(|&i| match judged[i].windows {
-                    Some((_, a)) => a,
-                    None => judged[i]
-                        .outcome
-                        .fit
-                        .as_ref()
-                        .and_then(|f| screening.held_out_on_windows(&current.point, &f.point))
-                        .map_or(f64::INFINITY, |(_, a)| a),
+                .map(|(e, on_bound)| {
+                    let score = on_bound
+                        .iter()
+                        .filter(|s| slots.iter().all(|c| c != *s))
+                        .map(|&s| self.ctx.score(&self.current, s).unwrap_or(f64::INFINITY))
+                        .fold(0.0, f64::max);
+                    (*e, score)
                 })
                 .collect();
-            let mut order: Vec<usize> = (0..passing.len()).collect();
-            order.sort_by(|&a, &b| on_windows[a].total_cmp(&on_windows[b]));
-            passing = order.into_iter().map(|k| passing[k]).collect();
-        } else if let Some(best_rmse) = passing
-            .first()
-            .map(|&b| judged[b].outcome.val_rmse)
-            .filter(|&r| gain_floor.is_some_and(|s| r <= s))
-        {
-            // At the noise floor, held-out errors within the sampling error of the best one's
-            // mean square (`2 sqrt(2 / N)` of it, `N` the held-out samples, the residual
-            // there being the noise) cannot rank candidates: each removes all the excess the
-            // held-out data can show. Those are ranked on the fit data instead, by their BIC,
-            // ahead of the rest. (A floor read too high leaves residuals well below it, which
-            // still rank.)
-            let n_held_out: usize = ctx.validation.iter().map(|v| v.scored().len()).sum();
-            let tolerance = 1.0 + 2.0 * (2.0 / n_held_out.max(1) as f64).sqrt();
-            let (mut tied, rest): (Vec<usize>, Vec<usize>) = passing.iter().partition(|&&i| {
-                judged[i].outcome.val_rmse.powi(2) <= tolerance * best_rmse.powi(2)
-            });
-            if tied.len() >= 2 {
-                let bic = |i: usize| {
-                    judged[i]
-                        .outcome
-                        .fit
-                        .as_ref()
-                        .map_or(f64::INFINITY, |f| f.bic)
-                };
-                tied.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
-                evidence.push(format!(
-                    "round {}: {} candidates reach the noise floor held out within its sampling \
-                     error ({}), ranked by their fit BIC",
+            for (e, score) in scores {
+                if score >= critical {
+                    tried.push(e);
+                } else {
+                    (self.progress)(&format!(
+                        "round {}: {}: not fitted again: held on its bound in round 1, and the \
+                         data beside this model still do not pull it off (score {score:.1}, \
+                         critical {critical:.1})",
+                        round + 1,
+                        e.name()
+                    ));
+                }
+            }
+            let outcomes: Vec<Outcome> = tried
+                .par_iter()
+                .map(|&e| run_candidate(self.ctx, self.screening, &self.current, &slots, e))
+                .collect();
+            self.evaluations += outcomes
+                .iter()
+                .filter_map(|o| o.fit.as_ref())
+                .map(|f| f.evaluations)
+                .sum::<usize>();
+            let mut judged: Vec<Judged> = outcomes
+                .into_iter()
+                .map(|o| {
+                    judge(
+                        self.ctx,
+                        self.screening,
+                        &self.current,
+                        self.current_score.rmse,
+                        self.gain_floor,
+                        o,
+                        self.opts,
+                        self.windowed,
+                    )
+                })
+                .collect();
+            judged.sort_by(
+                |a, b| match (a.outcome.fit.is_some(), b.outcome.fit.is_some()) {
+                    (true, true) => a.outcome.val_rmse.total_cmp(&b.outcome.val_rmse),
+                    (true, false) => std::cmp::Ordering::Less,
+                    (false, true) => std::cmp::Ordering::Greater,
+                    (false, false) => a.outcome.effect.cmp(&b.outcome.effect),
+                },
+            );
+            for j in &judged {
+                (self.progress)(&format!(
+                    "round {}: {}: {}",
                     round + 1,
-                    tied.len(),
-                    tied.iter()
-                        .map(|&i| judged[i].outcome.effect.name())
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    j.outcome.effect.name(),
+                    j.note
                 ));
-                passing = tied.into_iter().chain(rest).collect();
+            }
+            let mut passing: Vec<usize> = (0..judged.len()).filter(|&i| judged[i].passes).collect();
+            // Where a candidate passed on held-out windows only, the whole held-out simulation
+            // cannot rank it: every passing candidate is ranked by its error on those windows.
+            if passing.iter().any(|&i| judged[i].windows.is_some()) {
+                let on_windows: Vec<f64> = passing
+                    .par_iter()
+                    .map(|&i| match judged[i].windows {
+                        Some((_, a)) => a,
+                        None => judged[i]
+                            .outcome
+                            .fit
+                            .as_ref()
+                            .and_then(|f| {
+                                self.screening
+                                    .held_out_on_windows(&self.current.point, &f.point)
+                            })
+                            .map_or(f64::INFINITY, |(_, a)| a),
+                    })
+                    .collect();
+                let mut order: Vec<usize> = (0..passing.len()).collect();
+                order.sort_by(|&a, &b| on_windows[a].total_cmp(&on_windows[b]));
+                passing = order.into_iter().map(|k| passing[k]).collect();
+            } else if let Some(best_rmse) = passing
+                .first()
+                .map(|&b| judged[b].outcome.val_rmse)
+                .filter(|&r| self.gain_floor.is_some_and(|s| r <= s))
+            {
+                // At the noise floor, held-out errors within the sampling error of the best one's
+                // mean square (`2 sqrt(2 / N)` of it, `N` the held-out samples, the residual
+                // there being the noise) cannot rank candidates: each removes all the excess the
+                // held-out data can show. Those are ranked on the fit data instead, by their BIC,
+                // ahead of the rest. (A floor read too high leaves residuals well below it, which
+                // still rank.)
+                let n_held_out: usize = self.ctx.validation.iter().map(|v| v.scored().len()).sum();
+                let tolerance = 1.0 + 2.0 * (2.0 / n_held_out.max(1) as f64).sqrt();
+                let (mut tied, rest): (Vec<usize>, Vec<usize>) = passing.iter().partition(|&&i| {
+                    judged[i].outcome.val_rmse.powi(2) <= tolerance * best_rmse.powi(2)
+                });
+                if tied.len() >= 2 {
+                    let bic = |i: usize| {
+                        judged[i]
+                            .outcome
+                            .fit
+                            .as_ref()
+                            .map_or(f64::INFINITY, |f| f.bic)
+                    };
+                    tied.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
+                    self.evidence.push(format!(
+                        "round {}: {} candidates reach the noise floor held out within its \
+                         sampling error ({}), ranked by their fit BIC",
+                        round + 1,
+                        tied.len(),
+                        tied.iter()
+                            .map(|&i| judged[i].outcome.effect.name())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ));
+                    passing = tied.into_iter().chain(rest).collect();
+                }
+            }
+            if round == 0 {
+                self.retried = judged
+                    .iter()
+                    .map(|j| (j.outcome.effect, tried_again(j, &slots, self.absent)))
+                    .filter(|(_, how)| *how != Retry::Never)
+                    .collect();
+            }
+            let Some(&first) = passing.first() else {
+                if round == 0 {
+                    self.first_round = judged;
+                }
+                break;
+            };
+            // Prefer a passing candidate nested in the best one unless the richer one is a
+            // significant improvement over it.
+            let mut w = first;
+            let w_added = added_slots(judged[first].outcome.effect, &slots);
+            for &i in &passing[1..] {
+                let i_added = added_slots(judged[i].outcome.effect, &slots);
+                if i_added.len() < w_added.len() && i_added.iter().all(|s| w_added.contains(s)) {
+                    let (small, big) = (
+                        judged[i].outcome.fit.as_ref().expect("passing fits exist"),
+                        judged[first]
+                            .outcome
+                            .fit
+                            .as_ref()
+                            .expect("passing fits exist"),
+                    );
+                    let (lr, crit) = nested_test(small, big, self.ctx.n_fit(), self.opts.alpha);
+                    if lr < crit {
+                        self.evidence.push(format!(
+                            "{} fits as well as {} with fewer parameters (likelihood ratio {lr:.1} \
+                             below {crit:.1}): the simpler is kept",
+                            judged[i].outcome.effect.name(),
+                            judged[first].outcome.effect.name()
+                        ));
+                        w = i;
+                        break;
+                    }
+                }
+            }
+            let winner_fit = judged[w].outcome.fit.clone().expect("passing fits exist");
+            let winner_bic = winner_fit.bic;
+            if round == 0 {
+                let w_added = added_slots(judged[w].outcome.effect, &slots);
+                for &i in &passing {
+                    if i == w {
+                        continue;
+                    }
+                    let f = judged[i].outcome.fit.as_ref().expect("passing fits exist");
+                    let i_added = added_slots(judged[i].outcome.effect, &slots);
+                    let nested = i_added.iter().all(|s| w_added.contains(s))
+                        || w_added.iter().all(|s| i_added.contains(s));
+                    if !nested && f.bic - winner_bic < self.opts.bic_margin {
+                        self.rivals
+                            .push((judged[w].outcome.effect, judged[i].outcome.effect));
+                    }
+                }
+            }
+            let effect = judged[w].outcome.effect;
+            self.windowed |= judged[w].windows.is_some();
+            self.evidence.push(format!(
+                "round {}: {} added: {}",
+                round + 1,
+                effect.name(),
+                judged[w].note
+            ));
+            self.current_score = Score {
+                rmse: judged[w].outcome.val_rmse,
+                nrmse: judged[w].outcome.val_nrmse,
+            };
+            self.current = winner_fit;
+            self.chosen.push(effect);
+            if round == 0 {
+                self.first_round = judged;
+            } else {
+                self.rivals.retain(|(_, r)| *r != effect);
             }
         }
-        if round == 0 {
-            retried = judged
-                .iter()
-                .map(|j| (j.outcome.effect, tried_again(j, &slots, absent)))
-                .filter(|(_, how)| *how != Retry::Never)
-                .collect();
-        }
-        let Some(&first) = passing.first() else {
-            if round == 0 {
-                first_round = judged;
+    }
+
+    /// Simplification: an effect whose parameters include those of a simpler library effect
+    /// (asymmetric friction holds Coulomb friction and an input offset) is replaced by it when
+    /// the data do not need the difference.
+    fn simplify(&mut self) {
+        'simplify: loop {
+            for k in 0..self.chosen.len() {
+                let e = self.chosen[k];
+                let own = own_slots(&self.chosen, k, &self.nominal.slots);
+                for &c in &self.opts.candidates {
+                    if c == e || self.chosen.contains(&c) {
+                        continue;
+                    }
+                    let c_slots = c.slots(&self.nominal.slots);
+                    if c_slots.is_empty()
+                        || c_slots.len() >= own.len()
+                        || !c_slots.iter().all(|s| own.contains(s))
+                    {
+                        continue;
+                    }
+                    let drop: Vec<Slot> = own
+                        .iter()
+                        .copied()
+                        .filter(|s| !c_slots.contains(s))
+                        .collect();
+                    let Some(reduced) = refit_without(self.ctx, &self.current, &drop, self.absent)
+                    else {
+                        continue;
+                    };
+                    self.evaluations += reduced.evaluations;
+                    let (lr, crit) =
+                        nested_test(&reduced, &self.current, self.ctx.n_fit(), self.opts.alpha);
+                    let Ok(reduced_score) =
+                        evaluate(self.ctx, &reduced.point, &reduced.stepping).map(|ev| ev.score)
+                    else {
+                        continue;
+                    };
+                    let gain =
+                        held_out_gain(self.current_score.rmse, reduced_score.rmse, self.gain_floor);
+                    if lr < crit || gain < self.opts.min_gain {
+                        self.evidence.push(format!(
+                            "simplification: {} replaced by {}, which explains the data as well \
+                             (likelihood ratio {lr:.1}, critical {crit:.1}; held-out gain of the \
+                             richer effect {:.1} %)",
+                            e.name(),
+                            c.name(),
+                            100.0 * gain
+                        ));
+                        self.chosen[k] = c;
+                        self.current = reduced;
+                        self.current_score = reduced_score;
+                        continue 'simplify;
+                    }
+                }
             }
             break;
-        };
-        // Prefer a passing candidate nested in the best one unless the richer one is a
-        // significant improvement over it.
-        let mut w = first;
-        let w_added = added_slots(judged[first].outcome.effect, &slots);
-        for &i in &passing[1..] {
-            let i_added = added_slots(judged[i].outcome.effect, &slots);
-            if i_added.len() < w_added.len() && i_added.iter().all(|s| w_added.contains(s)) {
-                let (small, big) = (
-                    judged[i].outcome.fit.as_ref().expect("passing fits exist"),
-                    judged[first]
-                        .outcome
-                        .fit
-                        .as_ref()
-                        .expect("passing fits exist"),
-                );
-                let (lr, crit) = nested_test(small, big, ctx.n_fit(), opts.alpha);
-                if lr < crit {
-                    evidence.push(format!(
-                        "{} fits as well as {} with fewer parameters (likelihood ratio {lr:.1} \
-                         below {crit:.1}): the simpler is kept",
-                        judged[i].outcome.effect.name(),
-                        judged[first].outcome.effect.name()
-                    ));
-                    w = i;
-                    break;
-                }
-            }
-        }
-        let winner_fit = judged[w].outcome.fit.clone().expect("passing fits exist");
-        let winner_bic = winner_fit.bic;
-        if round == 0 {
-            let w_added = added_slots(judged[w].outcome.effect, &slots);
-            for &i in &passing {
-                if i == w {
-                    continue;
-                }
-                let f = judged[i].outcome.fit.as_ref().expect("passing fits exist");
-                let i_added = added_slots(judged[i].outcome.effect, &slots);
-                let nested = i_added.iter().all(|s| w_added.contains(s))
-                    || w_added.iter().all(|s| i_added.contains(s));
-                if !nested && f.bic - winner_bic < opts.bic_margin {
-                    rivals.push((judged[w].outcome.effect, judged[i].outcome.effect));
-                }
-            }
-        }
-        let effect = judged[w].outcome.effect;
-        windowed |= judged[w].windows.is_some();
-        evidence.push(format!(
-            "round {}: {} added: {}",
-            round + 1,
-            effect.name(),
-            judged[w].note
-        ));
-        current_score = Score {
-            rmse: judged[w].outcome.val_rmse,
-            nrmse: judged[w].outcome.val_nrmse,
-        };
-        current = winner_fit;
-        chosen.push(effect);
-        if round == 0 {
-            first_round = judged;
-        } else {
-            rivals.retain(|(_, r)| *r != effect);
         }
     }
 
-    // Simplification: an effect whose parameters include those of a simpler library effect
-    // (asymmetric friction holds Coulomb friction and an input offset) is replaced by it when
-    // the data do not need the difference.
-    'simplify: loop {
-        for k in 0..chosen.len() {
-            let e = chosen[k];
-            let own = own_slots(&chosen, k, &nominal.slots);
-            for &c in &opts.candidates {
-                if c == e || chosen.contains(&c) {
-                    continue;
-                }
-                let c_slots = c.slots(&nominal.slots);
-                if c_slots.is_empty()
-                    || c_slots.len() >= own.len()
-                    || !c_slots.iter().all(|s| own.contains(s))
-                {
-                    continue;
-                }
-                let drop: Vec<Slot> = own
-                    .iter()
-                    .copied()
-                    .filter(|s| !c_slots.contains(s))
-                    .collect();
-                let Some(reduced) = refit_without(ctx, &current, &drop, absent) else {
-                    continue;
-                };
-                evaluations += reduced.evaluations;
-                let (lr, crit) = nested_test(&reduced, &current, ctx.n_fit(), opts.alpha);
-                let Ok(reduced_score) =
-                    evaluate(ctx, &reduced.point, &reduced.stepping).map(|ev| ev.score)
-                else {
-                    continue;
-                };
-                let gain = held_out_gain(current_score.rmse, reduced_score.rmse, gain_floor);
-                if lr < crit || gain < opts.min_gain {
-                    evidence.push(format!(
-                        "simplification: {} replaced by {}, which explains the data as well \
-                         (likelihood ratio {lr:.1}, critical {crit:.1}; held-out gain of the \
-                         richer effect {:.1} %)",
-                        e.name(),
-                        c.name(),
-                        100.0 * gain
-                    ));
-                    chosen[k] = c;
-                    current = reduced;
-                    current_score = reduced_score;
-                    continue 'simplify;
-                }
-            }
-        }
-        break;
-    }
-
-    // Look-alikes: an effect with a known look-alike (a lag on either side, a delay; a force
-    // or a reading offset) is refitted with the look-alike in its place, beside everything
-    // else chosen. A clearly better look-alike takes its place; one within the BIC margin is
-    // its rival. The first round compares them beside the nominal model only, where the
-    // effects still missing can favour the wrong one.
-    for k in 0..chosen.len() {
-        let e = chosen[k];
-        let tried: Vec<Effect> = look_alikes(e)
-            .iter()
-            .copied()
-            .filter(|r| !chosen.contains(r) && opts.candidates.contains(r))
-            .collect();
-        if tried.is_empty() {
-            continue;
-        }
-        // The model without the effect, once for all its look-alikes.
-        let own = own_slots(&chosen, k, &nominal.slots);
-        let Some(reduced) = refit_without(ctx, &current, &own, absent) else {
-            continue;
-        };
-        evaluations += reduced.evaluations;
-        for r in tried {
-            let o = run_candidate(ctx, screening, &reduced, &reduced.slots, r);
-            let Some(f) = o.fit.as_ref() else {
-                continue;
-            };
-            evaluations += f.evaluations;
-            let d = f.bic - current.bic;
-            if d < -opts.bic_margin && o.val_rmse <= current_score.rmse {
-                evidence.push(format!(
-                    "look-alike: {} in place of {} fits better beside the other effects (fit BIC \
-                     lower by {:.1}, held-out RMSE {} against {})",
-                    r.name(),
-                    e.name(),
-                    -d,
-                    sig(o.val_rmse, 4),
-                    sig(current_score.rmse, 4)
-                ));
-                rivals.retain(|(a, b)| *a != e && *b != e);
-                chosen[k] = r;
-                current = f.clone();
-                current_score = Score {
-                    rmse: o.val_rmse,
-                    nrmse: o.val_nrmse,
-                };
-                break;
-            } else if d < opts.bic_margin && !rivals.contains(&(e, r)) {
-                rivals.push((e, r));
-            }
-        }
-    }
-
-    // A mass error's look-alike: a refitted mass changes the weight `m g`, a constant force,
-    // as well as the inertia. When the inertia change is below the data's resolution, a
-    // constant force with the configured mass explains the record as well; the two are then
-    // rivals (`parameter_error` and `input_offset`). A mass that stayed within
-    // `significance_sigma` standard errors of its configured value is no mass error and needs
-    // no look-alike.
-    if let Some(k) = chosen.iter().position(|&e| e == Effect::ParameterError) {
-        let own = own_slots(&chosen, k, &nominal.slots);
-        let mass_moved = current
-            .slots
-            .iter()
-            .position(|&s| s == Slot::M)
-            .is_some_and(|i| {
-                (current.values[i] - absent.get(Slot::M)).abs()
-                    > opts.significance_sigma * current.stderr[i]
-            });
-        if own.contains(&Slot::M)
-            && mass_moved
-            && opts.candidates.contains(&Effect::InputOffset)
-            && !chosen.contains(&Effect::InputOffset)
-            && !current.slots.contains(&Slot::InputOffset)
-        {
-            let mut start = current.point;
-            start.set(Slot::M, absent.get(Slot::M));
-            let slots: Vec<Slot> = current
-                .slots
+    /// Look-alikes: an effect with a known look-alike (a lag on either side, a delay; a force
+    /// or a reading offset) is refitted with the look-alike in its place, beside everything
+    /// else chosen. A clearly better look-alike takes its place; one within the BIC margin is
+    /// its rival. The first round compares them beside the nominal model only, where the
+    /// effects still missing can favour the wrong one.
+    fn replace_look_alikes(&mut self) {
+        for k in 0..self.chosen.len() {
+            let e = self.chosen[k];
+            let tried: Vec<Effect> = look_alikes(e)
                 .iter()
                 .copied()
-                .filter(|&s| s != Slot::M)
-                .chain([Slot::InputOffset])
+                .filter(|r| !self.chosen.contains(r) && self.opts.candidates.contains(r))
                 .collect();
-            if let Ok(f) = ctx.fit(&start, &slots) {
-                evaluations += f.evaluations;
-                let held_out = evaluate(ctx, &f.point, &f.stepping).map(|ev| ev.score);
-                let d = f.bic - current.bic;
-                let force = sig(f.point.get(Slot::InputOffset), 4);
-                match held_out {
-                    // Clearly better, and no worse held out: the mass is as configured and a
-                    // constant force acts; `parameter_error` keeps the other parameters.
-                    Ok(score) if d < -opts.bic_margin && score.rmse <= current_score.rmse => {
-                        evidence.push(format!(
-                            "look-alike: a constant force of {force} with the configured mass \
-                             fits better than the refitted mass (fit BIC lower by {:.1}, held-out \
-                             RMSE {} against {}): the mass is kept as configured",
-                            -d,
-                            sig(score.rmse, 4),
-                            sig(current_score.rmse, 4)
-                        ));
-                        chosen.push(Effect::InputOffset);
-                        current = f;
-                        current_score = score;
-                    }
-                    Ok(score)
-                        if d < opts.bic_margin
-                            && score.rmse <= current_score.rmse * (1.0 + opts.min_gain) =>
-                    {
-                        evidence.push(format!(
-                            "look-alike: a constant force of {force} with the configured mass \
-                             explains the data as well as the refitted mass (fit BIC {d:+.1})"
-                        ));
-                        rivals.push((Effect::ParameterError, Effect::InputOffset));
-                    }
-                    _ => {}
-                }
+            if tried.is_empty() {
+                continue;
             }
-        }
-    }
-
-    // Asymmetric friction with a negative coefficient is Coulomb friction beside a larger
-    // constant force: the same fit, named for what it found.
-    if let Some(k) = chosen.iter().position(|&e| e == Effect::AsymmetricFriction) {
-        if let Some(sentence) = negative_friction(&current) {
-            evidence.push(sentence);
-            chosen[k] = Effect::CoulombFriction;
-            if !chosen.contains(&Effect::InputOffset) {
-                chosen.push(Effect::InputOffset);
-            }
-            rivals.retain(|(a, b)| {
-                *a != Effect::AsymmetricFriction && *b != Effect::AsymmetricFriction
-            });
-        }
-    }
-
-    // Backward pass, and each effect's share from the fit without it.
-    let mut without: Vec<f64> = Vec::new();
-    // The refits without each chosen effect of the last pass (the final set's when it kept
-    // them all), for the rivals below.
-    let mut without_fits: Vec<Option<FitResult>> = Vec::new();
-    'backward: while chosen.len() >= 2 {
-        without.clear();
-        // Every effect's refit without it, in parallel; read in order below, so the first
-        // effect dropped is the one a serial pass would drop (the refits after it are spent).
-        let reduced_all: Vec<Option<(FitResult, Option<Score>)>> = (0..chosen.len())
-            .into_par_iter()
-            .map(|k| {
-                let own = own_slots(&chosen, k, &nominal.slots);
-                let reduced = refit_without(ctx, &current, &own, absent)?;
-                let score = evaluate(ctx, &reduced.point, &reduced.stepping)
-                    .map(|ev| ev.score)
-                    .ok();
-                Some((reduced, score))
-            })
-            .collect();
-        evaluations += reduced_all
-            .iter()
-            .flatten()
-            .map(|(r, _)| r.evaluations)
-            .sum::<usize>();
-        without_fits = reduced_all
-            .iter()
-            .map(|o| o.as_ref().map(|(f, _)| f.clone()))
-            .collect();
-        for (k, (&e, refit)) in chosen.iter().zip(reduced_all).enumerate() {
-            let Some((reduced, reduced_score)) = refit else {
-                without.push(f64::NAN);
+            // The model without the effect, once for all its look-alikes.
+            let own = own_slots(&self.chosen, k, &self.nominal.slots);
+            let Some(reduced) = refit_without(self.ctx, &self.current, &own, self.absent) else {
                 continue;
             };
-            let (lr, crit) = nested_test(&reduced, &current, ctx.n_fit(), opts.alpha);
-            let gain = if windowed {
-                screening
-                    .held_out_on_windows(&reduced.point, &current.point)
-                    .map_or(f64::NAN, |(b, a)| held_out_gain(a, b, gain_floor))
-            } else {
-                reduced_score.map_or(f64::NAN, |s| {
-                    held_out_gain(current_score.rmse, s.rmse, gain_floor)
-                })
-            };
-            // Without the effect, another may explain the data only by leaving them (a
-            // contact moved above every position is a stiffer spring): that model is not one
-            // of the library's effects, and the effect stays.
-            let leaves = reduced
+            self.evaluations += reduced.evaluations;
+            for r in tried {
+                let o = run_candidate(self.ctx, self.screening, &reduced, &reduced.slots, r);
+                let Some(f) = o.fit.as_ref() else {
+                    continue;
+                };
+                self.evaluations += f.evaluations;
+                let d = f.bic - self.current.bic;
+                if d < -self.opts.bic_margin && o.val_rmse <= self.current_score.rmse {
+                    self.evidence.push(format!(
+                        "look-alike: {} in place of {} fits better beside the other effects (fit \
+                         BIC lower by {:.1}, held-out RMSE {} against {})",
+                        r.name(),
+                        e.name(),
+                        -d,
+                        sig(o.val_rmse, 4),
+                        sig(self.current_score.rmse, 4)
+                    ));
+                    self.rivals.retain(|(a, b)| *a != e && *b != e);
+                    self.chosen[k] = r;
+                    self.current = f.clone();
+                    self.current_score = Score {
+                        rmse: o.val_rmse,
+                        nrmse: o.val_nrmse,
+                    };
+                    break;
+                } else if d < self.opts.bic_margin && !self.rivals.contains(&(e, r)) {
+                    self.rivals.push((e, r));
+                }
+            }
+        }
+    }
+
+    /// A mass error's look-alike: a refitted mass changes the weight `m g`, a constant force,
+    /// as well as the inertia. When the inertia change is below the data's resolution, a
+    /// constant force with the configured mass explains the record as well; the two are then
+    /// rivals (`parameter_error` and `input_offset`). A mass that stayed within
+    /// `significance_sigma` standard errors of its configured value is no mass error and needs
+    /// no look-alike.
+    fn weigh_mass_against_force(&mut self) {
+        if let Some(k) = self
+            .chosen
+            .iter()
+            .position(|&e| e == Effect::ParameterError)
+        {
+            let own = own_slots(&self.chosen, k, &self.nominal.slots);
+            let mass_moved = self
+                .current
                 .slots
                 .iter()
-                .zip(&reduced.values)
-                .filter(|(s, _)| !nominal.slots.contains(s))
-                .find_map(|(&s, &v)| outside_the_data(ctx, opts, s, v));
-            let not_needed = lr < crit || gain.is_nan() || gain < opts.min_gain;
-            if let Some(why) = leaves.as_ref().filter(|_| not_needed) {
-                evidence.push(format!(
-                    "backward pass: {} kept: the model without it would do (likelihood ratio \
-                     {lr:.1}, critical {crit:.1}; held-out gain {:.1} %) only where {why}",
-                    e.name(),
-                    100.0 * gain
-                ));
-            } else if not_needed {
-                evidence.push(format!(
-                    "backward pass: {} dropped (without it the likelihood ratio is {lr:.1}, \
-                     critical {crit:.1}, and the held-out gain {:.1} %{})",
-                    e.name(),
-                    100.0 * gain,
-                    if windowed { " on held-out windows" } else { "" }
-                ));
-                chosen.remove(k);
-                if let Some(s) = reduced_score {
-                    current_score = s;
+                .position(|&s| s == Slot::M)
+                .is_some_and(|i| {
+                    (self.current.values[i] - self.absent.get(Slot::M)).abs()
+                        > self.opts.significance_sigma * self.current.stderr[i]
+                });
+            if own.contains(&Slot::M)
+                && mass_moved
+                && self.opts.candidates.contains(&Effect::InputOffset)
+                && !self.chosen.contains(&Effect::InputOffset)
+                && !self.current.slots.contains(&Slot::InputOffset)
+            {
+                let mut start = self.current.point;
+                start.set(Slot::M, self.absent.get(Slot::M));
+                let slots: Vec<Slot> = self
+                    .current
+                    .slots
+                    .iter()
+                    .copied()
+                    .filter(|&s| s != Slot::M)
+                    .chain([Slot::InputOffset])
+                    .collect();
+                if let Ok(f) = self.ctx.fit(&start, &slots) {
+                    self.evaluations += f.evaluations;
+                    let held_out = evaluate(self.ctx, &f.point, &f.stepping).map(|ev| ev.score);
+                    let d = f.bic - self.current.bic;
+                    let force = sig(f.point.get(Slot::InputOffset), 4);
+                    match held_out {
+                        // Clearly better, and no worse held out: the mass is as configured and a
+                        // constant force acts; `parameter_error` keeps the other parameters.
+                        Ok(score)
+                            if d < -self.opts.bic_margin
+                                && score.rmse <= self.current_score.rmse =>
+                        {
+                            self.evidence.push(format!(
+                                "look-alike: a constant force of {force} with the configured mass \
+                                 fits better than the refitted mass (fit BIC lower by {:.1}, \
+                                 held-out RMSE {} against {}): the mass is kept as configured",
+                                -d,
+                                sig(score.rmse, 4),
+                                sig(self.current_score.rmse, 4)
+                            ));
+                            self.chosen.push(Effect::InputOffset);
+                            self.current = f;
+                            self.current_score = score;
+                        }
+                        Ok(score)
+                            if d < self.opts.bic_margin
+                                && score.rmse
+                                    <= self.current_score.rmse * (1.0 + self.opts.min_gain) =>
+                        {
+                            self.evidence.push(format!(
+                                "look-alike: a constant force of {force} with the configured mass \
+                                 explains the data as well as the refitted mass (fit BIC {d:+.1})"
+                            ));
+                            self.rivals
+                                .push((Effect::ParameterError, Effect::InputOffset));
+                        }
+                        _ => {}
+                    }
                 }
-                current = reduced;
-                continue 'backward;
             }
-            without.push(reduced_score.map_or(f64::NAN, |s| s.rmse));
-        }
-        break;
-    }
-    if chosen.len() < 2 {
-        without_fits.clear();
-    }
-    // A rival of an effect the backward pass dropped is no rival of the answer.
-    rivals.retain(|(c, _)| chosen.contains(c));
-    // A first-round rival stays one only while it explains the data as well as the final
-    // model: in place of its effect, beside the other chosen effects, within `bic_margin`. A
-    // first round far from the answer (a strongly nonlinear record whose first fits stop in
-    // a side valley) can leave two effects within the margin that the final fit separates by
-    // thousands. Look-alikes were refitted so above already.
-    let mut kept = Vec::new();
-    for (e, r) in std::mem::take(&mut rivals) {
-        let Some(k) = chosen.iter().position(|&c| c == e) else {
-            continue;
-        };
-        if look_alikes(e).contains(&r) {
-            kept.push((e, r));
-            continue;
-        }
-        // Alone, the rival in place of the effect is its first-round fit beside the nominal.
-        let first_fit = (chosen.len() == 1)
-            .then(|| first_round.iter().find(|j| j.outcome.effect == r))
-            .flatten()
-            .and_then(|j| j.outcome.fit.clone().map(|f| (f, j.outcome.val_rmse)));
-        // Beside others, from the backward pass's refit without the effect (fitted again only
-        // where that refit failed).
-        let refit = first_fit.or_else(|| {
-            let reduced = match without_fits.get(k).cloned().flatten() {
-                Some(f) => f,
-                None => {
-                    let own = own_slots(&chosen, k, &nominal.slots);
-                    let f = refit_without(ctx, &current, &own, absent)?;
-                    evaluations += f.evaluations;
-                    f
-                }
-            };
-            let o = run_candidate(ctx, screening, &reduced, &reduced.slots, r);
-            let f = o.fit?;
-            evaluations += f.evaluations;
-            Some((f, o.val_rmse))
-        });
-        let Some((f, val_rmse)) = refit else {
-            kept.push((e, r));
-            continue;
-        };
-        let d = f.bic - current.bic;
-        if d >= opts.bic_margin {
-            evidence.push(format!(
-                "{} in place of {} fits worse by {d:.1} in BIC beside the other chosen effects \
-                 (held-out RMSE {} against {}): the data separate them, no rivals",
-                r.name(),
-                e.name(),
-                sig(val_rmse, 4),
-                sig(current_score.rmse, 4)
-            ));
-        } else {
-            kept.push((e, r));
         }
     }
-    rivals = kept;
-    let full = current_score.rmse.powi(2);
-    let rises: Vec<f64> = if chosen.len() == 1 {
-        vec![(nominal_score.rmse.powi(2) - full).max(0.0)]
-    } else {
-        without
+
+    /// Asymmetric friction with a negative coefficient is Coulomb friction beside a larger
+    /// constant force: the same fit, named for what it found.
+    fn rename_negative_friction(&mut self) {
+        if let Some(k) = self
+            .chosen
             .iter()
-            .map(|r| (r * r - full).max(0.0))
-            .map(|v| if v.is_finite() { v } else { 0.0 })
-            .collect()
-    };
-    let mut chosen: Vec<Chosen> = chosen
-        .into_iter()
-        .zip(rises)
-        .map(|(effect, rise)| Chosen { effect, rise })
-        .collect();
-    chosen.sort_by(|a, b| b.rise.total_cmp(&a.rise));
-    let on_windows = windowed
-        .then(|| screening.held_out_on_windows(&nominal.point, &current.point))
-        .flatten();
-    Selection {
-        on_windows,
-        chosen,
-        fit: current,
-        held_out: current_score,
-        first_round,
-        rivals,
-        evidence,
-        evaluations,
+            .position(|&e| e == Effect::AsymmetricFriction)
+        {
+            if let Some(sentence) = negative_friction(&self.current) {
+                self.evidence.push(sentence);
+                self.chosen[k] = Effect::CoulombFriction;
+                if !self.chosen.contains(&Effect::InputOffset) {
+                    self.chosen.push(Effect::InputOffset);
+                }
+                self.rivals.retain(|(a, b)| {
+                    *a != Effect::AsymmetricFriction && *b != Effect::AsymmetricFriction
+                });
+            }
+        }
+    }
+
+    /// Backward pass, and each effect's share from the fit without it.
+    fn backward(&mut self) -> (Vec<f64>, Vec<Option<FitResult>>) {
+        let mut without: Vec<f64> = Vec::new();
+        // The refits without each chosen effect of the last pass (the final set's when it kept
+        // them all), for the rivals below.
+        let mut without_fits: Vec<Option<FitResult>> = Vec::new();
+        'backward: while self.chosen.len() >= 2 {
+            without.clear();
+            // Every effect's refit without it, in parallel; read in order below, so the first
+            // effect dropped is the one a serial pass would drop (the refits after it are spent).
+            let reduced_all: Vec<Option<(FitResult, Option<Score>)>> = (0..self.chosen.len())
+                .into_par_iter()
+                .map(|k| {
+                    let own = own_slots(&self.chosen, k, &self.nominal.slots);
+                    let reduced = refit_without(self.ctx, &self.current, &own, self.absent)?;
+                    let score = evaluate(self.ctx, &reduced.point, &reduced.stepping)
+                        .map(|ev| ev.score)
+                        .ok();
+                    Some((reduced, score))
+                })
+                .collect();
+            self.evaluations += reduced_all
+                .iter()
+                .flatten()
+                .map(|(r, _)| r.evaluations)
+                .sum::<usize>();
+            without_fits = reduced_all
+                .iter()
+                .map(|o| o.as_ref().map(|(f, _)| f.clone()))
+                .collect();
+            for (k, (&e, refit)) in self.chosen.iter().zip(reduced_all).enumerate() {
+                let Some((reduced, reduced_score)) = refit else {
+                    without.push(f64::NAN);
+                    continue;
+                };
+                let (lr, crit) =
+                    nested_test(&reduced, &self.current, self.ctx.n_fit(), self.opts.alpha);
+                let gain = if self.windowed {
+                    self.screening
+                        .held_out_on_windows(&reduced.point, &self.current.point)
+                        .map_or(f64::NAN, |(b, a)| held_out_gain(a, b, self.gain_floor))
+                } else {
+                    reduced_score.map_or(f64::NAN, |s| {
+                        held_out_gain(self.current_score.rmse, s.rmse, self.gain_floor)
+                    })
+                };
+                // Without the effect, another may explain the data only by leaving them (a
+                // contact moved above every position is a stiffer spring): that model is not one
+                // of the library's effects, and the effect stays.
+                let leaves = reduced
+                    .slots
+                    .iter()
+                    .zip(&reduced.values)
+                    .filter(|(s, _)| !self.nominal.slots.contains(s))
+                    .find_map(|(&s, &v)| outside_the_data(self.ctx, self.opts, s, v));
+                let not_needed = lr < crit || gain.is_nan() || gain < self.opts.min_gain;
+                if let Some(why) = leaves.as_ref().filter(|_| not_needed) {
+                    self.evidence.push(format!(
+                        "backward pass: {} kept: the model without it would do (likelihood ratio \
+                         {lr:.1}, critical {crit:.1}; held-out gain {:.1} %) only where {why}",
+                        e.name(),
+                        100.0 * gain
+                    ));
+                } else if not_needed {
+                    self.evidence.push(format!(
+                        "backward pass: {} dropped (without it the likelihood ratio is {lr:.1}, \
+                         critical {crit:.1}, and the held-out gain {:.1} %{})",
+                        e.name(),
+                        100.0 * gain,
+                        if self.windowed {
+                            " on held-out windows"
+                        } else {
+                            ""
+                        }
+                    ));
+                    self.chosen.remove(k);
+                    if let Some(s) = reduced_score {
+                        self.current_score = s;
+                    }
+                    self.current = reduced;
+                    continue 'backward;
+                }
+                without.push(reduced_score.map_or(f64::NAN, |s| s.rmse));
+            }
+            break;
+        }
+        if self.chosen.len() < 2 {
+            without_fits.clear();
+        }
+        (without, without_fits)
+    }
+
+    /// A rival of an effect the backward pass dropped is no rival of the answer.
+    fn prune_rivals(&mut self, without_fits: &[Option<FitResult>]) {
+        self.rivals.retain(|(c, _)| self.chosen.contains(c));
+        // A first-round rival stays one only while it explains the data as well as the final
+        // model: in place of its effect, beside the other chosen effects, within `bic_margin`. A
+        // first round far from the answer (a strongly nonlinear record whose first fits stop in
+        // a side valley) can leave two effects within the margin that the final fit separates by
+        // thousands. Look-alikes were refitted so above already.
+        let mut kept = Vec::new();
+        for (e, r) in std::mem::take(&mut self.rivals) {
+            let Some(k) = self.chosen.iter().position(|&c| c == e) else {
+                continue;
+            };
+            if look_alikes(e).contains(&r) {
+                kept.push((e, r));
+                continue;
+            }
+            // Alone, the rival in place of the effect is its first-round fit beside the nominal.
+            let first_fit = (self.chosen.len() == 1)
+                .then(|| self.first_round.iter().find(|j| j.outcome.effect == r))
+                .flatten()
+                .and_then(|j| j.outcome.fit.clone().map(|f| (f, j.outcome.val_rmse)));
+            // Beside others, from the backward pass's refit without the effect (fitted again only
+            // where that refit failed).
+            let refit = first_fit.or_else(|| {
+                let reduced = match without_fits.get(k).cloned().flatten() {
+                    Some(f) => f,
+                    None => {
+                        let own = own_slots(&self.chosen, k, &self.nominal.slots);
+                        let f = refit_without(self.ctx, &self.current, &own, self.absent)?;
+                        self.evaluations += f.evaluations;
+                        f
+                    }
+                };
+                let o = run_candidate(self.ctx, self.screening, &reduced, &reduced.slots, r);
+                let f = o.fit?;
+                self.evaluations += f.evaluations;
+                Some((f, o.val_rmse))
+            });
+            let Some((f, val_rmse)) = refit else {
+                kept.push((e, r));
+                continue;
+            };
+            let d = f.bic - self.current.bic;
+            if d >= self.opts.bic_margin {
+                self.evidence.push(format!(
+                    "{} in place of {} fits worse by {d:.1} in BIC beside the other chosen effects \
+                     (held-out RMSE {} against {}): the data separate them, no rivals",
+                    r.name(),
+                    e.name(),
+                    sig(val_rmse, 4),
+                    sig(self.current_score.rmse, 4)
+                ));
+            } else {
+                kept.push((e, r));
+            }
+        }
+        self.rivals = kept;
+    }
+
+    /// Each chosen effect's share of the explained error, from the held-out errors `without`
+    /// it, and the selection.
+    fn finish(self, without: Vec<f64>) -> Selection {
+        let full = self.current_score.rmse.powi(2);
+        let rises: Vec<f64> = if self.chosen.len() == 1 {
+            vec![(self.nominal_score.rmse.powi(2) - full).max(0.0)]
+        } else {
+            without
+                .iter()
+                .map(|r| (r * r - full).max(0.0))
+                .map(|v| if v.is_finite() { v } else { 0.0 })
+                .collect()
+        };
+        let mut chosen: Vec<Chosen> = self
+            .chosen
+            .into_iter()
+            .zip(rises)
+            .map(|(effect, rise)| Chosen { effect, rise })
+            .collect();
+        chosen.sort_by(|a, b| b.rise.total_cmp(&a.rise));
+        let on_windows = self
+            .windowed
+            .then(|| {
+                self.screening
+                    .held_out_on_windows(&self.nominal.point, &self.current.point)
+            })
+            .flatten();
+        Selection {
+            on_windows,
+            chosen,
+            fit: self.current,
+            held_out: self.current_score,
+            first_round: self.first_round,
+            rivals: self.rivals,
+            evidence: self.evidence,
+            evaluations: self.evaluations,
+        }
     }
 }
 

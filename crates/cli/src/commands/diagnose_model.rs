@@ -13,6 +13,7 @@ use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::output::{json_text, open, resolve_dir};
 use crate::records::{read_record, Columns};
 use crate::report::{shown_path, Report};
+use htfid_number::{percent, sig, Quantity};
 
 pub fn run(
     config: &std::path::Path,
@@ -389,8 +390,21 @@ fn report(
     d: &ModelDiagnosis,
     checks: &[crate::validation::OutputValidation],
 ) -> String {
-    use htfid_number::{percent, sig, Quantity};
     let mut r = Report::new(&format!("Diagnosis: {}", s.name));
+    r.para(&decision(s, d, checks));
+    notes(&mut r, s, d);
+    data_section(&mut r, s);
+    effects_sections(&mut r, s, d);
+    errors_and_parameters(&mut r, s, d, checks);
+    r.finish()
+}
+
+/// The decision in words, and whether the refitted model's residual is white.
+fn decision(
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    checks: &[crate::validation::OutputValidation],
+) -> String {
     let model = s.model.name();
     let unit = |name: &str| parameter_unit(s, name);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
@@ -586,7 +600,12 @@ fn report(
                 .join(", ")
         ));
     }
-    r.para(&decision);
+    decision
+}
+
+/// The noise floor's share from the measured input's noise, and the term search outside the
+/// library, when they apply.
+fn notes(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
     if let Some(noise) = d.input_noise {
         r.para(&format!(
             "The noise floor, {} of the outputs' spread, holds the refitted model's response to \
@@ -620,7 +639,10 @@ fn report(
             None => format!("**Outside the library**, nothing: {sentence}."),
         });
     }
+}
 
+/// The config, the data, what was refitted and what held out.
+fn data_section(r: &mut Report, s: &ModelDiagnoseSettings) {
     r.section("Data");
     let held_out = match &s.validation {
         Some(p) => format!("the separate record `{}`", shown_path(p)),
@@ -646,48 +668,59 @@ fn report(
         ),
         format!("Held out from the fit and used to judge it: {held_out}."),
     ]);
+}
 
-    let effect_rows = |r: &mut Report, list: &[htfid_diagnose::ModelCandidate]| {
-        let mut rows = Vec::new();
-        for c in list {
-            if c.nrmse_validation.is_finite() {
-                let own: Vec<String> = c
-                    .parameters
-                    .iter()
-                    .filter(|(k, _)| !s.options.free.contains(*k))
-                    .map(|(k, v)| {
-                        format!(
-                            "{k} = {}",
-                            Quantity::new(*v)
-                                .stderr(c.stderr.get(k).copied().unwrap_or(f64::NAN))
-                                .unit(parameter_unit(s, k).as_deref())
-                        )
-                    })
-                    .collect();
-                rows.push(vec![
-                    format!("`{}`", c.effect),
-                    c.term.clone().unwrap_or_else(|| "on the boundary".into()),
-                    own.join(", "),
-                    percent(c.nrmse_validation, 3),
-                    percent(c.gain, 3),
-                    format!("{} ({})", sig(c.likelihood_ratio, 3), sig(c.critical, 3)),
-                    if c.significant { "yes" } else { "no" }.to_string(),
-                ]);
-            } else {
-                let why = r.missing(&c.note);
-                rows.push(vec![
-                    format!("`{}`", c.effect),
-                    c.term.clone().unwrap_or_else(|| "on the boundary".into()),
-                    why.clone(),
-                    why.clone(),
-                    why.clone(),
-                    why,
-                    "no".to_string(),
-                ]);
-            }
+/// One row per effect of `list` in the tables of effects tried: its parameters (those of
+/// the effect, not the free ones), scores and tests, or why its fit failed.
+fn effect_rows(
+    r: &mut Report,
+    s: &ModelDiagnoseSettings,
+    list: &[htfid_diagnose::ModelCandidate],
+) -> Vec<Vec<String>> {
+    let mut rows = Vec::new();
+    for c in list {
+        if c.nrmse_validation.is_finite() {
+            let own: Vec<String> = c
+                .parameters
+                .iter()
+                .filter(|(k, _)| !s.options.free.contains(*k))
+                .map(|(k, v)| {
+                    format!(
+                        "{k} = {}",
+                        Quantity::new(*v)
+                            .stderr(c.stderr.get(k).copied().unwrap_or(f64::NAN))
+                            .unit(parameter_unit(s, k).as_deref())
+                    )
+                })
+                .collect();
+            rows.push(vec![
+                format!("`{}`", c.effect),
+                c.term.clone().unwrap_or_else(|| "on the boundary".into()),
+                own.join(", "),
+                percent(c.nrmse_validation, 3),
+                percent(c.gain, 3),
+                format!("{} ({})", sig(c.likelihood_ratio, 3), sig(c.critical, 3)),
+                if c.significant { "yes" } else { "no" }.to_string(),
+            ]);
+        } else {
+            let why = r.missing(&c.note);
+            rows.push(vec![
+                format!("`{}`", c.effect),
+                c.term.clone().unwrap_or_else(|| "on the boundary".into()),
+                why.clone(),
+                why.clone(),
+                why.clone(),
+                why,
+                "no".to_string(),
+            ]);
         }
-        rows
-    };
+    }
+    rows
+}
+
+/// The tables of the effects tried: the first round, the second effect, the later rounds and
+/// the backward pass.
+fn effects_sections(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
     if !d.candidates.is_empty() {
         r.section("Effects tried");
         r.para(
@@ -701,7 +734,7 @@ fn report(
              passes the chi-square critical value and it lowers the held-out NRMSE by at least \
              the minimum gain.",
         );
-        let rows = effect_rows(&mut r, &d.candidates);
+        let rows = effect_rows(r, s, &d.candidates);
         r.table(
             &[
                 "effect",
@@ -723,7 +756,7 @@ fn report(
              the initial state together, and tested against it as it was against the refit: \
              the likelihood ratio is against the first effect alone, the gain is over it.",
         );
-        let rows = effect_rows(&mut r, &d.pairs);
+        let rows = effect_rows(r, s, &d.pairs);
         r.table(
             &[
                 "effects",
@@ -745,7 +778,7 @@ fn report(
              so every other candidate was refitted jointly with them and tested against their \
              fit: the likelihood ratio is against the chosen effects alone, the gain over them.",
         );
-        let rows = effect_rows(&mut r, round);
+        let rows = effect_rows(r, s, round);
         r.table(
             &[
                 "effects",
@@ -796,7 +829,16 @@ fn report(
             &rows,
         );
     }
+}
 
+/// The held-out errors, the parameters and the validation of the refitted model.
+fn errors_and_parameters(
+    r: &mut Report,
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    checks: &[crate::validation::OutputValidation],
+) {
+    let unit = |name: &str| parameter_unit(s, name);
     r.section("Error on held-out data");
     r.para(
         "NRMSE (normalised root-mean-square error): the RMS of measured minus simulated output \
@@ -859,5 +901,4 @@ fn report(
     if d.input_noise.is_some() {
         r.para(crate::validation::noisy_input_note(&format!("input `{}`", s.input)).trim_end());
     }
-    r.finish()
 }

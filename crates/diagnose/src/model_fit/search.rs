@@ -15,10 +15,10 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::{
-    correlation_inflation, nested_ratio, Joint, JointFit, ModelFitOptions, ModelScore, Prepared,
-    StateSamples, CANDIDATE_MAX_ITER,
-};
+use super::joint::{Joint, JointFit, CANDIDATE_MAX_ITER};
+use super::prepared::{Prepared, StateSamples};
+use super::selection::{correlation_inflation, nested_ratio};
+use super::{ModelFitOptions, ModelScore};
 use crate::boundary::Boundary;
 use crate::term::{dictionary_extension, term_dictionary, DictionaryTerm, TermEffect};
 use crate::DiagnoseError;

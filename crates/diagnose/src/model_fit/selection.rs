@@ -1,0 +1,593 @@
+//! The forward selection of a model-file diagnosis and its tests: every candidate fitted
+//! beside the refit (the first round), further effects fitted jointly beside the chosen ones
+//! (the rounds after it), and the backward pass that drops a chosen effect no longer needed.
+
+use std::collections::BTreeMap;
+
+use htfid_lang::Model;
+use rayon::prelude::*;
+
+use super::joint::{Joint, JointFit, SetFit, Trial, Tried, CANDIDATE_MAX_ITER};
+use super::prepared::{Prepared, StateSamples};
+use super::{ModelCandidate, ModelFitOptions, ModelScore};
+use crate::boundary::{Boundary, BoundaryEffect};
+use crate::term::TermEffect;
+use crate::DiagnoseError;
+
+/// The likelihood ratio of a fit (sum of squares `big_rss`, residuals `big_residuals`) against
+/// a nested fit of sum of squares `small_rss` on `n` residuals, divided by the variance
+/// inflation `kappa` of the bigger fit's correlated residuals; and `kappa`.
+pub(super) fn nested_ratio(
+    small_rss: f64,
+    big_rss: f64,
+    big_residuals: &[f64],
+    n: usize,
+) -> (f64, f64) {
+    let kappa = correlation_inflation(big_residuals).powi(2);
+    (
+        crate::select::likelihood_ratio(small_rss, big_rss, n, kappa),
+        kappa,
+    )
+}
+
+/// The fits that may explain the data as well as `tried[best]` (the best held-out score):
+/// it and every significant fit within `rival_margin` of its held-out NRMSE. Of those, the one
+/// with the lowest BIC on the fit data (`n` residuals; every fitted parameter counted) and
+/// those within `bic_margin` of it, best BIC first: the winner and its rivals.
+pub(super) fn rivals_by_bic(
+    tried: &[Tried],
+    best: usize,
+    n: usize,
+    opts: &ModelFitOptions,
+) -> (usize, Vec<usize>) {
+    let limit = tried[best].candidate.nrmse_validation * (1.0 + opts.rival_margin);
+    let bic = |i: usize| {
+        let t = &tried[i];
+        let b = crate::fit::bic(t.rss, n, t.candidate.parameters.len());
+        if b.is_finite() {
+            b
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut order: Vec<usize> = (0..tried.len())
+        .filter(|&i| {
+            i == best
+                || (tried[i].candidate.significant && tried[i].candidate.nrmse_validation <= limit)
+        })
+        .collect();
+    // Stable: equal BICs keep the held-out order.
+    order.sort_by(|&a, &b| bic(a).total_cmp(&bic(b)));
+    let w = order[0];
+    let rivals = order[1..]
+        .iter()
+        .copied()
+        .filter(|&i| bic(i) - bic(w) < opts.bic_margin)
+        .collect();
+    (w, rivals)
+}
+
+/// Inflation of least-squares standard errors for residuals correlated in time:
+/// `sqrt(1 + 2 sum_k (1 - k/L) rho_k)` with Bartlett weights up to lag `L = 4 n^(1/3)`.
+pub(super) fn correlation_inflation(r: &[f64]) -> f64 {
+    let n = r.len();
+    if n < 8 {
+        return 1.0;
+    }
+    let mean = r.iter().sum::<f64>() / n as f64;
+    let var = r.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
+    if var <= 0.0 {
+        return 1.0;
+    }
+    let lags = ((4.0 * (n as f64).cbrt()) as usize).min(n - 1);
+    let mut s = 1.0;
+    for k in 1..=lags {
+        let c: f64 = (k..n)
+            .map(|i| (r[i] - mean) * (r[i - k] - mean))
+            .sum::<f64>()
+            / var;
+        s += 2.0 * (1.0 - k as f64 / (lags + 1) as f64) * c;
+    }
+    s.max(1.0).sqrt()
+}
+
+/// Where the selection runs: the records, the refitted nominal model and its fit, and the
+/// candidates.
+pub(super) struct Selection<'a, 'r> {
+    pub(super) opts: &'a ModelFitOptions,
+    /// The estimation record, and the validation record when one is given.
+    pub(super) est: &'a Prepared<'r>,
+    pub(super) val: Option<&'a Prepared<'r>>,
+    /// End of the fitted samples of the estimation record (its held-out part runs from there
+    /// to its end when there is no validation record).
+    pub(super) cut: usize,
+    /// The refit of the free parameters (`joint` fits them), its model and its score.
+    pub(super) joint: &'a Joint<'a, 'r>,
+    pub(super) refitted_model: &'a Model,
+    pub(super) base: &'a JointFit,
+    pub(super) refitted: &'a ModelScore,
+    /// The model's output names.
+    pub(super) outputs: &'a [String],
+    /// Every candidate effect.
+    pub(super) trials: &'a [Trial],
+    /// The refitted model's states along the record, where the terms' parameters are scaled.
+    pub(super) samples: &'a StateSamples,
+}
+
+impl Selection<'_, '_> {
+    /// Residuals of a fit on the estimation record.
+    fn n(&self) -> usize {
+        self.est.residual_len()
+    }
+
+    /// Score of a model with fitted state `x_est` on the estimation record, and the
+    /// simulation shown (the held-out one when there is a validation record).
+    pub(super) fn score(
+        &self,
+        m: &Model,
+        x_est: &[f64],
+        b: &Boundary,
+    ) -> Result<(ModelScore, Vec<Vec<f64>>), DiagnoseError> {
+        score_on(self.est, self.val, self.cut, m, x_est, b)
+    }
+
+    /// The first round: every candidate fitted jointly with the free parameters from the
+    /// refit and tested against it (a likelihood ratio corrected for the residuals'
+    /// correlation, and a held-out gain), best held-out score first.
+    pub(super) fn first_round(&self) -> Vec<Tried> {
+        let (est, opts, joint, base) = (self.est, self.opts, self.joint, self.base);
+        let names = joint.names;
+        let k = joint.index.len();
+        let outputs = self.outputs;
+        let ideal = Boundary::default();
+        let n = self.n();
+        // The candidates' fits are independent: in parallel.
+        let fits: Vec<_> = self
+            .trials
+            .par_iter()
+            .map(|trial| match trial {
+                Trial::Boundary(effect) => {
+                    let effect = *effect;
+                    let start = joint.effect_start(effect, base, outputs);
+                    // From the refit: its parameters and its state.
+                    let joint_b = Joint {
+                        est,
+                        model: self.refitted_model,
+                        names,
+                        index: joint.index,
+                        scales: joint.scales.clone(),
+                        max_iter: CANDIDATE_MAX_ITER,
+                    };
+                    joint_b.fit(&[effect], &start, &base.state).and_then(|f| {
+                        let m = joint_b.model_at(&f.params[..k])?;
+                        let b = Boundary::with(effect, &f.params[k..], outputs.len());
+                        let (score, sim) = self.score(&m, &f.state, &b)?;
+                        Ok((f, score, sim))
+                    })
+                }
+                Trial::Term(term) => {
+                    let extended = self
+                        .refitted_model
+                        .with_extension(&term.extension)
+                        .map_err(|e| DiagnoseError::NominalFit {
+                            reason: e.to_string(),
+                        })?;
+                    let added = term.parameter_names();
+                    let all: Vec<&str> = names
+                        .iter()
+                        .copied()
+                        .chain(added.iter().map(String::as_str))
+                        .collect();
+                    let index_t: Vec<usize> = all
+                        .iter()
+                        .filter_map(|n| extended.parameter_index(n))
+                        .collect();
+                    let mut scales = joint.scales.clone();
+                    scales.extend(self.samples.term_scales(&extended, &est.signal, term));
+                    let mut extended = extended;
+                    if term.multistart {
+                        extended =
+                            est.best_shift(&extended, &added[0], scales[k], &base.state, true);
+                    }
+                    let joint_t = Joint {
+                        est,
+                        model: &extended,
+                        names: &all,
+                        index: &index_t,
+                        scales,
+                        max_iter: CANDIDATE_MAX_ITER,
+                    };
+                    joint_t.fit(&[], &[], &base.state).and_then(|f| {
+                        let m = joint_t.model_at(&f.params)?;
+                        let (score, sim) = self.score(&m, &f.state, &ideal)?;
+                        Ok((f, score, sim))
+                    })
+                }
+            })
+            .collect();
+        let mut candidates: Vec<Tried> = Vec::new();
+        for (ti, (trial, fitted)) in self.trials.iter().zip(fits).enumerate() {
+            let names_e = trial.parameter_names(outputs);
+            let (f, score, sim) = match fitted {
+                Ok(v) => v,
+                Err(e) => {
+                    candidates.push(Tried {
+                        candidate: ModelCandidate::failed(trial, format!("fit failed: {e}")),
+                        simulated: None,
+                        residuals: Vec::new(),
+                        state: Vec::new(),
+                        rss: f64::NAN,
+                        set: vec![ti],
+                    });
+                    continue;
+                }
+            };
+            let (lr, kappa) = nested_ratio(base.rss, f.rss, &f.residuals, n);
+            let critical = crate::select::chi2_quantile(names_e.len(), opts.alpha);
+            let gain_e = 1.0 - score.validation() / self.refitted.validation();
+            // Nothing is left to explain once the refit is within the resolution.
+            let significant = lr >= critical
+                && gain_e >= opts.min_gain
+                && self.refitted.validation() > opts.resolution;
+            let infl = kappa.sqrt();
+            let mut parameters = BTreeMap::new();
+            let mut stderr = BTreeMap::new();
+            for (j, name) in names.iter().enumerate() {
+                parameters.insert((*name).to_string(), f.params[j]);
+                stderr.insert((*name).to_string(), f.stderr[j] * infl);
+            }
+            for (j, name) in names_e.iter().enumerate() {
+                parameters.insert(name.clone(), f.params[k + j]);
+                stderr.insert(name.clone(), f.stderr[k + j] * infl);
+            }
+            let mut note = format!(
+                "likelihood ratio {lr:.1} (critical {critical:.1}), held-out gain {:.1} % over \
+                 the refit (at least {:.1} %)",
+                100.0 * gain_e,
+                100.0 * opts.min_gain
+            );
+            if f.stop == format!("{:?}", htfid_estimate::LmStop::MaxIterations) {
+                note.push_str(&format!(
+                    "; its fit stopped at the limit of {CANDIDATE_MAX_ITER} iterations, not \
+                     converged: its score is an upper bound"
+                ));
+            }
+            candidates.push(Tried {
+                candidate: ModelCandidate {
+                    effect: trial.name(),
+                    term: trial.describe(),
+                    parameters,
+                    stderr,
+                    nrmse_validation: score.validation(),
+                    gain: gain_e,
+                    likelihood_ratio: lr,
+                    critical,
+                    significant,
+                    iterations: f.iterations,
+                    note,
+                },
+                simulated: Some(sim),
+                residuals: f.residuals,
+                state: f.state,
+                rss: f.rss,
+                set: vec![ti],
+            });
+        }
+        candidates.sort_by(|a, b| {
+            (a.candidate.nrmse_validation).total_cmp(&b.candidate.nrmse_validation)
+        });
+        candidates
+    }
+
+    /// The joint fit of the trials `set`: all their parameters, the free ones and the start
+    /// together, those in `known` (fitted before) from their values, from the start `x0`.
+    fn fit_set(
+        &self,
+        set: &[usize],
+        known: &BTreeMap<String, f64>,
+        x0: &[f64],
+    ) -> Result<SetFit, DiagnoseError> {
+        let (est, joint, base, outputs) = (self.est, self.joint, self.base, self.outputs);
+        let to_err = |e: htfid_lang::ModelError| DiagnoseError::NominalFit {
+            reason: e.to_string(),
+        };
+        let chosen: Vec<&Trial> = set.iter().map(|&i| &self.trials[i]).collect();
+        let terms: Vec<&TermEffect> = chosen
+            .iter()
+            .filter_map(|t| match t {
+                Trial::Term(term) => Some(term),
+                Trial::Boundary(_) => None,
+            })
+            .collect();
+        let boundary: Vec<BoundaryEffect> = chosen
+            .iter()
+            .filter_map(|t| match t {
+                Trial::Boundary(e) => Some(*e),
+                Trial::Term(_) => None,
+            })
+            .collect();
+        let mut m = self.refitted_model.clone();
+        for term in &terms {
+            m = m.with_extension(&term.extension).map_err(to_err)?;
+        }
+        // The free parameters and the terms' parameters, those fitted before at their values.
+        let mut all: Vec<String> = joint.names.iter().map(|n| (*n).to_string()).collect();
+        for term in &terms {
+            all.extend(term.parameter_names());
+        }
+        let values: Vec<(&str, f64)> = all
+            .iter()
+            .filter_map(|n| known.get(n).map(|v| (n.as_str(), *v)))
+            .collect();
+        m = m.with_parameters(&values).map_err(to_err)?;
+        let mut scales = joint.scales.clone();
+        for term in &terms {
+            scales.extend(self.samples.term_scales(&m, &est.signal, term));
+        }
+        // A term not fitted before starts its first parameter from the best of a grid across
+        // its scale, zero included: beside the chosen effects the free parameters have
+        // compensated for them, and from zero its fit can stay in that basin (drag beside a
+        // sensor lag, taken up by the linear dampers).
+        for term in &terms {
+            let name = &term.parameter_names()[0];
+            if !known.contains_key(name) {
+                if let Some(j) = all.iter().position(|a| a == name) {
+                    m = est.best_shift(&m, name, scales[j], x0, term.multistart);
+                }
+            }
+        }
+        let refs: Vec<&str> = all.iter().map(String::as_str).collect();
+        let index_x: Vec<usize> = refs
+            .iter()
+            .map(|n| {
+                m.parameter_index(n)
+                    .ok_or_else(|| DiagnoseError::NominalFit {
+                        reason: format!("no parameter {n} in the extended model"),
+                    })
+            })
+            .collect::<Result<_, _>>()?;
+        let joint_x = Joint {
+            est,
+            model: &m,
+            names: &refs,
+            index: &index_x,
+            scales,
+            max_iter: CANDIDATE_MAX_ITER,
+        };
+        // Boundary parameters fitted before from their values, a new effect's from its start.
+        let mut start: Vec<f64> = Vec::new();
+        for &e in &boundary {
+            let pn = e.parameter_names(outputs);
+            match pn.iter().map(|n| known.get(n).copied()).collect() {
+                Some(v) => start.extend::<Vec<f64>>(v),
+                None => start.extend(joint.effect_start(e, base, outputs)),
+            }
+        }
+        let f = joint_x.fit(&boundary, &start, x0)?;
+        let kx = index_x.len();
+        let fitted = joint_x.model_at(&f.params[..kx])?;
+        let bd = Boundary::with_all(&boundary, &f.params[kx..], outputs.len());
+        let (score, sim) = self.score(&fitted, &f.state, &bd)?;
+        for e in &boundary {
+            all.extend(e.parameter_names(outputs));
+        }
+        Ok((f, score, sim, all))
+    }
+
+    /// The fit of `set` (its last trial added beside the others) as a tried candidate, tested
+    /// against the fit without that trial (`rss`, held-out `score_without`).
+    fn judge(
+        &self,
+        set: &[usize],
+        fitted: Result<SetFit, DiagnoseError>,
+        rss: f64,
+        score_without: f64,
+    ) -> Tried {
+        let (trials, opts) = (self.trials, self.opts);
+        let (&added, beside) = set.split_last().expect("a set holds its added trial");
+        let t2 = &trials[added];
+        let name = set
+            .iter()
+            .map(|&i| trials[i].name())
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let without = beside
+            .iter()
+            .map(|&i| trials[i].name())
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let (f, score, sim, all) = match fitted {
+            Ok(v) => v,
+            Err(e) => {
+                let mut c = ModelCandidate::failed(t2, format!("fit failed: {e}"));
+                c.effect = name;
+                return Tried {
+                    candidate: c,
+                    simulated: None,
+                    residuals: Vec::new(),
+                    state: Vec::new(),
+                    rss: f64::NAN,
+                    set: set.to_vec(),
+                };
+            }
+        };
+        let (lr, kappa) = nested_ratio(rss, f.rss, &f.residuals, self.n());
+        let critical =
+            crate::select::chi2_quantile(t2.parameter_names(self.outputs).len(), opts.alpha);
+        let gain_e = 1.0 - score.validation() / score_without;
+        let significant = lr >= critical && gain_e >= opts.min_gain;
+        let infl = kappa.sqrt();
+        let parameters = all.iter().cloned().zip(f.params.iter().copied()).collect();
+        let stderr = all
+            .iter()
+            .cloned()
+            .zip(f.stderr.iter().map(|s| s * infl))
+            .collect();
+        Tried {
+            candidate: ModelCandidate {
+                effect: name,
+                term: t2.describe(),
+                parameters,
+                stderr,
+                nrmse_validation: score.validation(),
+                gain: gain_e,
+                likelihood_ratio: lr,
+                critical,
+                significant,
+                iterations: f.iterations,
+                note: format!(
+                    "beside {without}: likelihood ratio {lr:.1} (critical {critical:.1}), \
+                     held-out gain {:.1} % over {without} alone (at least {:.1} %)",
+                    100.0 * gain_e,
+                    100.0 * opts.min_gain
+                ),
+            },
+            simulated: Some(sim),
+            residuals: f.residuals,
+            state: f.state,
+            rss: f.rss,
+            set: set.to_vec(),
+        }
+    }
+
+    /// One round: every trial outside the effects of `current` fitted beside them (all their
+    /// parameters, the free ones and the start together, the chosen ones' from their fit),
+    /// each tested against `current`'s fit.
+    pub(super) fn round(&self, current: &Tried) -> Vec<Tried> {
+        let outside: Vec<usize> = (0..self.trials.len())
+            .filter(|i| !current.set.contains(i))
+            .collect();
+        let fits: Vec<_> = outside
+            .par_iter()
+            .map(|&i| {
+                let mut set = current.set.clone();
+                set.push(i);
+                let f = self.fit_set(&set, &current.candidate.parameters, &current.state);
+                (set, f)
+            })
+            .collect();
+        fits.into_iter()
+            .map(|(set, f)| self.judge(&set, f, current.rss, current.candidate.nrmse_validation))
+            .collect()
+    }
+
+    /// The backward pass over the chosen effects of `current` (two or more): each tested
+    /// against the fit without it; the weakest that no longer passes is dropped, and the pass
+    /// repeats. A set fitted before (in `earlier`, the same effects in any order) is taken as
+    /// it was fitted. Returns every test made.
+    pub(super) fn backward(
+        &self,
+        current: &mut Option<Tried>,
+        earlier: &[&Tried],
+    ) -> Vec<ModelCandidate> {
+        let (trials, opts) = (self.trials, self.opts);
+        let mut backward: Vec<ModelCandidate> = Vec::new();
+        while let Some(cur) = current.as_ref().filter(|c| c.set.len() >= 2) {
+            let reduced: Vec<(usize, Vec<usize>)> = (0..cur.set.len())
+                .map(|j| {
+                    let mut r = cur.set.clone();
+                    let e = r.remove(j);
+                    (e, r)
+                })
+                .collect();
+            let fits: Vec<Result<Tried, DiagnoseError>> = reduced
+                .par_iter()
+                .map(|(_, r)| {
+                    let same = |c: &&&Tried| {
+                        let (mut a, mut b) = (c.set.clone(), r.clone());
+                        a.sort_unstable();
+                        b.sort_unstable();
+                        a == b && c.rss.is_finite()
+                    };
+                    if let Some(earlier) = earlier.iter().find(same) {
+                        return Ok((*earlier).clone());
+                    }
+                    // Only its fit is used: tested against nothing.
+                    let f = self.fit_set(r, &cur.candidate.parameters, &cur.state)?;
+                    let score = f.1.validation();
+                    Ok(self.judge(r, Ok(f), f64::NAN, score))
+                })
+                .collect();
+            // The test of each effect: the chosen set against the set without it.
+            let mut weakest: Option<(f64, usize, Tried)> = None;
+            for ((e, _), fit) in reduced.iter().zip(fits) {
+                let Ok(without) = fit else { continue };
+                let critical = crate::select::chi2_quantile(
+                    trials[*e].parameter_names(self.outputs).len(),
+                    opts.alpha,
+                );
+                let (lr, _) = nested_ratio(without.rss, cur.rss, &cur.residuals, self.n());
+                let gain_e =
+                    1.0 - cur.candidate.nrmse_validation / without.candidate.nrmse_validation;
+                let passes = lr >= critical && gain_e >= opts.min_gain;
+                if !passes && weakest.as_ref().map_or(true, |w| lr < w.0) {
+                    weakest = Some((lr, backward.len(), without.clone()));
+                }
+                backward.push(ModelCandidate {
+                    effect: trials[*e].name(),
+                    term: trials[*e].describe(),
+                    parameters: cur.candidate.parameters.clone(),
+                    stderr: cur.candidate.stderr.clone(),
+                    nrmse_validation: without.candidate.nrmse_validation,
+                    gain: gain_e,
+                    likelihood_ratio: lr,
+                    critical,
+                    significant: passes,
+                    iterations: without.candidate.iterations,
+                    note: format!(
+                        "beside {}: without it the held-out NRMSE is {:.3e}; likelihood ratio \
+                         {lr:.1} (critical {critical:.1}), held-out gain {:.1} % with it (at \
+                         least {:.1} %)",
+                        cur.candidate.effect,
+                        without.candidate.nrmse_validation,
+                        100.0 * gain_e,
+                        100.0 * opts.min_gain
+                    ),
+                });
+            }
+            match weakest {
+                Some((_, at, without)) => {
+                    backward[at].note.push_str("; no longer needed: dropped");
+                    *current = Some(without);
+                }
+                None => break,
+            }
+        }
+        backward
+    }
+}
+
+/// Score of a model with fitted state `x_est` on the estimation record `est` (fitted up to
+/// `cut`, held out after it) or, with a validation record `val`, held out there (its initial
+/// state fitted with the parameters fixed); and the simulation shown.
+pub(super) fn score_on(
+    est: &Prepared<'_>,
+    val: Option<&Prepared<'_>>,
+    cut: usize,
+    m: &Model,
+    x_est: &[f64],
+    b: &Boundary,
+) -> Result<(ModelScore, Vec<Vec<f64>>), DiagnoseError> {
+    let sim = est.simulate(m, x_est, b)?;
+    let (_, nrmse_fit) = est.errors(&sim, est.rows.clone());
+    let (rmse_validation, nrmse_validation, shown) = match val {
+        None => {
+            let (r, q) = est.errors(&sim, cut..est.rec.len());
+            (r, q, sim)
+        }
+        Some(v) => {
+            let x = v.fit_state(m, &v.guess, b)?;
+            let vsim = v.simulate(m, &x, b)?;
+            let (r, q) = v.errors(&vsim, v.rows.clone());
+            (r, q, vsim)
+        }
+    };
+    Ok((
+        ModelScore {
+            nrmse_fit,
+            nrmse_validation,
+            rmse_validation,
+        },
+        shown,
+    ))
+}
