@@ -62,6 +62,10 @@ struct RawOptions {
     noise_band: Option<Spanned<Vec<f64>>>,
     resolution: Option<Spanned<f64>>,
     second_effect_floor_ratio: Option<Spanned<f64>>,
+    rtol: Option<Spanned<f64>>,
+    fit_tolerance: Option<Spanned<f64>>,
+    max_iterations: Option<Spanned<f64>>,
+    candidate_max_iterations: Option<Spanned<f64>>,
     terms: Option<Vec<Spanned<RawTerm>>>,
 }
 
@@ -257,6 +261,32 @@ impl ModelDiagnoseSettings {
                 src.number(v, "diagnose.second_effect_floor_ratio", ">= 1", |x| {
                     x >= 1.0
                 })?;
+        }
+        if let Some(v) = o.and_then(|o| o.rtol.as_ref()) {
+            options.rtol = src.number(v, "diagnose.rtol", "in [1e-14, 1e-3]", |x| {
+                (1e-14..=1e-3).contains(&x)
+            })?;
+        }
+        if let Some(v) = o.and_then(|o| o.fit_tolerance.as_ref()) {
+            options.fit_tolerance = src.positive(v, "diagnose.fit_tolerance")?;
+        }
+        for (raw, key, slot) in [
+            (
+                o.and_then(|o| o.max_iterations.as_ref()),
+                "diagnose.max_iterations",
+                &mut options.max_iterations,
+            ),
+            (
+                o.and_then(|o| o.candidate_max_iterations.as_ref()),
+                "diagnose.candidate_max_iterations",
+                &mut options.candidate_max_iterations,
+            ),
+        ] {
+            if let Some(v) = raw {
+                *slot = src.number(v, key, "a whole number from 1 to 100000", |x| {
+                    x.fract() == 0.0 && (1.0..=1e5).contains(&x)
+                })? as usize;
+            }
         }
         if let Some(v) = o.and_then(|o| o.max_effects.as_ref()) {
             options.max_effects = src.number(

@@ -200,6 +200,19 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
                 "{config}: [data] file (set data.delimiter = {} in the config)",
                 Delimiter::for_char(*found).map_or("\"auto\"", Delimiter::describe)
             ),
+            DataError::MissingColumn { column, .. } => {
+                // The key that named the missing column.
+                let key = if Some(column.as_str()) == c.time {
+                    "data.time"
+                } else if column == c.input {
+                    "data.input"
+                } else if column == c.output {
+                    "data.output (or data.outputs)"
+                } else {
+                    "data"
+                };
+                format!("{config}: {key}: the column it names is not in the file")
+            }
             DataError::NoSuchColumn { .. }
             | DataError::NoSuchMatrix { .. }
             | DataError::WhichMatrix { .. }

@@ -640,7 +640,12 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
         r.para(&format!(
             "Output `{output}` (Siddiqi's estimator, smoothness weight α = {}): per harmonic the \
              largest magnitude of `G_n` over the band in {unit}, the median over the band of its \
-             magnitude over its standard error, and at how many frequencies it is significant.",
+             magnitude over its standard error, at how many frequencies it is significant, and \
+             the largest smoothing bias over the standard error. The standard errors are the \
+             noise's; the smoothing also biases the estimate where `G_n` curves (near a \
+             resonance), and the estimator estimates that bias (it recovers most, not all, of \
+             it): where the ratio nears or passes 1 the confidence region understates the error \
+             there, and a smaller α trades bias for noise.",
             sig(f(&e["alpha"]), 3)
         ));
         let by_n = &e["harmonics"];
@@ -653,6 +658,9 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
                     sig(f(&h["max_abs_g"]), 3),
                     sig(f(&h["median_abs_g_over_stderr"]), 2),
                     format!("{} of {}", h["significant_points"], h["points"]),
+                    h["max_bias_over_stderr"]
+                        .as_f64()
+                        .map_or("–".to_string(), |b| sig(b, 2)),
                 ]
             })
             .collect();
@@ -662,6 +670,7 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
                 "largest magnitude of G_n",
                 "median magnitude / standard error",
                 "significant at",
+                "largest smoothing bias / standard error",
             ],
             &rows,
         );

@@ -116,6 +116,28 @@ fn limit_cycle(t: &mut Table, summary: &Value) {
         ));
     }
     t.row("limit cycle", text);
+    let silent: Vec<&str> = lc["guards_not_firing"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(Value::as_str)
+        .collect();
+    if !silent.is_empty() {
+        t.row(
+            "note",
+            format!(
+                "guard{} {} never fire{} on the orbit (a threshold beyond the motion, or a \
+                 direction the wrong way round?)",
+                if silent.len() > 1 { "s" } else { "" },
+                silent
+                    .iter()
+                    .map(|g| format!("`{g}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                if silent.len() > 1 { "" } else { "s" }
+            ),
+        );
+    }
 }
 
 fn simulation(t: &mut Table, summary: &Value) {

@@ -175,7 +175,7 @@ pub fn resid_figure(
         let xl: Vec<f64> = r.cross_lags.iter().map(|&k| k as f64).collect();
         let mut c = Panel::new(
             format!(
-                "{}: cross-correlation of residual and {input} ({} of {} lags 0..{} outside, Ljung-Box p {})",
+                "{}: cross-correlation of residual and {input} ({} of {} lags 0..{} outside, portmanteau p {})",
                 v.output,
                 r.independence.outside,
                 r.independence.tested,
@@ -242,12 +242,15 @@ pub fn report(heading: &str, vs: &[&OutputValidation], residual_of: &str, input:
          better than the measured mean). The residual analysis is of the {residual_of}: the \
          autocorrelation of its residual at lags 1..{DEFAULT_LAGS} (whiteness) and the \
          cross-correlation with the {input} at lags 0..{DEFAULT_LAGS} (independence), against \
-         99 % bounds `+-2.58/sqrt(N)`, with a Ljung-Box test at the 1 % level. A model that \
-         has captured the dynamics leaves about 1 % of the lags outside the bounds.\n"
+         99 % bounds `+-2.58/sqrt(N)`, each with a portmanteau test at the 1 % level: \
+         Ljung-Box's for whiteness, and for independence the lags weighed by their covariance \
+         (a band-limited input makes neighbouring lags move together, which Ljung-Box's sum \
+         would read as dependence). A model that has captured the dynamics leaves about 1 % \
+         of the lags outside the bounds.\n"
     );
     let _ = writeln!(
         m,
-        "| output | fit | whiteness: lags outside | Ljung-Box p | verdict | independence: lags outside | Ljung-Box p | verdict |"
+        "| output | fit | whiteness: lags outside | Ljung-Box p | verdict | independence: lags outside | portmanteau p | verdict |"
     );
     let _ = writeln!(m, "|---|---|---|---|---|---|---|---|");
     for v in vs {

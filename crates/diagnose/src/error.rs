@@ -115,6 +115,18 @@ pub enum DiagnoseError {
         /// What went wrong.
         reason: String,
     },
+    /// The limit cycle a model-file diagnosis starts the record on cannot be found at the
+    /// diagnosis's integrator tolerance.
+    #[error(
+        "the model's limit cycle, where the record starts, was not found at the diagnosis's \
+         integrator tolerance rtol = {rtol:e}: {reason}"
+    )]
+    StartState {
+        /// The integrator tolerance.
+        rtol: f64,
+        /// What went wrong.
+        reason: String,
+    },
     /// A model cannot be simulated on the record.
     #[error("simulation failed at t = {time} s: {reason}")]
     Simulation {

@@ -2,7 +2,6 @@
 //! baseline, the free parameters are refitted by output error, and every parameter that moved
 //! significantly is a finding (`parameter_error`).
 
-use htfid_estimate::LmOptions;
 use htfid_lang::Model;
 use serde::Serialize;
 
@@ -90,6 +89,19 @@ pub struct ModelFitOptions {
     /// stays above this many times the noise floor, `>= 1`: below it a second effect could
     /// not gain `min_gain`. Default 1.2.
     pub second_effect_floor_ratio: f64,
+    /// A fit stops at a step that improves its likelihood ratio by less than this, `> 0`
+    /// (as the built-in diagnosis's [`fit_tolerance`](crate::DiagnoseOptions::fit_tolerance),
+    /// default 0.01): a step worth less cannot change a test, and below it the simulations'
+    /// own error (`rtol`) moves the cost as much as the parameters do.
+    pub fit_tolerance: f64,
+    /// Most iterations of the refit of the free parameters, `>= 1`. Default 200.
+    pub max_iterations: usize,
+    /// Most iterations of each candidate effect's fit, `>= 1`. Candidates start from the refit,
+    /// and those that converge do so in 2 to 50 iterations on the shipped and the test
+    /// records; one that has not converged by then creeps along a flat valley (a lag trading
+    /// against the refitted parameters), each iteration a handful of simulations. It stops
+    /// there, its score so far reported, and its note says so. Default 80.
+    pub candidate_max_iterations: usize,
 }
 
 impl Default for ModelFitOptions {
@@ -115,6 +127,9 @@ impl Default for ModelFitOptions {
             input_noise_flatness: crate::noise::WHITE_SPREAD,
             noise_band: (0.6, 0.95),
             second_effect_floor_ratio: SECOND_EFFECT_FLOOR_RATIO,
+            fit_tolerance: 0.01,
+            max_iterations: 200,
+            candidate_max_iterations: 80,
         }
     }
 }
@@ -369,7 +384,8 @@ pub fn diagnose_model(
             .iter()
             .map(|&i| model.values()[i].abs().max(1e-3))
             .collect(),
-        max_iter: LmOptions::default().max_iter,
+        max_iter: opts.max_iterations,
+        ftol: opts.fit_tolerance / est.residual_len().max(1) as f64,
     };
     let refit = refit(&joint, val.as_ref(), cut, opts)?;
     let ideal = Boundary::default();
@@ -557,6 +573,25 @@ fn check_options(opts: &ModelFitOptions) -> Result<(), DiagnoseError> {
             expected: ">= 1 and finite",
             value: opts.second_effect_floor_ratio,
         });
+    }
+    if !(opts.fit_tolerance.is_finite() && opts.fit_tolerance > 0.0) {
+        return Err(DiagnoseError::InvalidOption {
+            name: "fit_tolerance",
+            expected: "> 0 and finite",
+            value: opts.fit_tolerance,
+        });
+    }
+    for (name, v) in [
+        ("max_iterations", opts.max_iterations),
+        ("candidate_max_iterations", opts.candidate_max_iterations),
+    ] {
+        if v == 0 {
+            return Err(DiagnoseError::InvalidOption {
+                name,
+                expected: ">= 1",
+                value: 0.0,
+            });
+        }
     }
     Ok(())
 }

@@ -188,6 +188,25 @@ pub enum Error {
     /// Generalised cross-validation found no usable weight.
     #[error("generalised cross-validation failed at every weight on the grid 1e-8..1e4")]
     GcvFailed,
+    /// Generalised cross-validation's score kept falling to the smallest weight it tries: the
+    /// data do not choose a smoothing, and the estimate at that weight interpolates them (its
+    /// residual, and so its standard errors, near zero while its real error is not). It happens
+    /// where a single record carries more harmonics per frequency bin than the smoothing can
+    /// separate.
+    #[error(
+        "generalised cross-validation chose the smallest weight it tries ({alpha:e}), where the \
+         estimate interpolates the data ({dof:.1} residual degrees of freedom of {data:.0} \
+         data) and its standard errors mean nothing; give the smoothness weight a value \
+         (for example 1), or estimate from more records or fewer harmonics"
+    )]
+    GcvAtSmallestWeight {
+        /// The weight (dimensionless).
+        alpha: f64,
+        /// Residual degrees of freedom at it.
+        dof: f64,
+        /// Complex data.
+        data: f64,
+    },
     /// An option is out of range.
     #[error("option {name} = {value} is invalid: {reason}")]
     InvalidOption {

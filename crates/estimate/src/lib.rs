@@ -120,7 +120,7 @@ pub use lm::{
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
 pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};
 pub use record::{deviation_record, dft};
-pub use siddiqi::{siddiqi, SiddiqiDesign};
+pub use siddiqi::{outer_harmonics, siddiqi, OuterHarmonic, SiddiqiDesign};
 pub use size::estimator_bytes;
 pub use smooth::{golden_min, Alpha};
 pub use uncertainty::{

@@ -51,6 +51,72 @@ pub fn siddiqi(
     assemble(&prep, smooth::estimate(&sys, alpha, 0.0)?)
 }
 
+/// A harmonic outside an estimate's set, estimated beside it to see whether it carries the
+/// response ([`outer_harmonics`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OuterHarmonic {
+    /// The harmonic `n`.
+    pub n: i32,
+    /// Share of the band's bins where `|G_n|` exceeds twice its standard error (noise alone:
+    /// about 2 %).
+    pub significant_share: f64,
+    /// Its largest magnitude over the band.
+    pub max_abs: f64,
+}
+
+/// Estimates `record` again with `extra` more harmonics on each side of `harmonics` (those
+/// `|n|` keeps within the record's Nyquist frequency over `band`) and reports each added one:
+/// a harmonic the response carries but the estimate leaves out is absorbed by the harmonics
+/// estimated, as a bias their standard errors do not show. The same weight choice `alpha` as
+/// the estimate's.
+///
+/// # Errors
+/// As [`siddiqi`] for the widened set.
+pub fn outer_harmonics(
+    record: &TimeSeries,
+    period: f64,
+    harmonics: &[i32],
+    band: (f64, f64),
+    alpha: Alpha,
+    extra: i32,
+) -> Result<Vec<OuterHarmonic>> {
+    let (Some(&lo), Some(&hi)) = (harmonics.iter().min(), harmonics.iter().max()) else {
+        return Ok(Vec::new());
+    };
+    let nyquist = std::f64::consts::PI / record.dt();
+    let wp = std::f64::consts::TAU / period;
+    let resolved =
+        |n: i32| band.1 - f64::from(n) * wp <= nyquist && band.0 - f64::from(n) * wp >= -nyquist;
+    let added: Vec<i32> = (lo - extra..=hi + extra)
+        .filter(|n| !harmonics.contains(n) && resolved(*n))
+        .collect();
+    if added.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut wide: Vec<i32> = harmonics
+        .iter()
+        .copied()
+        .chain(added.iter().copied())
+        .collect();
+    wide.sort_unstable();
+    let e = siddiqi(record, period, &wide, band, alpha)?;
+    Ok(added
+        .iter()
+        .map(|&n| {
+            let rows: Vec<_> = e.rows().filter(|r| r.n == n).collect();
+            let significant = rows
+                .iter()
+                .filter(|r| r.stderr > 0.0 && r.value.norm() > 2.0 * r.stderr)
+                .count();
+            OuterHarmonic {
+                n,
+                significant_share: significant as f64 / rows.len().max(1) as f64,
+                max_abs: rows.iter().map(|r| r.value.norm()).fold(0.0, f64::max),
+            }
+        })
+        .collect())
+}
+
 /// The estimate of `prep`'s harmonics at its band's bins, with its bias, weight and degrees of
 /// freedom.
 fn assemble(prep: &Prepared, res: SmoothResult) -> Result<HtfEstimate> {

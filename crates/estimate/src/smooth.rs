@@ -24,7 +24,9 @@ pub enum Alpha {
     /// the best grid point, to 0.01 decade. Weights that leave fewer than `0.001 N` residual
     /// degrees of freedom are skipped: there the score is a ratio of two vanishing numbers that
     /// the (then ill-conditioned) normal matrix cannot resolve. On noise-free data the score
-    /// vanishes everywhere and the choice is arbitrary.
+    /// vanishes everywhere and the choice is arbitrary. A score still falling at the grid's
+    /// smallest weight is an error ([`Error::GcvAtSmallestWeight`]): the data then choose no
+    /// smoothing, and the estimate there interpolates them.
     Gcv,
 }
 
@@ -329,6 +331,12 @@ impl Factored {
 /// normal matrix (condition ~ 1 / (alpha (pi / M)^4)) is too ill-conditioned to resolve it.
 const GCV_MIN_DOF_FRACTION: f64 = 1e-3;
 
+/// A GCV choice at the grid's smallest weight that leaves fewer residual degrees of freedom
+/// than this fraction of the data is refused: the estimate interpolates the data there (a
+/// single record with five harmonics per bin leaves almost none), while records that determine
+/// every bin alone leave most of them.
+const GCV_INTERPOLATES_FRACTION: f64 = 0.05;
+
 fn gcv_score(fit: &SmoothFit, nd: f64) -> f64 {
     let denom = 1.0 - fit.trace / nd;
     if denom < GCV_MIN_DOF_FRACTION {
@@ -365,6 +373,20 @@ pub(crate) fn gcv_alpha(sys: &BinSystem, scale: f64, ridge: f64) -> Result<f64> 
         });
     if best == usize::MAX {
         return Err(Error::GcvFailed);
+    }
+    if best == 0 {
+        // Where the records determine every bin alone (more records than harmonics), little
+        // smoothing may well be best; where the weight is all that separates the harmonics,
+        // the smallest one interpolates the data.
+        let dof =
+            fit(sys, 10f64.powf(grid[0]) * scale, ridge, false).map_or(f64::NAN, |f| nd - f.trace);
+        if dof.is_nan() || dof < GCV_INTERPOLATES_FRACTION * nd {
+            return Err(Error::GcvAtSmallestWeight {
+                alpha: 10f64.powf(grid[0]),
+                dof,
+                data: nd,
+            });
+        }
     }
     let (lo, hi) = (
         grid[best.saturating_sub(1)],

@@ -11,7 +11,9 @@ use crate::{OrbitError, Variational};
 pub struct ShootingOptions {
     /// Periods simulated before Newton shooting starts (the paper uses 30).
     pub settle_periods: usize,
-    /// Newton stops when `|P(x) - x|_inf <= newton_tol * max(1, |x|_inf)`.
+    /// Newton stops when `|P(x) - x|_inf <= newton_tol * max(1, |x|_inf)`, or when a step no
+    /// longer lowers that residual and it lies within `1e3 newton_tol` or `10 rtol` (the
+    /// integrator's tolerance) of `max(1, |x|_inf)`: the period map's own error.
     pub newton_tol: f64,
     /// At most this many Newton iterations.
     pub max_newton: usize,
@@ -118,6 +120,14 @@ pub fn period_map<S: HybridSystem>(
         stats: traj.stats,
     })
 }
+
+/// A Newton step that no longer lowers the periodicity residual ends the search when the
+/// residual is within this many times `newton_tol` (round-off of the period map) ...
+const STALL_TOL_FACTOR: f64 = 1e3;
+/// ... or within this many times the integrator's `rtol` (where the adaptive step sizes change
+/// with the start, the period map is only as smooth as the integrator's error: a residual of
+/// 1.9e-9 at rtol 1e-8 on a stiff Hertz contact, where `newton_tol` asks for 1e-13).
+const STALL_RTOL_FACTOR: f64 = 10.0;
 
 /// Relative step of the central differences of the period map: large enough that the
 /// integration error (about `rtol` relative) divided by the step stays near `1e-6`, small
@@ -246,12 +256,15 @@ pub fn find_limit_cycle<S: HybridSystem>(
         iterations += 1;
         let previous = residual;
         map = period_map(sys, mode, t0, &x, period, opts)?;
-        // Newton on a piecewise-smooth map stalls at round-off level; accept once the
-        // correction no longer reduces the residual and it is already tiny.
+        // Newton on a piecewise-smooth map stalls at the period map's own error: round-off,
+        // or the integrator's tolerance where the step sizes it chooses change with the start
+        // (a stiff contact law). Accept once the correction no longer reduces the residual and
+        // it is within that error.
         let new_res = (0..n)
             .map(|i| (map.state[i] - x[i]).abs())
             .fold(0.0, f64::max);
-        if new_res >= previous && new_res <= 1e3 * shooting.newton_tol * scale {
+        let stall = (STALL_TOL_FACTOR * shooting.newton_tol).max(STALL_RTOL_FACTOR * opts.rtol);
+        if new_res >= previous && new_res <= stall * scale {
             residual = new_res;
             break;
         }

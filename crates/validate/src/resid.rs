@@ -43,7 +43,81 @@ pub struct CorrelationTest {
     pub passed: bool,
 }
 
+/// Eigenvalues of the cross-correlation's covariance below this share of the largest are left
+/// out of the independence test (with their degrees of freedom): a strongly oversampled input
+/// makes neighbouring lags nearly collinear, and directions its sample autocorrelation cannot
+/// resolve would only amplify noise.
+const MIN_EIGEN_SHARE: f64 = 1e-6;
+
 impl CorrelationTest {
+    /// The test of the cross-correlation `r` at `lags` (consecutive, from 0) of a residual
+    /// with autocorrelation `acf_e` (`None`: a white residual) against an input with
+    /// autocorrelation `acf_u` (at lags `0..`, at least `2 max_lag` of them), under the
+    /// hypothesis that the two are independent. Then `sqrt(N) r` is asymptotically normal
+    /// with covariance `P_kl = sum_tau rho_e(tau) rho_u(tau + k - l)` (Bartlett's formula;
+    /// `P = ` the input's autocorrelation matrix when the residual is white), and
+    /// `Q = N r' P^-1 r` is chi-square with as many degrees of freedom as lags. A coloured
+    /// input correlates neighbouring lags, so the Ljung-Box sum of squares, which assumes them
+    /// independent, would reject an exact model (and its bounds hold only lag by lag).
+    fn independence(
+        samples: usize,
+        lags: &[i64],
+        r: &[f64],
+        acf_e: Option<&[f64]>,
+        acf_u: &[f64],
+    ) -> Self {
+        let n = samples as f64;
+        let m = r.len();
+        let rho_u = |k: i64| acf_u.get(k.unsigned_abs() as usize).copied().unwrap_or(0.0);
+        let p = nalgebra::DMatrix::from_fn(m, m, |k, l| {
+            let d = k as i64 - l as i64;
+            match acf_e {
+                None => rho_u(d),
+                Some(acf_e) => {
+                    let window = acf_e.len() as i64 - 1;
+                    (-window..=window)
+                        .map(|tau| {
+                            // Bartlett's weights keep the estimated covariance positive.
+                            let w = 1.0 - tau.unsigned_abs() as f64 / (window + 1) as f64;
+                            w * acf_e[tau.unsigned_abs() as usize] * rho_u(tau + d)
+                        })
+                        .sum()
+                }
+            }
+        });
+        let bound = Z_99 * (p[(0, 0)].max(0.0) / n).sqrt();
+        let outside = r.iter().filter(|v| v.abs() > bound).count();
+        let eig = nalgebra::SymmetricEigen::new(p);
+        let largest = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+        let rv = nalgebra::DVector::from_column_slice(r);
+        let (mut statistic, mut dof) = (0.0, 0);
+        for (i, &lambda) in eig.eigenvalues.iter().enumerate() {
+            if lambda > MIN_EIGEN_SHARE * largest {
+                let proj = eig.eigenvectors.column(i).dot(&rv);
+                statistic += n * proj * proj / lambda;
+                dof += 1;
+            }
+        }
+        let p_value = chi_square_sf(statistic, dof.max(1));
+        Self {
+            samples,
+            lags: [
+                lags.first().copied().unwrap_or(0),
+                lags.last().copied().unwrap_or(0),
+            ],
+            bound,
+            confidence: 1.0 - LEVEL,
+            tested: m,
+            outside,
+            outside_share: outside as f64 / m.max(1) as f64,
+            statistic,
+            dof,
+            p_value,
+            level: LEVEL,
+            passed: p_value >= LEVEL,
+        }
+    }
+
     fn new(samples: usize, lags: &[i64], r: &[f64]) -> Self {
         let n = samples as f64;
         let bound = Z_99 / n.sqrt();
@@ -92,15 +166,20 @@ pub struct Resid {
     pub whiteness: CorrelationTest,
     /// Independence of the input: the cross-correlation at lags `0..=max_lag` (the residual
     /// against present and past inputs; negative lags are drawn but not tested, since they
-    /// are non-zero under feedback without the model being wrong).
+    /// are non-zero under feedback without the model being wrong). Its statistic is
+    /// `N r' P^-1 r` with `P` the covariance of the lags under independence (the input's
+    /// autocorrelation matrix for a white residual, Bartlett's formula for a coloured one),
+    /// not the Ljung-Box sum, which holds only for a white input; its bound is
+    /// `Z_99 sqrt(P_00 / N)`.
     pub independence: CorrelationTest,
 }
 
 /// Residual analysis of residual `e` against input `u` (same instants) up to `max_lag` samples.
 ///
-/// The bounds and the Ljung-Box tests assume the null hypothesis of a white residual
-/// independent of the input; under it `sqrt(N) r(k)` is asymptotically standard normal for
-/// every lag `k != 0` of the autocorrelation and every lag of the cross-correlation.
+/// The whiteness bounds and its Ljung-Box test assume the null hypothesis of a white residual;
+/// under it `sqrt(N) r(k)` is asymptotically standard normal at every lag `k != 0`. The
+/// independence test assumes a residual independent of the input, each with its own colour
+/// (see [`Resid::independence`]).
 ///
 /// # Errors
 /// [`Error::LengthMismatch`], [`Error::NotFinite`], [`Error::TooShort`] (fewer than
@@ -120,7 +199,16 @@ pub fn resid(e: &[f64], u: &[f64], max_lag: usize) -> Result<Resid> {
     let white_lags: Vec<i64> = (1..=max_lag as i64).collect();
     let whiteness = CorrelationTest::new(n, &white_lags, &acf[1..]);
     let causal = max_lag; // index of lag 0
-    let independence = CorrelationTest::new(n, &cross_lags[causal..], &ccf[causal..]);
+                          // The input's autocorrelation over twice the lags (the covariance of the cross-correlation
+                          // reaches that far); the residual's own only where it is not white.
+    let acf_u = autocorrelation(u, (2 * max_lag).min(n.saturating_sub(1) / 2))?;
+    let independence = CorrelationTest::independence(
+        n,
+        &cross_lags[causal..],
+        &ccf[causal..],
+        (!whiteness.passed).then_some(&acf[..]),
+        &acf_u,
+    );
     Ok(Resid {
         autocorrelation: acf,
         cross_lags,

@@ -126,3 +126,72 @@ fn chi_square_tail_matches_scipy_at_odd_and_even_dof() {
         assert_relative_eq!(chi_square_sf(x, k), p, max_relative = 1e-10);
     }
 }
+
+/// An input much slower than its sampling, `u_t = 0.95 u_{t-1} + w_t`: neighbouring lags of
+/// its cross-correlation with anything are nearly equal, `rho_u(k) = 0.95^k`.
+fn slow(seed: u64, n: usize) -> Vec<f64> {
+    let mut prev = 0.0;
+    white(seed, n)
+        .into_iter()
+        .map(|w| {
+            prev = 0.95 * prev + w;
+            prev
+        })
+        .collect()
+}
+
+#[test]
+fn an_exact_model_driven_by_a_slow_input_passes_the_independence_test_at_its_level() {
+    // A white residual independent of an AR(1) input with coefficient 0.95: the hypothesis
+    // holds, so 1 % of tests should reject. 200 records of 4000 samples: 2 rejections
+    // expected, standard deviation 1.4; 7 or more has probability below 0.5 %. Summing the
+    // squared lags as if independent (Ljung-Box) makes Q a sum of 26 correlated squares with
+    // the same mean and a far heavier tail: it rejects 28 of these 200 records (the test
+    // itself: 1), which is why the test uses the lags' covariance.
+    let (mut rejected, mut ljung_box_rejected) = (0, 0);
+    for seed in 0..200 {
+        let e = white(5000 + seed, 4000);
+        let u = slow(9000 + seed, 4000);
+        let r = resid(&e, &u, 25).unwrap();
+        rejected += usize::from(!r.independence.passed);
+        assert_eq!(r.independence.tested, 26);
+        let (lags, ccf) = htfid_validate::cross_correlation(&e, &u, 25).unwrap();
+        let n = 4000.0;
+        let q: f64 = lags[25..]
+            .iter()
+            .zip(&ccf[25..])
+            .map(|(&k, v)| v * v / (n - k as f64))
+            .sum::<f64>()
+            * n
+            * (n + 2.0);
+        ljung_box_rejected += usize::from(chi_square_sf(q, 26) < 0.01);
+    }
+    assert!(
+        rejected <= 6,
+        "{rejected} of 200 rejected an independent input"
+    );
+    assert!(
+        ljung_box_rejected >= 20,
+        "the Ljung-Box sum rejected only {ljung_box_rejected} of 200: the test above proves \
+         nothing new"
+    );
+}
+
+#[test]
+fn a_residual_that_follows_a_slow_input_fails_the_independence_test() {
+    // The residual holds 0.05 of the input two samples late beside white noise of unit
+    // variance (the input's own variance is about 10): a missed dynamic the test must see.
+    for seed in 0..20 {
+        let u = slow(300 + seed, 4000);
+        let w = white(600 + seed, 4000);
+        let e: Vec<f64> = (0..4000)
+            .map(|t| w[t] + if t >= 2 { 0.05 * u[t - 2] } else { 0.0 })
+            .collect();
+        let r = resid(&e, &u, 25).unwrap();
+        assert!(
+            !r.independence.passed,
+            "seed {seed}: p = {}",
+            r.independence.p_value
+        );
+    }
+}

@@ -62,6 +62,9 @@ pub fn run(
                     "model.parameters (or the units of data.outputs)"
                 }
                 htfid_diagnose::DiagnoseError::ConstantOutput { .. } => "data.outputs",
+                htfid_diagnose::DiagnoseError::StartState { .. } => {
+                    "diagnose.rtol (a smaller tolerance), or model.parameters"
+                }
                 _ => "model.parameters",
             };
             anyhow::anyhow!(
@@ -128,6 +131,10 @@ pub fn run(
         "noise_band": [s.options.noise_band.0, s.options.noise_band.1],
         "resolution": s.options.resolution,
         "second_effect_floor_ratio": s.options.second_effect_floor_ratio,
+        "rtol": s.options.rtol,
+        "fit_tolerance": s.options.fit_tolerance,
+        "max_iterations": s.options.max_iterations,
+        "candidate_max_iterations": s.options.candidate_max_iterations,
         "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
         "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
         "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({
@@ -606,6 +613,33 @@ fn decision(
 /// The noise floor's share from the measured input's noise, and the term search outside the
 /// library, when they apply.
 fn notes(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
+    // A fit stopped at its limit has not converged: its tests are not to be trusted.
+    let limit = format!("{:?}", htfid_estimate::LmStop::MaxIterations);
+    let unconverged = d
+        .candidates
+        .iter()
+        .chain(&d.pairs)
+        .chain(d.later_rounds.iter().flatten())
+        .filter(|c| c.iterations >= s.options.candidate_max_iterations)
+        .count();
+    if d.stop == limit {
+        r.para(&format!(
+            "**The refit did not converge.** It stopped at its limit of {} iterations \
+             (`diagnose.max_iterations`) while still improving, so the refitted values are not \
+             its optimum, and every candidate fitted from it also improves the refit's own \
+             parameters: their likelihood ratios are inflated. Raise `diagnose.max_iterations`, \
+             or free fewer parameters, and diagnose again.",
+            s.options.max_iterations
+        ));
+    }
+    if unconverged > 0 {
+        r.para(&format!(
+            "{unconverged} of the candidate fits stopped at their limit of {} iterations \
+             (`diagnose.candidate_max_iterations`) before converging; their scores are upper \
+             bounds (their notes say which).",
+            s.options.candidate_max_iterations
+        ));
+    }
     if let Some(noise) = d.input_noise {
         r.para(&format!(
             "The noise floor, {} of the outputs' spread, holds the refitted model's response to \

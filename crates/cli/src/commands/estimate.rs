@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use htfid_data::TimeSeries;
 use htfid_estimate::{
-    deviation_record, estimate_period, siddiqi, split_periodic, Alpha, HtfEstimate,
+    deviation_record, estimate_period, outer_harmonics, siddiqi, split_periodic, Alpha,
+    HtfEstimate, OuterHarmonic,
 };
 use htfid_plot::Style;
 use num_complex::Complex64;
@@ -21,6 +22,12 @@ use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
 use crate::records::{read_record, Columns};
+
+/// Harmonics added on each side of the estimated set to check that it holds the response.
+const OUTER_HARMONICS: i32 = 2;
+/// An added harmonic significant at more than this share of the band's bins (noise alone:
+/// about 2 %) carries the response, and the notes say so.
+const OUTER_SIGNIFICANT_SHARE: f64 = 0.1;
 
 /// Fewer periods than this and the estimate is called short in the checks.
 const MIN_PERIODS: usize = 20;
@@ -137,6 +144,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     let u_split = split_periodic(&first.input()[i0..i0 + n], dt, t_start, period, 5)
         .context("input: period average")?;
     let mut estimates: Vec<HtfEstimate> = Vec::new();
+    let mut outer: Vec<Vec<OuterHarmonic>> = Vec::new();
     let mut orbits = Vec::new();
     for (o, s) in series.iter().enumerate() {
         let y_split = split_periodic(&s.output()[i0..i0 + n], dt, t_start, period, 10)
@@ -163,6 +171,24 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                 )
             })?;
         estimates.push(e);
+        // Harmonics beyond the set that carry the response bias the ones estimated.
+        outer.push(
+            stages
+                .run(
+                    &format!("harmonics beyond the set ({})", outputs[o]),
+                    || {
+                        outer_harmonics(
+                            &record,
+                            period,
+                            &settings.harmonics,
+                            settings.band,
+                            alpha,
+                            OUTER_HARMONICS,
+                        )
+                    },
+                )
+                .unwrap_or_default(),
+        );
         orbits.push(y_split);
     }
 
@@ -199,6 +225,30 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
             "harmonics {unresolved:?} map part of the band past the Nyquist frequency \
              ({nyquist:.1} rad/s): they alias and cannot be resolved at this sample rate"
         ));
+    }
+    for (o, list) in outer.iter().enumerate() {
+        let carried: Vec<&OuterHarmonic> = list
+            .iter()
+            .filter(|h| h.significant_share > OUTER_SIGNIFICANT_SHARE)
+            .collect();
+        if !carried.is_empty() {
+            notes.push(format!(
+                "output {}: the response carries harmonics outside estimation.harmonics ({}), \
+                 significant where estimated beside the others; left out, they are absorbed \
+                 by the harmonics estimated as a bias their standard errors do not show: add \
+                 them to estimation.harmonics",
+                outputs[o],
+                carried
+                    .iter()
+                    .map(|h| format!(
+                        "G_{} at {:.0} % of the band",
+                        h.n,
+                        100.0 * h.significant_share
+                    ))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
     }
     if hi > nyquist {
         notes.push(format!(
@@ -261,6 +311,13 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                         .collect();
                     snr.sort_by(f64::total_cmp);
                     let significant = snr.iter().filter(|&&s| s > 2.0).count();
+                    // The smoothing bias the estimator estimates beside its values, against
+                    // the noise-only standard errors.
+                    let bias = rows
+                        .iter()
+                        .filter(|r| r.stderr > 0.0)
+                        .filter_map(|r| e.bias_at(k, r.omega).map(|b| b.norm() / r.stderr))
+                        .fold(f64::NAN, f64::max);
                     (
                         k.to_string(),
                         json!({
@@ -268,6 +325,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                             "median_abs_g_over_stderr": snr.get(snr.len() / 2).copied().unwrap_or(f64::NAN),
                             "significant_points": significant,
                             "points": rows.len(),
+                            "max_bias_over_stderr": bias,
                         }),
                     )
                 })
@@ -300,6 +358,14 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         "checks": {
             "excited_band": excited.map(|(a, b)| [a, b]),
             "notes": notes,
+            "outer_harmonics": outer.iter().zip(outputs).map(|(list, name)| json!({
+                "output": name,
+                "harmonics": list.iter().map(|h| json!({
+                    "n": h.n,
+                    "significant_share": h.significant_share,
+                    "max_abs_g": h.max_abs,
+                })).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
         },
         "estimation": {
             "estimator": "siddiqi",

@@ -114,8 +114,28 @@ fn cycle_json(model: &Model, cycle: &LimitCycle<Mode>) -> Value {
             })
         })
         .collect();
+    // A guard that never fires on the orbit is worth a word: a threshold beyond the motion or
+    // a direction the wrong way round gives a valid orbit without its switches.
+    let fired: Vec<&str> = cycle
+        .events
+        .iter()
+        .filter(|e| e.kind == EventKind::Transition)
+        .map(|e| model.guard_name(e.from, e.guard))
+        .chain(
+            cycle
+                .sliding
+                .iter()
+                .map(|s| model.guard_name(s.chart, s.guard)),
+        )
+        .collect();
+    let silent: Vec<&str> = model
+        .guard_names()
+        .into_iter()
+        .filter(|g| !fired.contains(g))
+        .collect();
     json!({
         "period": cycle.period,
+        "guards_not_firing": silent,
         "state_phase0": cycle.state0,
         "mode_phase0": model.mode_name(cycle.mode0),
         "events": events,

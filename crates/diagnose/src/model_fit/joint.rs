@@ -10,13 +10,6 @@ use crate::boundary::{Boundary, BoundaryEffect};
 use crate::term::TermEffect;
 use crate::{DiagnoseError, TimeSeries};
 
-/// Most iterations of a candidate effect's fit. Candidates start from the refit, and those
-/// that converge do so in 2 to 50 iterations on the shipped and the test records; one that has
-/// not converged by then creeps along a flat valley (a lag trading against the refitted
-/// parameters), each iteration a handful of simulations. It stops there, its score so far
-/// reported, and its note says so.
-pub(super) const CANDIDATE_MAX_ITER: usize = 80;
-
 /// A candidate effect to try.
 pub(super) enum Trial {
     Boundary(BoundaryEffect),
@@ -86,6 +79,10 @@ pub(super) struct Joint<'a, 'r> {
     pub(super) scales: Vec<f64>,
     /// Most iterations of a fit.
     pub(super) max_iter: usize,
+    /// Its Levenberg-Marquardt `ftol`: a step lowering the cost by a smaller fraction ends it
+    /// ([`ModelFitOptions::fit_tolerance`](super::ModelFitOptions::fit_tolerance) over the
+    /// residuals' count).
+    pub(super) ftol: f64,
 }
 
 impl Joint<'_, '_> {
@@ -250,6 +247,7 @@ impl Joint<'_, '_> {
             scales: Some(scales.clone()),
             bounds: Some(bounds.clone()),
             max_iter: self.max_iter,
+            ftol: self.ftol,
             ..LmOptions::default()
         };
         let fit =

@@ -34,7 +34,13 @@ fn start_state(
     match model.period() {
         Some(period) => {
             let shooting = ShootingOptions::default();
-            let cycle = model.limit_cycle(&shooting, opts).map_err(sim_failure)?;
+            let cycle =
+                model
+                    .limit_cycle(&shooting, opts)
+                    .map_err(|e| DiagnoseError::StartState {
+                        rtol: opts.rtol,
+                        reason: e.to_string(),
+                    })?;
             let traj = simulate(
                 model,
                 cycle.mode0,

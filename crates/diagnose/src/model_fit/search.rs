@@ -15,7 +15,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::joint::{Joint, JointFit, CANDIDATE_MAX_ITER};
+use super::joint::{Joint, JointFit};
 use super::prepared::{Prepared, StateSamples};
 use super::selection::{correlation_inflation, nested_ratio};
 use super::{ModelFitOptions, ModelScore};
@@ -338,7 +338,8 @@ impl Search<'_, '_> {
             names: &all,
             index: &index,
             scales,
-            max_iter: CANDIDATE_MAX_ITER,
+            max_iter: self.opts.candidate_max_iterations,
+            ftol: self.opts.fit_tolerance / self.est.residual_len().max(1) as f64,
         };
         let f = joint.fit(&[], &[], &reached.state)?;
         let fitted = joint.model_at(&f.params)?;

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use htfid_lang::Model;
 use rayon::prelude::*;
 
-use super::joint::{Joint, JointFit, SetFit, Trial, Tried, CANDIDATE_MAX_ITER};
+use super::joint::{Joint, JointFit, SetFit, Trial, Tried};
 use super::prepared::{Prepared, StateSamples};
 use super::{ModelCandidate, ModelFitOptions, ModelScore};
 use crate::boundary::{Boundary, BoundaryEffect};
@@ -156,7 +156,8 @@ impl Selection<'_, '_> {
                         names,
                         index: joint.index,
                         scales: joint.scales.clone(),
-                        max_iter: CANDIDATE_MAX_ITER,
+                        max_iter: opts.candidate_max_iterations,
+                        ftol: joint.ftol,
                     };
                     joint_b.fit(&[effect], &start, &base.state).and_then(|f| {
                         let m = joint_b.model_at(&f.params[..k])?;
@@ -195,7 +196,8 @@ impl Selection<'_, '_> {
                         names: &all,
                         index: &index_t,
                         scales,
-                        max_iter: CANDIDATE_MAX_ITER,
+                        max_iter: opts.candidate_max_iterations,
+                        ftol: joint.ftol,
                     };
                     joint_t.fit(&[], &[], &base.state).and_then(|f| {
                         let m = joint_t.model_at(&f.params)?;
@@ -248,8 +250,9 @@ impl Selection<'_, '_> {
             );
             if f.stop == format!("{:?}", htfid_estimate::LmStop::MaxIterations) {
                 note.push_str(&format!(
-                    "; its fit stopped at the limit of {CANDIDATE_MAX_ITER} iterations, not \
-                     converged: its score is an upper bound"
+                    "; its fit stopped at the limit of {} iterations, not \
+                     converged: its score is an upper bound",
+                    opts.candidate_max_iterations
                 ));
             }
             candidates.push(Tried {
@@ -352,7 +355,8 @@ impl Selection<'_, '_> {
             names: &refs,
             index: &index_x,
             scales,
-            max_iter: CANDIDATE_MAX_ITER,
+            max_iter: self.opts.candidate_max_iterations,
+            ftol: joint.ftol,
         };
         // Boundary parameters fitted before from their values, a new effect's from its start.
         let mut start: Vec<f64> = Vec::new();
