@@ -45,6 +45,18 @@ fn floats(v: &Value) -> Vec<f64> {
         .collect()
 }
 
+/// Floquet multipliers written as `[re, im]` pairs.
+fn multipliers(v: &Value) -> Vec<Complex64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|z| {
+            let z = floats(z);
+            Complex64::new(z[0], z[1])
+        })
+        .collect()
+}
+
 fn check(name: &str) {
     check_in("hidden_models", name, 1e-9);
 }
@@ -85,15 +97,7 @@ fn check_in(round: &str, name: &str, htf_rel: f64) {
 
     // Floquet multipliers, as a set: measured agreement 1.3e-11; a monodromy known to about
     // 1e-10 gives eigenvalues to 1e-9 unless they are nearly repeated (they are not).
-    let theirs: Vec<Complex64> = oracle["floquet_multipliers"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|z| {
-            let z = floats(z);
-            Complex64::new(z[0], z[1])
-        })
-        .collect();
+    let theirs = multipliers(&oracle["floquet_multipliers"]);
     common::assert_same_multipliers(name, &cycle.multipliers, &theirs, 1e-9);
 
     // HTFs of every output, as `htfid theory` computes them (exact piecewise where the
@@ -191,15 +195,7 @@ fn check_round_3(name: &str, rtol: f64, htf_rel: f64) {
     for (a, b) in cycle.state0.iter().zip(&state0) {
         assert!((a - b).abs() < 1e-9 * scale, "{name}: state0 {a} vs {b}");
     }
-    let theirs: Vec<Complex64> = oracle["floquet_multipliers"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|z| {
-            let z = floats(z);
-            Complex64::new(z[0], z[1])
-        })
-        .collect();
+    let theirs = multipliers(&oracle["floquet_multipliers"]);
     common::assert_same_multipliers(name, &cycle.multipliers, &theirs, 1e-9);
     let htf = LinearisedHtf::new(&model, &cycle, &opts).unwrap();
     let tables = oracle["htf"].as_object().unwrap();

@@ -86,7 +86,6 @@ impl CorrelationTest {
             }
         });
         let bound = Z_99 * (p[(0, 0)].max(0.0) / n).sqrt();
-        let outside = r.iter().filter(|v| v.abs() > bound).count();
         let eig = nalgebra::SymmetricEigen::new(p);
         let largest = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
         let rv = nalgebra::DVector::from_column_slice(r);
@@ -98,30 +97,12 @@ impl CorrelationTest {
                 dof += 1;
             }
         }
-        let p_value = chi_square_sf(statistic, dof.max(1));
-        Self {
-            samples,
-            lags: [
-                lags.first().copied().unwrap_or(0),
-                lags.last().copied().unwrap_or(0),
-            ],
-            bound,
-            confidence: 1.0 - LEVEL,
-            tested: m,
-            outside,
-            outside_share: outside as f64 / m.max(1) as f64,
-            statistic,
-            dof,
-            p_value,
-            level: LEVEL,
-            passed: p_value >= LEVEL,
-        }
+        Self::with(samples, lags, r, bound, statistic, dof)
     }
 
     fn new(samples: usize, lags: &[i64], r: &[f64]) -> Self {
         let n = samples as f64;
         let bound = Z_99 / n.sqrt();
-        let outside = r.iter().filter(|v| v.abs() > bound).count();
         let statistic = n
             * (n + 2.0)
             * lags
@@ -129,7 +110,21 @@ impl CorrelationTest {
                 .zip(r)
                 .map(|(&k, v)| v * v / (n - k.unsigned_abs() as f64))
                 .sum::<f64>();
-        let p_value = chi_square_sf(statistic, r.len());
+        Self::with(samples, lags, r, bound, statistic, r.len())
+    }
+
+    /// The test of correlations `r` at `lags` with the bound `bound` and the statistic
+    /// `statistic`, chi-square with `dof` degrees of freedom under the hypothesis.
+    fn with(
+        samples: usize,
+        lags: &[i64],
+        r: &[f64],
+        bound: f64,
+        statistic: f64,
+        dof: usize,
+    ) -> Self {
+        let outside = r.iter().filter(|v| v.abs() > bound).count();
+        let p_value = chi_square_sf(statistic, dof.max(1));
         Self {
             samples,
             lags: [
@@ -142,7 +137,7 @@ impl CorrelationTest {
             outside,
             outside_share: outside as f64 / r.len().max(1) as f64,
             statistic,
-            dof: r.len(),
+            dof,
             p_value,
             level: LEVEL,
             passed: p_value >= LEVEL,
