@@ -145,6 +145,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         .context("input: period average")?;
     let mut estimates: Vec<HtfEstimate> = Vec::new();
     let mut outer: Vec<Vec<OuterHarmonic>> = Vec::new();
+    let mut unchecked: Vec<String> = Vec::new();
     let mut orbits = Vec::new();
     for (o, s) in series.iter().enumerate() {
         let y_split = split_periodic(&s.output()[i0..i0 + n], dt, t_start, period, 10)
@@ -172,23 +173,29 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
             })?;
         estimates.push(e);
         // Harmonics beyond the set that carry the response bias the ones estimated.
-        outer.push(
-            stages
-                .run(
-                    &format!("harmonics beyond the set ({})", outputs[o]),
-                    || {
-                        outer_harmonics(
-                            &record,
-                            period,
-                            &settings.harmonics,
-                            settings.band,
-                            alpha,
-                            OUTER_HARMONICS,
-                        )
-                    },
+        let checked = stages.run(
+            &format!("harmonics beyond the set ({})", outputs[o]),
+            || {
+                outer_harmonics(
+                    &record,
+                    period,
+                    &settings.harmonics,
+                    settings.band,
+                    alpha,
+                    OUTER_HARMONICS,
                 )
-                .unwrap_or_default(),
+            },
         );
+        match checked {
+            Ok(list) => outer.push(list),
+            Err(e) => {
+                unchecked.push(format!(
+                    "output {}: harmonics beyond estimation.harmonics could not be checked: {e}",
+                    outputs[o]
+                ));
+                outer.push(Vec::new());
+            }
+        }
         orbits.push(y_split);
     }
 
@@ -226,6 +233,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
              ({nyquist:.1} rad/s): they alias and cannot be resolved at this sample rate"
         ));
     }
+    notes.append(&mut unchecked);
     for (o, list) in outer.iter().enumerate() {
         let carried: Vec<&OuterHarmonic> = list
             .iter()
