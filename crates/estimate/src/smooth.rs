@@ -349,16 +349,18 @@ fn gcv_score(fit: &SmoothFit, nd: f64) -> f64 {
 /// Dimensionless weight minimising GCV.
 pub(crate) fn gcv_alpha(sys: &BinSystem, scale: f64, ridge: f64) -> Result<f64> {
     let nd = sys.data_count();
-    let eval = |log_a: f64| -> f64 {
-        fit(sys, 10f64.powf(log_a) * scale, ridge, false)
-            .map(|f| gcv_score(&f, nd))
-            .unwrap_or(f64::INFINITY)
+    // The score at a weight, and the residual degrees of freedom it leaves.
+    let score_dof = |log_a: f64| -> (f64, f64) {
+        fit(sys, 10f64.powf(log_a) * scale, ridge, false).map_or((f64::INFINITY, f64::NAN), |f| {
+            (gcv_score(&f, nd), nd - f.trace)
+        })
     };
+    let eval = |log_a: f64| score_dof(log_a).0;
     let step = (GCV_LOG_HI - GCV_LOG_LO) / (GCV_GRID - 1) as f64;
     let grid: Vec<f64> = (0..GCV_GRID)
         .map(|i| GCV_LOG_LO + step * i as f64)
         .collect();
-    let scores: Vec<f64> = grid.iter().map(|&g| eval(g)).collect();
+    let (scores, dofs): (Vec<f64>, Vec<f64>) = grid.iter().map(|&g| score_dof(g)).unzip();
     let (best, best_score) = scores
         .iter()
         .copied()
@@ -378,12 +380,11 @@ pub(crate) fn gcv_alpha(sys: &BinSystem, scale: f64, ridge: f64) -> Result<f64> 
         // Where the records determine every bin alone (more records than harmonics), little
         // smoothing may well be best; where the weight is all that separates the harmonics,
         // the smallest one interpolates the data.
-        let dof =
-            fit(sys, 10f64.powf(grid[0]) * scale, ridge, false).map_or(f64::NAN, |f| nd - f.trace);
-        if dof.is_nan() || dof < GCV_INTERPOLATES_FRACTION * nd {
+        // (A finite score at the smallest weight comes with its degrees of freedom.)
+        if dofs[0] < GCV_INTERPOLATES_FRACTION * nd {
             return Err(Error::GcvAtSmallestWeight {
                 alpha: 10f64.powf(grid[0]),
-                dof,
+                dof: dofs[0],
                 data: nd,
             });
         }

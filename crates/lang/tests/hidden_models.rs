@@ -61,33 +61,123 @@ fn check(name: &str) {
     check_in("hidden_models", name, 1e-9);
 }
 
-/// Checks `name` of `round` against its oracle; the HTFs to `htf_rel` of each output's
-/// largest |G| over the oracle's grid.
-fn check_in(round: &str, name: &str, htf_rel: f64) {
-    let dir = dir(round);
-    let model = Model::from_file(&dir.join(format!("{name}.toml"))).unwrap();
-    let oracle: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap())
-            .unwrap();
-    let opts = Options::default(); // DOP853, rtol 1e-10, atol 1e-12
+/// One output's HTF in an oracle: its name, the scale of its tolerance, its values
+/// `(n, omega, G)`.
+type HtfTable = (String, f64, Vec<(i32, f64, Complex64)>);
+
+/// What an oracle states about a model: its period, the mode and state at phase 0, the Floquet
+/// multipliers, and per output (in the model's order) its HTF values `(n, omega, G)` with the
+/// scale the tolerance is relative to (the largest |G| over the oracle's grid).
+struct Reference {
+    period: f64,
+    mode: Option<String>,
+    state0: Vec<f64>,
+    multipliers: Vec<Complex64>,
+    htf: Vec<HtfTable>,
+}
+
+/// The oracle of `name` in `dir`, as written.
+fn oracle(dir: &Path, name: &str) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap())
+        .unwrap()
+}
+
+/// The layout of rounds one and two.
+fn rounds_one_two(oracle: &Value) -> Reference {
+    let htf = oracle["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| {
+            let output = o.as_str().unwrap().to_string();
+            let table = &oracle["htf"][&output];
+            let rows = table["values"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|row| {
+                    (
+                        row["n"].as_i64().unwrap() as i32,
+                        row["omega"].as_f64().unwrap(),
+                        Complex64::new(row["re"].as_f64().unwrap(), row["im"].as_f64().unwrap()),
+                    )
+                })
+                .collect();
+            (output, table["max_abs_over_grid"].as_f64().unwrap(), rows)
+        })
+        .collect();
+    Reference {
+        period: oracle["period"].as_f64().unwrap(),
+        mode: oracle["mode_phase0"].as_str().map(str::to_string),
+        state0: floats(&oracle["orbit_state_phase0"]),
+        multipliers: multipliers(&oracle["floquet_multipliers"]),
+        htf,
+    }
+}
+
+/// The layout of round three, at the model file's values (`nominal`): HTF rows
+/// `[omega, re, im]` by output and harmonic, in the order of `model`'s outputs.
+fn round_three(all: &Value, model: &Model) -> Reference {
+    let oracle = &all["nominal"];
+    let tables = oracle["htf"].as_object().unwrap();
+    assert_eq!(tables.len(), model.outputs().len(), "outputs");
+    let htf = model
+        .outputs()
+        .iter()
+        .map(|output| {
+            let rows: Vec<(i32, f64, Complex64)> = tables[&output.name]
+                .as_object()
+                .unwrap()
+                .iter()
+                .flat_map(|(n, rows)| {
+                    let n: i32 = n.parse().unwrap();
+                    rows.as_array().unwrap().iter().map(move |r| {
+                        let r = floats(r);
+                        (n, r[0], Complex64::new(r[1], r[2]))
+                    })
+                })
+                .collect();
+            assert!(
+                rows.len() >= 25,
+                "output {}: {} values",
+                output.name,
+                rows.len()
+            );
+            let scale = rows.iter().map(|r| r.2.norm()).fold(0.0, f64::max);
+            (output.name.clone(), scale, rows)
+        })
+        .collect();
+    Reference {
+        period: oracle["period"].as_f64().unwrap(),
+        mode: Some(oracle["mode_phase0"].as_str().unwrap().to_string()),
+        state0: floats(&oracle["state_phase0"]),
+        multipliers: multipliers(&oracle["floquet_multipliers"]),
+        htf,
+    }
+}
+
+/// Checks `model` (`name`) against `reference` with the integrator `opts`: the period to 1e-12,
+/// the orbit at phase 0 to 1e-9 of the state's scale, the multipliers to 1e-9, the HTFs of every
+/// output to `htf_rel` of the reference's scale.
+fn compare(name: &str, model: &Model, reference: &Reference, opts: &Options, htf_rel: f64) {
     let shooting = ShootingOptions {
         settle_periods: 100,
         ..ShootingOptions::default()
     };
-    let cycle = model.limit_cycle(&shooting, &opts).unwrap();
+    let cycle = model.limit_cycle(&shooting, opts).unwrap();
     assert!(
-        (cycle.period - oracle["period"].as_f64().unwrap()).abs() < 1e-12,
+        (cycle.period - reference.period).abs() < 1e-12,
         "{name}: period"
     );
 
-    // The orbit at phase 0: the oracle's closed form and its shooting agree to 3e-12; ours is
-    // limited by rtol 1e-10 along a period (measured 2.5e-10 of the state's scale at worst).
-    let state0 = floats(&oracle["orbit_state_phase0"]);
-    let scale = state0.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
-    for (a, b) in cycle.state0.iter().zip(&state0) {
+    // The orbit at phase 0: the first round's oracle (closed form and shooting) agrees with
+    // itself to 3e-12; ours is limited by rtol 1e-10 along a period (measured 2.5e-10 of the
+    // state's scale at worst).
+    let scale = reference.state0.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
+    for (a, b) in cycle.state0.iter().zip(&reference.state0) {
         assert!((a - b).abs() < 1e-9 * scale, "{name}: state0 {a} vs {b}");
     }
-    if let Some(mode) = oracle["mode_phase0"].as_str() {
+    if let Some(mode) = &reference.mode {
         assert_eq!(
             model.mode_name(cycle.mode0),
             mode,
@@ -95,38 +185,37 @@ fn check_in(round: &str, name: &str, htf_rel: f64) {
         );
     }
 
-    // Floquet multipliers, as a set: measured agreement 1.3e-11; a monodromy known to about
-    // 1e-10 gives eigenvalues to 1e-9 unless they are nearly repeated (they are not).
-    let theirs = multipliers(&oracle["floquet_multipliers"]);
-    common::assert_same_multipliers(name, &cycle.multipliers, &theirs, 1e-9);
+    // Floquet multipliers, as a set: measured agreement 1.3e-11 in the first round; a
+    // monodromy known to about 1e-10 gives eigenvalues to 1e-9 unless they are nearly repeated
+    // (they are not).
+    common::assert_same_multipliers(name, &cycle.multipliers, &reference.multipliers, 1e-9);
 
     // HTFs of every output, as `htfid theory` computes them (exact piecewise where the
     // linearisation is constant within modes, the periodic response otherwise): measured
     // 4.7e-11 of the output's largest |G| at worst in the first round; the bound leaves room
     // for the integrator.
-    let htf = LinearisedHtf::new(&model, &cycle, &opts).unwrap();
-    let outputs: Vec<String> = oracle["outputs"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|o| o.as_str().unwrap().to_string())
-        .collect();
-    assert_eq!(outputs.len(), htf.n_outputs(), "{name}: outputs");
-    for (o, output) in outputs.iter().enumerate() {
+    let htf = LinearisedHtf::new(model, &cycle, opts).unwrap();
+    assert_eq!(reference.htf.len(), htf.n_outputs(), "{name}: outputs");
+    for (o, (output, scale, rows)) in reference.htf.iter().enumerate() {
         let channel = htf.channel(o).unwrap();
-        let table = &oracle["htf"][output];
-        let scale = table["max_abs_over_grid"].as_f64().unwrap();
-        let mut worst: f64 = 0.0;
-        for row in table["values"].as_array().unwrap() {
-            let (w, n) = (row["omega"].as_f64().unwrap(), row["n"].as_i64().unwrap());
-            let want = Complex64::new(row["re"].as_f64().unwrap(), row["im"].as_f64().unwrap());
-            worst = worst.max((channel.g(n as i32, w) - want).norm());
-        }
+        let worst = rows
+            .iter()
+            .map(|&(n, w, want)| (channel.g(n, w) - want).norm())
+            .fold(0.0, f64::max);
         assert!(
             worst < htf_rel * scale,
             "{name} output {output}: worst {worst:e} of max {scale:e}"
         );
     }
+}
+
+/// Checks `name` of `round` (one or two) against its oracle with the defaults of `htfid
+/// theory` (DOP853, rtol 1e-10, atol 1e-12); the HTFs to `htf_rel`.
+fn check_in(round: &str, name: &str, htf_rel: f64) {
+    let dir = dir(round);
+    let model = Model::from_file(&dir.join(format!("{name}.toml"))).unwrap();
+    let reference = rounds_one_two(&oracle(&dir, name));
+    compare(name, &model, &reference, &Options::default(), htf_rel);
 }
 
 #[test]
@@ -163,73 +252,16 @@ fn a_ball_on_a_paddle_with_a_reset_of_both_bodies_matches_its_oracle() {
 }
 
 /// Checks `name` of the third round against its oracle at the model file's values (`nominal`)
-/// with the integrator at `rtol`: the orbit at phase 0 to 1e-9 of the state's scale, the
-/// multipliers to 1e-9, every HTF value to `htf_rel` of its output's largest |G| on the grid.
+/// with the integrator at `rtol`; the HTFs to `htf_rel`.
 fn check_round_3(name: &str, rtol: f64, htf_rel: f64) {
     let dir = dir("hidden_models_3");
     let model = Model::from_file(&dir.join(format!("{name}.toml"))).unwrap();
-    let all: Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap())
-            .unwrap();
-    let oracle = &all["nominal"];
+    let reference = round_three(&oracle(&dir, name), &model);
     let opts = Options {
         rtol,
         ..Options::default()
     };
-    let shooting = ShootingOptions {
-        settle_periods: 100,
-        ..ShootingOptions::default()
-    };
-    let cycle = model.limit_cycle(&shooting, &opts).unwrap();
-    assert!(
-        (cycle.period - oracle["period"].as_f64().unwrap()).abs() < 1e-12,
-        "{name}: period"
-    );
-    assert_eq!(
-        model.mode_name(cycle.mode0),
-        oracle["mode_phase0"].as_str().unwrap(),
-        "{name}: mode at phase 0"
-    );
-    let state0 = floats(&oracle["state_phase0"]);
-    let scale = state0.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
-    for (a, b) in cycle.state0.iter().zip(&state0) {
-        assert!((a - b).abs() < 1e-9 * scale, "{name}: state0 {a} vs {b}");
-    }
-    let theirs = multipliers(&oracle["floquet_multipliers"]);
-    common::assert_same_multipliers(name, &cycle.multipliers, &theirs, 1e-9);
-    let htf = LinearisedHtf::new(&model, &cycle, &opts).unwrap();
-    let tables = oracle["htf"].as_object().unwrap();
-    assert_eq!(tables.len(), htf.n_outputs(), "{name}: outputs");
-    for (o, output) in model.outputs().iter().enumerate() {
-        let channel = htf.channel(o).unwrap();
-        let by_n = tables[&output.name].as_object().unwrap();
-        let rows: Vec<(i32, f64, Complex64)> = by_n
-            .iter()
-            .flat_map(|(n, rows)| {
-                let n: i32 = n.parse().unwrap();
-                rows.as_array().unwrap().iter().map(move |r| {
-                    let r = floats(r);
-                    (n, r[0], Complex64::new(r[1], r[2]))
-                })
-            })
-            .collect();
-        assert!(
-            rows.len() >= 25,
-            "{name} output {}: {} values",
-            output.name,
-            rows.len()
-        );
-        let scale = rows.iter().map(|r| r.2.norm()).fold(0.0, f64::max);
-        let worst = rows
-            .iter()
-            .map(|&(n, w, want)| (channel.g(n, w) - want).norm())
-            .fold(0.0, f64::max);
-        assert!(
-            worst < htf_rel * scale,
-            "{name} output {}: worst {worst:e} of max {scale:e}",
-            output.name
-        );
-    }
+    compare(name, &model, &reference, &opts, htf_rel);
 }
 
 /// Measured against the oracle: orbit 3e-12, multipliers 7e-12, HTF 6e-13 of its largest |G|.

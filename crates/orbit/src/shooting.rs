@@ -219,6 +219,7 @@ pub fn find_limit_cycle<S: HybridSystem>(
     }
     let mut iterations = 0;
     let mut residual;
+    let stall = (STALL_TOL_FACTOR * shooting.newton_tol).max(STALL_RTOL_FACTOR * opts.rtol);
     let mut map = period_map(sys, mode, t0, &x, period, opts)?;
     if let [only] = map.sliding.as_slice() {
         // Sliding from the start to the end of the period: stuck for good.
@@ -263,7 +264,6 @@ pub fn find_limit_cycle<S: HybridSystem>(
         let new_res = (0..n)
             .map(|i| (map.state[i] - x[i]).abs())
             .fold(0.0, f64::max);
-        let stall = (STALL_TOL_FACTOR * shooting.newton_tol).max(STALL_RTOL_FACTOR * opts.rtol);
         if new_res >= previous && new_res <= stall * scale {
             residual = new_res;
             break;

@@ -56,7 +56,8 @@ impl CorrelationTest {
     /// hypothesis that the two are independent. Then `sqrt(N) r` is asymptotically normal
     /// with covariance `P_kl = sum_tau rho_e(tau) rho_u(tau + k - l)` (Bartlett's formula;
     /// `P = ` the input's autocorrelation matrix when the residual is white), and
-    /// `Q = N r' P^-1 r` is chi-square with as many degrees of freedom as lags. A coloured
+    /// `Q = N r' P^-1 r` is chi-square with one degree of freedom per direction of `P` kept
+    /// (see [`MIN_EIGEN_SHARE`]). A coloured
     /// input correlates neighbouring lags, so the Ljung-Box sum of squares, which assumes them
     /// independent, would reject an exact model (and its bounds hold only lag by lag).
     fn independence(

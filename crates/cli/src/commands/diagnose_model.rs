@@ -610,8 +610,8 @@ fn decision(
     decision
 }
 
-/// The noise floor's share from the measured input's noise, and the term search outside the
-/// library, when they apply.
+/// Fits that stopped at their iteration limit, the noise floor's share from the measured
+/// input's noise, and the term search outside the library, when they apply.
 fn notes(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
     // A fit stopped at its limit has not converged: its tests are not to be trusted.
     let limit = format!("{:?}", htfid_estimate::LmStop::MaxIterations);

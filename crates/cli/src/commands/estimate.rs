@@ -319,13 +319,18 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                         .collect();
                     snr.sort_by(f64::total_cmp);
                     let significant = snr.iter().filter(|&&s| s > 2.0).count();
-                    // The smoothing bias the estimator estimates beside its values, against
-                    // the noise-only standard errors.
-                    let bias = rows
-                        .iter()
-                        .filter(|r| r.stderr > 0.0)
-                        .filter_map(|r| e.bias_at(k, r.omega).map(|b| b.norm() / r.stderr))
-                        .fold(f64::NAN, f64::max);
+                    // The smoothing bias the estimator estimates beside its values (one per
+                    // row, in the rows' order), against the noise-only standard errors.
+                    let bias = e
+                        .bias()
+                        .zip(e.harmonics().iter().position(|&m| m == k))
+                        .map_or(f64::NAN, |((_, b), i)| {
+                            rows.iter()
+                                .zip(&b[i])
+                                .filter(|(r, _)| r.stderr > 0.0)
+                                .map(|(r, b)| b.norm() / r.stderr)
+                                .fold(f64::NAN, f64::max)
+                        });
                     (
                         k.to_string(),
                         json!({
