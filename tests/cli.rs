@@ -293,6 +293,45 @@ fn theory_csv_matches_the_independent_reference() {
     );
 }
 
+/// `--omega` takes negative frequencies as values, not as options, and the HTF of a real
+/// system there is the conjugate of the mirrored one: `G_n(-jw) = conj(G_{-n}(jw))`, to
+/// rounding (1e-12 of max |G|, each value computed on its own).
+#[test]
+fn theory_takes_negative_frequencies_and_they_mirror_the_positive_ones() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("th");
+    htfid_ok(&[
+        "theory",
+        "configs/paper.toml",
+        "--omega",
+        "-7.5,7.5",
+        "--out",
+        out.to_str().unwrap(),
+        "--no-plots",
+    ]);
+    let csv = fs::read_to_string(out.join("theory.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let at = |w: f64, n: f64| {
+        rows.iter()
+            .find(|r| r[0].to_bits() == w.to_bits() && r[1].to_bits() == n.to_bits())
+            .unwrap_or_else(|| panic!("theory.csv lacks omega {w}, n {n}"))
+    };
+    let max_g = rows.iter().map(|r| r[2].hypot(r[3])).fold(0.0, f64::max);
+    let mut compared = 0;
+    for r in rows.iter().filter(|r| r[0] < 0.0) {
+        // `+ 0.0` makes the mirror of n = 0 the +0 the file holds.
+        let mirror = at(-r[0], -r[1] + 0.0);
+        let err = (r[2] - mirror[2]).hypot(r[3] + mirror[3]);
+        assert!(err <= 1e-12 * max_g, "G_{}({}) off by {err}", r[1], r[0]);
+        compared += 1;
+    }
+    assert!(compared >= 3, "{compared} negative-frequency rows");
+}
+
 /// The paper's experiment reproduces the paper's failure: `G_-2` and `G_2` are wrong near
 /// 12-15 rad/s while `G_0` is right; k and c come back close to the truth.
 #[test]

@@ -74,8 +74,9 @@ enum Command {
     Theory {
         /// Experiment config (TOML).
         config: PathBuf,
-        /// Comma-separated frequencies in rad/s (default: the config's grid).
-        #[arg(long, value_name = "LIST")]
+        /// Comma-separated frequencies in rad/s, negative ones allowed (default: the config's
+        /// grid).
+        #[arg(long, value_name = "LIST", allow_hyphen_values = true)]
         omega: Option<String>,
         /// Use Wereley's harmonic state space truncated at N harmonics instead of the exact HTF.
         #[arg(long, value_name = "N")]

@@ -190,9 +190,12 @@ pub fn theory(summary: &Value, dir: &Path, files: &[PathBuf]) {
     t.row(
         "HTF",
         format!(
-            "{method}, harmonics {}, {} frequencies, max |G_n| {max_abs}",
+            "{method}, harmonics {}, {}, max |G_n| {max_abs}",
             harmonics(&h["harmonics"]),
-            h["points"]
+            match h["points"].as_u64() {
+                Some(1) => "1 frequency".to_string(),
+                _ => format!("{} frequencies", h["points"]),
+            }
         ),
     );
     t.row("results", location(dir, files));

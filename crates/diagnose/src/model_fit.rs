@@ -395,16 +395,24 @@ pub fn diagnose_model(
     // model offers, and the user's own.
     let samples = est.state_samples(&refit.model, &refit.base.state)?;
     let means = samples.means(model.states().len());
+    let terms: Vec<TermEffect> = term_library(model, &opts.terms, &means)
+        .into_iter()
+        .chain(opts.user_terms.iter().cloned())
+        .collect();
+    // The boundary effects' parameters take names the model and the terms leave free.
+    let taken = |n: &str| {
+        model.parameter_index(n).is_some()
+            || model.states().iter().any(|s| s.name == n)
+            || model.input_name() == n
+            || terms
+                .iter()
+                .any(|t| t.parameter_names().iter().any(|p| p == n))
+    };
     let trials: Vec<Trial> = opts
         .effects
         .iter()
-        .map(|&e| Trial::Boundary(e))
-        .chain(
-            term_library(model, &opts.terms, &means)
-                .into_iter()
-                .chain(opts.user_terms.iter().cloned())
-                .map(Trial::Term),
-        )
+        .map(|&e| Trial::Boundary(e, e.parameter_names_avoiding(&outputs, taken)))
+        .chain(terms.iter().cloned().map(Trial::Term))
         .collect();
     let sel = Selection {
         opts,

@@ -252,3 +252,46 @@ fn effects_inside_the_equations_of_a_model_file_are_named_with_their_parameters(
     }
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
 }
+
+/// A model parameter that has the name of a boundary effect's parameter (here the hopper's
+/// damping renamed `tau`, as the actuator lag's time constant is called) keeps its name; the
+/// effect's parameter takes the next free one, `tau_2`. Both are fitted and reported apart:
+/// on a record with a 10 ms actuator lag, the lag is named with `tau_2` within 10 % of the
+/// truth and the damping `tau` within 1 % of its configured 2 N s/m.
+#[test]
+fn an_effect_parameter_named_like_a_model_parameter_takes_the_next_free_name() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/hopper.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let renamed = text
+        .replace("c  = { value = 2.0", "tau = { value = 2.0")
+        .replace("- c*v", "- tau*v");
+    assert_ne!(renamed, text);
+    let model = Model::parse(&renamed)
+        .unwrap()
+        .with_parameters(&[("a", 0.0)])
+        .unwrap();
+    let scenario = Scenario {
+        effects: vec![htfid_truth::Effect::ActuatorLag { tau: 0.01 }],
+        noise: htfid_truth::Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.0,
+        },
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    let opts = ModelFitOptions {
+        free: vec!["k".into(), "tau".into()],
+        ..ModelFitOptions::default()
+    };
+    let d = diagnose_model(&model, &record(&scenario), None, &opts).unwrap();
+    assert!(names(&d, "actuator_lag"), "{}", candidate_table(&d));
+    let c = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == "actuator_lag")
+        .expect("every effect is tried");
+    let lag = c.parameters["tau_2"];
+    let damping = c.parameters["tau"];
+    assert!((lag / 0.01 - 1.0).abs() < 0.1, "lag {lag}");
+    assert!((damping / 2.0 - 1.0).abs() < 0.01, "damping {damping}");
+}

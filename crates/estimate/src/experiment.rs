@@ -222,6 +222,12 @@ impl Design {
         &self.u
     }
 
+    /// The `(n, omega)` of the estimate's rows, in the order of [`HtfEstimate::rows`], when
+    /// the input alone fixes them (Siddiqi's estimator at a fixed weight); `None` otherwise.
+    pub fn points(&self) -> Option<Vec<(i32, f64)>> {
+        self.siddiqi.as_ref().map(|(design, _, _)| design.points())
+    }
+
     /// The estimate from the output `y` (a deviation from the orbit, sampled with the input).
     ///
     /// # Errors

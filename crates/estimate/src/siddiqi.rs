@@ -182,6 +182,17 @@ impl SiddiqiDesign {
         })
     }
 
+    /// The `(n, omega)` of the estimate's rows, in the order of [`HtfEstimate::rows`], known
+    /// before the output is.
+    pub fn points(&self) -> Vec<(i32, f64)> {
+        let omegas = self.prep.omegas();
+        self.prep
+            .harmonics
+            .iter()
+            .flat_map(|&n| omegas.iter().map(move |&w| (n, w)))
+            .collect()
+    }
+
     /// The estimate from `record`, whose input must be the one this was prepared from.
     ///
     /// # Errors

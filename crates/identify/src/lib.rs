@@ -56,5 +56,6 @@ mod parametric;
 pub use compare::{errors_against, HarmonicError};
 pub use htf_fit::{
     budget_with_bias, fit_to_htf, FitPoint, HtfFit, HtfFitSpec, IdentifyError, CLUSTER_POINTS,
+    FD_STEP, FIT_TOLERANCE,
 };
 pub use parametric::Parametric;

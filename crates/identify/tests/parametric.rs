@@ -115,3 +115,64 @@ fn the_hopper_names_its_parameters_and_refuses_others() {
     assert!((changed.params().k - 150.0).abs() < 1e-12);
     assert!((changed.params().forcing_amplitude - 2.0).abs() < 1e-12);
 }
+
+/// The fit's Jacobian (forward differences of step `FD_STEP` through the orbit and the HTF)
+/// against a second method: central differences of the exact HTF at steps `h` and `2h`
+/// (`h = 1e-4` of the parameter), each model's orbit found afresh at `rtol = 1e-12`, combined
+/// by Richardson extrapolation (truncation `O(h^4)`, about 1e-16; the orbit's error over the
+/// step, `1e-12 / 1e-4 = 1e-8`). The forward difference differs from it by 1.2e-4 of the
+/// column's norm for `k` and 8e-6 for `c` (its truncation error, `FD_STEP` times the HTF's
+/// relative curvature in the parameter, plus `1e-10 / FD_STEP` from the orbit's error at
+/// `rtol = 1e-10`); the tolerance, 5e-4, is four times the larger. Such an error changes the
+/// standard errors by as little.
+#[test]
+fn the_fits_jacobian_matches_an_extrapolated_central_difference() {
+    let hopper = Hopper::new(HopperParams::paper()).unwrap();
+    let start = hopper
+        .limit_cycle(&ShootingOptions::default(), &opts())
+        .unwrap();
+    let htf = LinearisedHtf::new(&hopper, &start.cycle, &opts()).unwrap();
+    let estimate = exact_estimate(&htf.channel(0).unwrap());
+    let fit = fit_to_htf(&hopper, &start.cycle, &[(0, &estimate)], &spec(), &opts()).unwrap();
+
+    let tight = Options {
+        rtol: 1e-12,
+        atol: 1e-14,
+        ..Options::default()
+    };
+    let points: Vec<(i32, f64)> = fit.fitted.iter().map(|f| (f.n, f.omega)).collect();
+    let g_at = |name: &str, value: f64| {
+        let trial = hopper.unforced_with(&[(name, value)]).unwrap();
+        let cycle = trial
+            .limit_cycle(&ShootingOptions::default(), &tight)
+            .unwrap();
+        let htf = LinearisedHtf::new(&trial, &cycle.cycle, &tight).unwrap();
+        htf.channel(0).unwrap().values(&points)
+    };
+    for (j, name) in fit.parameters.iter().enumerate() {
+        let p = fit.values[j];
+        let h = 1e-4 * p;
+        let (plus, minus) = (g_at(name, p + h), g_at(name, p - h));
+        let (plus2, minus2) = (g_at(name, p + 2.0 * h), g_at(name, p - 2.0 * h));
+        let mut diff = 0.0;
+        let mut norm = 0.0;
+        for (i, point) in fit.fitted.iter().enumerate() {
+            let d1 = (plus[i] - minus[i]) / (2.0 * h);
+            let d2 = (plus2[i] - minus2[i]) / (4.0 * h);
+            // The residual is (estimate - G) * weight.
+            let d = -(d1 * 4.0 - d2) / 3.0 * point.weight;
+            for (fitted, reference) in [
+                (fit.jacobian[2 * i][j], d.re),
+                (fit.jacobian[2 * i + 1][j], d.im),
+            ] {
+                diff += (fitted - reference).powi(2);
+                norm += reference.powi(2);
+            }
+        }
+        let relative = (diff / norm).sqrt();
+        assert!(
+            relative < 2e-4,
+            "d/d{name}: relative difference {relative:e}"
+        );
+    }
+}

@@ -1,5 +1,7 @@
 //! The HTF trait and its tabulated values.
 
+use std::collections::HashMap;
+
 use num_complex::Complex64;
 
 /// A harmonic transfer function in the estimation convention:
@@ -31,6 +33,99 @@ pub trait HarmonicTransferFunction {
             harmonics: harmonics.to_vec(),
             values,
         }
+    }
+}
+
+/// An HTF with its values at some points computed ahead of time (on another core while an
+/// experiment runs, say). [`values`](HarmonicTransferFunction::values) and
+/// [`g`](HarmonicTransferFunction::g) return those it holds and ask `inner` for the rest, so
+/// every value is `inner`'s: bit for bit where `inner` computes a point's value the same in
+/// any batch, as [`ExactHtf`](crate::ExactHtf) does.
+pub struct Tabulated<'a> {
+    inner: &'a (dyn HarmonicTransferFunction + Sync),
+    points: Vec<(i32, f64)>,
+    values: Vec<Complex64>,
+    table: HashMap<(i32, u64), Complex64>,
+}
+
+impl<'a> Tabulated<'a> {
+    /// `inner` with its values at `points` computed now.
+    pub fn new(inner: &'a (dyn HarmonicTransferFunction + Sync), points: &[(i32, f64)]) -> Self {
+        let values = inner.values(points);
+        let table = points
+            .iter()
+            .zip(&values)
+            .map(|(&(n, w), &g)| ((n, w.to_bits()), g))
+            .collect();
+        Tabulated {
+            inner,
+            points: points.to_vec(),
+            values,
+            table,
+        }
+    }
+
+    /// Points held.
+    pub fn len(&self) -> usize {
+        self.table.len()
+    }
+
+    /// Whether it holds no point.
+    pub fn is_empty(&self) -> bool {
+        self.table.is_empty()
+    }
+}
+
+impl std::fmt::Debug for Tabulated<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tabulated")
+            .field("points", &self.table.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl HarmonicTransferFunction for Tabulated<'_> {
+    fn pumping_frequency(&self) -> f64 {
+        self.inner.pumping_frequency()
+    }
+
+    fn g(&self, n: i32, w: f64) -> Complex64 {
+        match self.table.get(&(n, w.to_bits())) {
+            Some(&g) => g,
+            None => self.inner.g(n, w),
+        }
+    }
+
+    fn values(&self, points: &[(i32, f64)]) -> Vec<Complex64> {
+        // The points it was made for, in their order: no lookups.
+        let same = points.len() == self.points.len()
+            && points
+                .iter()
+                .zip(&self.points)
+                .all(|(a, b)| a.0 == b.0 && a.1.to_bits() == b.1.to_bits());
+        if same {
+            return self.values.clone();
+        }
+        let held: Vec<Option<Complex64>> = points
+            .iter()
+            .map(|&(n, w)| self.table.get(&(n, w.to_bits())).copied())
+            .collect();
+        let missing: Vec<(i32, f64)> = points
+            .iter()
+            .zip(&held)
+            .filter(|(_, g)| g.is_none())
+            .map(|(&p, _)| p)
+            .collect();
+        let mut computed = self.inner.values(&missing).into_iter();
+        held.into_iter()
+            .map(|g| {
+                g.unwrap_or_else(|| {
+                    computed
+                        .next()
+                        .expect("one computed value per missing point")
+                })
+            })
+            .collect()
     }
 }
 

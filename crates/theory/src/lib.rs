@@ -250,6 +250,6 @@ pub use about_orbit::{HtfChannel, HtfMethod, LinearisedHtf};
 pub use coefficients::{FourierCoefficients, FourierLtp};
 pub use error::TheoryError;
 pub use exact::{ExactHtf, ExactMethod};
-pub use grid::{HarmonicTransferFunction, HtfGrid};
+pub use grid::{HarmonicTransferFunction, HtfGrid, Tabulated};
 pub use orbit::OrbitHtf;
 pub use truncated::TruncatedHtf;

@@ -12,7 +12,7 @@ use htfid_hybrid::{simulate, EventKind, HybridSystem};
 use htfid_identify::{fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{saltation, LimitCycle, ShootingOptions};
-use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf};
+use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf, Tabulated};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
@@ -500,38 +500,57 @@ pub fn run_model(
     let header: Vec<&str> = header.iter().map(String::as_str).collect();
     let cycle_csv = outdir.csv("limit_cycle.csv", &header)?;
     let (rec, side) = std::thread::scope(|scope| -> Result<_> {
-        let (htf, cycle) = (&htf, &cycle);
-        let side = scope.spawn(move || -> Result<(Stages, Option<Vec<Prepared>>)> {
-            let mut local = Stages::silent();
-            let grids = local
-                .run("theory grid", || {
-                    htf.grids(&settings.theory.harmonics, &settings.theory.omegas)
-                })
-                .context("harmonic transfer functions")?;
-            local.run("write theory", || -> Result<()> {
-                // `theory.csv` is the first output's table; with several outputs each also
-                // has its own.
-                let mut csvs = theory_csvs.into_iter();
-                if let Some(first) = csvs.next() {
-                    fill_theory_csv(first, &grids[0])?;
-                }
-                for (csv, grid) in csvs.zip(&grids) {
-                    fill_theory_csv(csv, grid)?;
-                }
-                fill_limit_cycle(cycle_csv, settings, model, cycle)
-            })?;
-            // The estimators' work on the input alone (`htfid_estimate::Design`); should it
-            // fail, the chains prepare them again from the simulated input and say why.
-            let designs = local
-                .run("prepare estimators", || prepare_all(settings))
-                .ok();
-            Ok((local, designs))
-        });
+        let (htf, cycle, channels) = (&htf, &cycle, &channels);
+        let side = scope.spawn(
+            move || -> Result<(Stages, Option<Vec<Prepared>>, Truths<'_>)> {
+                let mut local = Stages::silent();
+                let grids = local
+                    .run("theory grid", || {
+                        htf.grids(&settings.theory.harmonics, &settings.theory.omegas)
+                    })
+                    .context("harmonic transfer functions")?;
+                local.run("write theory", || -> Result<()> {
+                    // `theory.csv` is the first output's table; with several outputs each also
+                    // has its own.
+                    let mut csvs = theory_csvs.into_iter();
+                    if let Some(first) = csvs.next() {
+                        fill_theory_csv(first, &grids[0])?;
+                    }
+                    for (csv, grid) in csvs.zip(&grids) {
+                        fill_theory_csv(csv, grid)?;
+                    }
+                    fill_limit_cycle(cycle_csv, settings, model, cycle)
+                })?;
+                // The estimators' work on the input alone (`htfid_estimate::Design`); should it
+                // fail, the chains prepare them again from the simulated input and say why.
+                let designs = local
+                    .run("prepare estimators", || prepare_all(settings))
+                    .ok();
+                // Each output's HTF at the rows an estimate will have, where the input fixes
+                // them, for its errors.
+                let truths = local.run("HTF at the estimates", || {
+                    designs
+                        .as_deref()
+                        .unwrap_or_default()
+                        .iter()
+                        .map(|p| {
+                            p.points().map(|points| {
+                                channels
+                                    .iter()
+                                    .map(|c| Tabulated::new(c, &points))
+                                    .collect()
+                            })
+                        })
+                        .collect()
+                });
+                Ok((local, designs, truths))
+            },
+        );
         let rec = simulate_record(settings, model, cycle, &mut stages);
         let side = side.join().expect("the theory writer does not panic");
         Ok((rec?, side?))
     })?;
-    let (side, designs) = side;
+    let (side, designs, truths) = side;
     stages.absorb(side);
     let deviation = stages.run("orbit deviation", || {
         orbit_deviation(settings, model, &cycle, &rec)
@@ -565,6 +584,7 @@ pub fn run_model(
             &deviation,
             est_csvs,
             designs,
+            truths,
             &mut stages,
         );
         writer.join().expect("the CSV writer does not panic")?;
@@ -671,6 +691,9 @@ fn orbit_deviation(
 
 type Estimates = Vec<Vec<(Estimator, HtfEstimate)>>;
 type JsonMap = serde_json::Map<String, Value>;
+/// Per configured estimator, each output's HTF at its estimate's rows when the input fixes
+/// them (`htfid_estimate::Design::points`).
+type Truths<'a> = Vec<Option<Vec<Tabulated<'a>>>>;
 
 /// Estimates per output and estimator, their errors against the theory, and the fits (one
 /// per estimator, to the estimates of every output together), each estimator's on a thread
@@ -685,12 +708,14 @@ fn estimate_and_fit(
     deviation: &[Vec<f64>],
     csvs: Vec<Vec<htfid_data::CsvWriter>>,
     designs: Option<Vec<Prepared>>,
+    truths: Truths<'_>,
     stages: &mut Stages,
 ) -> Result<(Estimates, JsonMap, JsonMap)> {
     let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
     let chain = |est: Estimator,
                  csvs: Vec<htfid_data::CsvWriter>,
                  prepared: Option<Prepared>,
+                 truth: Option<Vec<Tabulated<'_>>>,
                  stages: &mut Stages| {
         // Every output is estimated with the estimator prepared once from the input: during
         // the simulation from the same input, checked sample by sample, or here.
@@ -716,7 +741,10 @@ fn estimate_and_fit(
         let errors: Vec<Value> = per_output
             .iter()
             .enumerate()
-            .map(|(o, e)| harmonic_errors(settings, &channels[o], e))
+            .map(|(o, e)| match &truth {
+                Some(truth) => harmonic_errors(settings, &truth[o], e),
+                None => harmonic_errors(settings, &channels[o], e),
+            })
             .collect();
         let of_est: Vec<(usize, &HtfEstimate)> = per_output.iter().enumerate().collect();
         let fit = stages
@@ -734,6 +762,7 @@ fn estimate_and_fit(
         anyhow::Ok((per_output, errors, fit))
     };
     let mut designs = designs.map(Vec::into_iter);
+    let mut truths = truths.into_iter();
     let chains = std::thread::scope(|scope| {
         let handles: Vec<_> = settings
             .estimation
@@ -743,9 +772,10 @@ fn estimate_and_fit(
             .map(|(&est, csvs)| {
                 let chain = &chain;
                 let prepared = designs.as_mut().and_then(Iterator::next);
+                let truth = truths.next().flatten();
                 scope.spawn(move || {
                     let mut local = Stages::silent();
-                    let found = chain(est, csvs, prepared, &mut local);
+                    let found = chain(est, csvs, prepared, truth, &mut local);
                     (local, found)
                 })
             })

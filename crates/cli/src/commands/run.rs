@@ -12,7 +12,7 @@ use htfid_excite::{alias_map, Polarity};
 use htfid_identify::{budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_model::{Hopper, HopperOrbit};
 use htfid_plot::Style;
-use htfid_theory::HarmonicTransferFunction;
+use htfid_theory::{HarmonicTransferFunction, Tabulated};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
@@ -76,30 +76,37 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     let sampled = hopper.clone();
     let (sim, side) = std::thread::scope(|scope| -> Result<_> {
         let (settings, theory, sampled) = (&settings, &theory, &sampled);
-        let side = scope.spawn(move || -> Result<(Stages, Option<Vec<Prepared>>)> {
-            let mut local = Stages::silent();
-            let grid = local.run("exact HTF", || {
-                theory
-                    .exact
-                    .grid(&settings.theory.harmonics, &settings.theory.omegas)
-            });
-            local.run("write theory", || -> Result<()> {
-                fill_theory_csv(theory_csv, &grid)?;
-                fill_limit_cycle(cycle_csv, settings, sampled, &theory.orbit)
-            })?;
-            // The estimators' work on the input alone, too: the input is known before the
-            // output (`htfid_estimate::Design`). Should it fail, the chains prepare them
-            // again from the simulated input and say what is wrong.
-            let designs = local
-                .run("prepare estimators", || prepare_all(settings))
-                .ok();
-            Ok((local, designs))
-        });
+        let side = scope.spawn(
+            move || -> Result<(Stages, Option<Vec<Prepared>>, Truths<'_>)> {
+                let mut local = Stages::silent();
+                let grid = local.run("exact HTF", || {
+                    theory
+                        .exact
+                        .grid(&settings.theory.harmonics, &settings.theory.omegas)
+                });
+                local.run("write theory", || -> Result<()> {
+                    fill_theory_csv(theory_csv, &grid)?;
+                    fill_limit_cycle(cycle_csv, settings, sampled, &theory.orbit)
+                })?;
+                // The estimators' work on the input alone, too: the input is known before
+                // the output (`htfid_estimate::Design`). Should it fail, the chains prepare
+                // them again from the simulated input and say what is wrong.
+                let designs = local
+                    .run("prepare estimators", || prepare_all(settings))
+                    .ok();
+                // The exact HTF at the rows an estimate will have, where the input fixes
+                // them, for its errors.
+                let truths = local.run("exact HTF at the estimates", || {
+                    truths_at(&theory.exact, designs.as_deref())
+                });
+                Ok((local, designs, truths))
+            },
+        );
         let sim = simulate_on(settings, hopper, orbit, &mut stages);
         let side = side.join().expect("the theory writer does not panic");
         Ok((sim?, side?))
     })?;
-    let (side, designs) = side;
+    let (side, designs, truths) = side;
     stages.absorb(side);
     let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
 
@@ -119,6 +126,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         // Each estimator's chain (estimate, fit, uncertainty) is independent of the others':
         // one thread each.
         let mut designs = designs.map(Vec::into_iter);
+        let mut truths = truths.into_iter();
         let chains: Vec<_> = settings
             .estimation
             .estimators
@@ -127,6 +135,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             .map(|(&est, csv)| {
                 let (settings, sim, deviation, theory) = (&settings, sim_ref, &deviation, &theory);
                 let prepared = designs.as_mut().and_then(Iterator::next);
+                let truth = truths.next().flatten();
                 scope.spawn(move || {
                     let mut local = Stages::silent();
                     let chain = estimator_chain(
@@ -134,7 +143,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                         sim,
                         deviation,
                         &theory.exact,
-                        (est, csv, prepared),
+                        (est, csv, prepared, truth),
                         &mut local,
                     );
                     (local, chain)
@@ -254,7 +263,12 @@ fn estimator_chain(
     sim: &Simulated,
     deviation: &[f64],
     exact: &(dyn HarmonicTransferFunction + Sync),
-    (est, csv, prepared): (Estimator, htfid_data::CsvWriter, Option<Prepared>),
+    (est, csv, prepared, truth): (
+        Estimator,
+        htfid_data::CsvWriter,
+        Option<Prepared>,
+        Option<Tabulated<'_>>,
+    ),
     stages: &mut Stages,
 ) -> Result<Chain> {
     let e = stages
@@ -271,8 +285,9 @@ fn estimator_chain(
         let e = &e;
         let side = scope.spawn(move || -> Result<(Stages, Value)> {
             let mut local = Stages::silent();
-            let errors = local.run(&format!("errors ({})", est.name()), || {
-                harmonic_errors(settings, exact, e)
+            let errors = local.run(&format!("errors ({})", est.name()), || match &truth {
+                Some(truth) => harmonic_errors(settings, truth, e),
+                None => harmonic_errors(settings, exact, e),
             });
             local.run(&format!("write estimate ({})", est.name()), || {
                 fill_estimate_csv(csv, e)
@@ -314,6 +329,22 @@ pub(crate) fn estimate(
     design(settings, (t, u), excitation, est)?.estimate(y)
 }
 
+/// Per configured estimator, the exact HTF at its estimate's rows when the input fixes them
+/// (`htfid_estimate::Design::points`).
+type Truths<'a> = Vec<Option<Tabulated<'a>>>;
+
+/// The truths of `designs` (none when they could not be prepared).
+fn truths_at<'a>(
+    exact: &'a (dyn HarmonicTransferFunction + Sync),
+    designs: Option<&[Prepared]>,
+) -> Truths<'a> {
+    designs
+        .unwrap_or_default()
+        .iter()
+        .map(|p| p.points().map(|points| Tabulated::new(exact, &points)))
+        .collect()
+}
+
 /// An estimator prepared from the experiment's input before its output is known
 /// (`htfid_estimate::Design`), with what a failure should name.
 #[derive(Debug)]
@@ -326,6 +357,11 @@ impl Prepared {
     /// The estimate from the output `y`.
     pub(crate) fn estimate(&self, y: &[f64]) -> Result<HtfEstimate> {
         self.design.estimate(y).context(self.context.clone())
+    }
+
+    /// The `(n, omega)` of its estimates' rows, when the input fixes them.
+    pub(crate) fn points(&self) -> Option<Vec<(i32, f64)>> {
+        self.design.points()
     }
 
     /// Whether it was prepared from the input `u`, sample by sample, bit for bit.

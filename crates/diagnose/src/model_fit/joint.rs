@@ -12,28 +12,30 @@ use crate::{DiagnoseError, TimeSeries};
 
 /// A candidate effect to try.
 pub(super) enum Trial {
-    Boundary(BoundaryEffect),
+    /// An effect on the model's boundary, with its parameters' names in this model
+    /// ([`BoundaryEffect::parameter_names_avoiding`]).
+    Boundary(BoundaryEffect, Vec<String>),
     Term(TermEffect),
 }
 
 impl Trial {
     pub(super) fn name(&self) -> String {
         match self {
-            Trial::Boundary(e) => e.name().to_string(),
+            Trial::Boundary(e, _) => e.name().to_string(),
             Trial::Term(t) => t.name.clone(),
         }
     }
 
     pub(super) fn describe(&self) -> Option<String> {
         match self {
-            Trial::Boundary(_) => None,
+            Trial::Boundary(..) => None,
             Trial::Term(t) => Some(t.describe()),
         }
     }
 
-    pub(super) fn parameter_names(&self, outputs: &[String]) -> Vec<String> {
+    pub(super) fn parameter_names(&self) -> Vec<String> {
         match self {
-            Trial::Boundary(e) => e.parameter_names(outputs),
+            Trial::Boundary(_, names) => names.clone(),
             Trial::Term(t) => t.parameter_names(),
         }
     }

@@ -146,7 +146,7 @@ impl Selection<'_, '_> {
             .trials
             .par_iter()
             .map(|trial| match trial {
-                Trial::Boundary(effect) => {
+                Trial::Boundary(effect, _) => {
                     let effect = *effect;
                     let start = joint.effect_start(effect, base, outputs);
                     // From the refit: its parameters and its state.
@@ -209,7 +209,7 @@ impl Selection<'_, '_> {
             .collect();
         let mut candidates: Vec<Tried> = Vec::new();
         for (ti, (trial, fitted)) in self.trials.iter().zip(fits).enumerate() {
-            let names_e = trial.parameter_names(outputs);
+            let names_e = trial.parameter_names();
             let (f, score, sim) = match fitted {
                 Ok(v) => v,
                 Err(e) => {
@@ -299,16 +299,16 @@ impl Selection<'_, '_> {
             .iter()
             .filter_map(|t| match t {
                 Trial::Term(term) => Some(term),
-                Trial::Boundary(_) => None,
+                Trial::Boundary(..) => None,
             })
             .collect();
-        let boundary: Vec<BoundaryEffect> = chosen
+        let (boundary, boundary_names): (Vec<BoundaryEffect>, Vec<&[String]>) = chosen
             .iter()
             .filter_map(|t| match t {
-                Trial::Boundary(e) => Some(*e),
+                Trial::Boundary(e, names) => Some((*e, names.as_slice())),
                 Trial::Term(_) => None,
             })
-            .collect();
+            .unzip();
         let mut m = self.refitted_model.clone();
         for term in &terms {
             m = m.with_extension(&term.extension).map_err(to_err)?;
@@ -360,8 +360,7 @@ impl Selection<'_, '_> {
         };
         // Boundary parameters fitted before from their values, a new effect's from its start.
         let mut start: Vec<f64> = Vec::new();
-        for &e in &boundary {
-            let pn = e.parameter_names(outputs);
+        for (&e, pn) in boundary.iter().zip(&boundary_names) {
             match pn.iter().map(|n| known.get(n).copied()).collect() {
                 Some(v) => start.extend::<Vec<f64>>(v),
                 None => start.extend(joint.effect_start(e, base, outputs)),
@@ -372,8 +371,8 @@ impl Selection<'_, '_> {
         let fitted = joint_x.model_at(&f.params[..kx])?;
         let bd = Boundary::with_all(&boundary, &f.params[kx..], outputs.len());
         let (score, sim) = self.score(&fitted, &f.state, &bd)?;
-        for e in &boundary {
-            all.extend(e.parameter_names(outputs));
+        for names in &boundary_names {
+            all.extend(names.iter().cloned());
         }
         Ok((f, score, sim, all))
     }
@@ -416,8 +415,7 @@ impl Selection<'_, '_> {
             }
         };
         let (lr, kappa) = nested_ratio(rss, f.rss, &f.residuals, self.n());
-        let critical =
-            crate::select::chi2_quantile(t2.parameter_names(self.outputs).len(), opts.alpha);
+        let critical = crate::select::chi2_quantile(t2.parameter_names().len(), opts.alpha);
         let gain_e = 1.0 - score.validation() / score_without;
         let significant = lr >= critical && gain_e >= opts.min_gain;
         let infl = kappa.sqrt();
@@ -516,10 +514,8 @@ impl Selection<'_, '_> {
             let mut weakest: Option<(f64, usize, Tried)> = None;
             for ((e, _), fit) in reduced.iter().zip(fits) {
                 let Ok(without) = fit else { continue };
-                let critical = crate::select::chi2_quantile(
-                    trials[*e].parameter_names(self.outputs).len(),
-                    opts.alpha,
-                );
+                let critical =
+                    crate::select::chi2_quantile(trials[*e].parameter_names().len(), opts.alpha);
                 let (lr, _) = nested_ratio(without.rss, cur.rss, &cur.residuals, self.n());
                 let gain_e =
                     1.0 - cur.candidate.nrmse_validation / without.candidate.nrmse_validation;
