@@ -1323,6 +1323,78 @@ fn paper_with_the_hopper_as_a_model_file_matches_the_built_in() {
     }
 }
 
+/// The improved design's multisine excites the input frequencies that `G_-3 .. G_3` need over
+/// 1-40 rad/s, up to about 40 + 3 wp = 59 rad/s. Estimated over 1-100 rad/s, `G_-3` at an
+/// output frequency `w` reads the input at `w + 3 wp`, unexcited above `b - 3 wp` (`b` the
+/// excited band's top): the summary names that range, from within three frequency bins of
+/// where it must start (the check's margin of one bin, a grid step, rounding) up to the band's
+/// top, and a note says the estimates there rest on regularisation; every range listed, of any
+/// harmonic, reads input frequencies outside the excited band.
+#[test]
+fn estimate_names_where_a_harmonic_reads_unexcited_input_frequencies() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    htfid_ok(&[
+        "simulate",
+        "configs/paper-improved.toml",
+        "--out",
+        sim.to_str().unwrap(),
+    ]);
+    let config = tmp.path().join("estimate.toml");
+    fs::write(
+        &config,
+        "[data]\nfile = \"sim/timeseries.csv\"\ntime = \"t\"\ninput = \"f\"\noutputs = [\"x\"]\n\
+         start = 30.0\n\n[period]\nvalue = 1.0\n\n[estimation]\nomega_min = 1.0\nomega_max = 100.0\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("est");
+    let o = htfid(&[
+        "estimate",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = summary(&out);
+    let band = s["checks"]["excited_band"].as_array().unwrap();
+    let (a, b) = (band[0].as_f64().unwrap(), band[1].as_f64().unwrap());
+    assert!((55.0..65.0).contains(&b), "excited band {a}-{b}");
+    let wp = 2.0 * std::f64::consts::PI;
+    let bin = s["record"]["frequency_resolution"].as_f64().unwrap();
+    let unexcited = s["checks"]["unexcited"].as_array().unwrap();
+    let minus3 = unexcited
+        .iter()
+        .find(|u| u["n"].as_i64() == Some(-3))
+        .unwrap_or_else(|| panic!("G_-3 not named: {unexcited:?}"));
+    let range = minus3["omega"][0].as_array().unwrap();
+    let (from, to) = (range[0].as_f64().unwrap(), range[1].as_f64().unwrap());
+    assert!(
+        (from - (b - 3.0 * wp)).abs() <= 3.0 * bin,
+        "G_-3 from {from}, b {b}"
+    );
+    assert!(to >= 100.0 - 2.0 * bin, "G_-3 to {to}");
+    for u in unexcited {
+        let n = u["n"].as_f64().unwrap();
+        for r in u["omega"].as_array().unwrap() {
+            for w in [r[0].as_f64().unwrap(), r[1].as_f64().unwrap()] {
+                let input = (w - n * wp).abs();
+                assert!(
+                    input < a - bin || input > b + bin,
+                    "G_{n} at {w}: input {input}"
+                );
+            }
+        }
+    }
+    let notes = s["checks"]["notes"].as_array().unwrap();
+    assert!(
+        notes.iter().any(|n| {
+            let t = n.as_str().unwrap();
+            t.contains("G_-3 at") && t.contains("outside the excited band")
+        }),
+        "{notes:?}"
+    );
+}
+
 /// `htfid estimate` on a record of the paper's experiment made by `htfid simulate`: the period
 /// is recovered from the position alone, and the model-free estimate of `G_0` agrees with the
 /// exact theory of the hopper (computed by `htfid theory`, the closed-form piecewise HTF) in the

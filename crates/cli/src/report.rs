@@ -639,7 +639,10 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
         };
         r.para(&format!(
             "Output `{output}` (Siddiqi's estimator, smoothness weight α = {}): per harmonic the \
-             largest magnitude of `G_n` over the band in {unit}, the median over the band of its \
+             largest magnitude of `G_n` over the band in {unit} where it stands out of its noise \
+             (above the level noise alone reaches anywhere in the band with probability 5 %, \
+             `sqrt(ln(points / 0.05))` standard errors; – where it nowhere does), \
+             the median over the band of its \
              magnitude over its standard error, at how many frequencies it is significant, and \
              the largest smoothing bias over the standard error. The standard errors are the \
              noise's; the smoothing also biases the estimate where `G_n` curves (near a \
@@ -655,7 +658,9 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
                 let h = &by_n[n.to_string()];
                 vec![
                     n.to_string(),
-                    sig(f(&h["max_abs_g"]), 3),
+                    h["max_abs_g_significant"]
+                        .as_f64()
+                        .map_or("–".to_string(), |v| sig(v, 3)),
                     sig(f(&h["median_abs_g_over_stderr"]), 2),
                     format!("{} of {}", h["significant_points"], h["points"]),
                     h["max_bias_over_stderr"]
@@ -667,7 +672,7 @@ pub fn estimate(summary: &Value, config: &Path, data: &Path, plots: &[String]) -
         r.table(
             &[
                 "n",
-                "largest magnitude of G_n",
+                "largest significant |G_n|",
                 "median magnitude / standard error",
                 "significant at",
                 "largest smoothing bias / standard error",

@@ -423,13 +423,17 @@ pub fn estimate(summary: &Value, dir: &Path, files: &[PathBuf]) {
             .collect();
         ns.sort_by_key(|(n, _)| *n);
         let mut lines = vec![format!(
-            "{:>4}  {:>10}  {:>17}",
-            "n", "max |G_n|", "significant (>2σ)"
+            "{:>4}  {:>17}  {:>17}",
+            "n", "max |G_n| (sig.)", "significant (>2σ)"
         )];
         for (n, h) in ns {
+            // The largest where the estimate stands out of its noise ("–" where it nowhere
+            // does): elsewhere the modulus is the noise's.
+            let largest = h["max_abs_g_significant"]
+                .as_f64()
+                .map_or("–".to_string(), |v| sig(v, 4));
             lines.push(format!(
-                "{n:>4}  {:>10}  {:>17}",
-                sig(f(&h["max_abs_g"]), 4),
+                "{n:>4}  {largest:>17}  {:>17}",
                 format!("{} of {}", h["significant_points"], h["points"])
             ));
         }

@@ -31,6 +31,12 @@ const OUTER_SIGNIFICANT_SHARE: f64 = 0.1;
 
 /// Fewer periods than this and the estimate is called short in the checks.
 const MIN_PERIODS: usize = 20;
+/// Probability that noise alone reaches the level of `max_abs_g_significant` at any of a
+/// harmonic's frequencies.
+const BAND_FALSE_ALARM: f64 = 0.05;
+/// Share of a harmonic's frequencies, reading unexcited input frequencies, above which a note
+/// names them.
+const UNEXCITED_SHARE: f64 = 0.05;
 
 fn read(settings: &EstimateSettings, output: &str) -> Result<TimeSeries> {
     let columns = Columns {
@@ -221,6 +227,30 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     } else {
         notes.push("the input has no broadband content apart from its periodic part".into());
     }
+    // Per harmonic, the output frequencies whose input frequency `w - n wp` the input does
+    // not excite (the grid is the first output's; every output shares it).
+    let unexcited: Vec<(i32, Vec<(f64, f64)>)> = match (excited, estimates.first()) {
+        (Some(band), Some(e)) => unexcited_ranges(e, wp, band, resolution),
+        _ => Vec::new(),
+    };
+    if !unexcited.is_empty() {
+        notes.push(format!(
+            "{}: the input frequencies these read (w - n wp) lie outside the excited band; \
+             there the estimates rest on regularisation and noise alone",
+            unexcited
+                .iter()
+                .map(|(n, ranges)| format!(
+                    "G_{n} at {}",
+                    ranges
+                        .iter()
+                        .map(|(a, b)| format!("{a:.3}-{b:.3} rad/s"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ));
+    }
     let unresolved: Vec<i32> = settings
         .harmonics
         .iter()
@@ -244,7 +274,9 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                 "output {}: the response carries harmonics outside estimation.harmonics ({}), \
                  significant where estimated beside the others; left out, they are absorbed \
                  by the harmonics estimated as a bias their standard errors do not show: add \
-                 them to estimation.harmonics",
+                 them to estimation.harmonics (an orbit with impacts carries every harmonic: \
+                 add until those beyond stay near the noise's 2 %, or read the estimates as \
+                 biased by them)",
                 outputs[o],
                 carried
                     .iter()
@@ -312,6 +344,16 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                 .map(|&k| {
                     let rows: Vec<_> = e.rows().filter(|r| r.n == k).collect();
                     let max = rows.iter().map(|r| r.value.norm()).fold(0.0, f64::max);
+                    // Where the estimate stands out of its noise over the whole band: noise
+                    // alone passes this level at any of the harmonic's frequencies with
+                    // probability 5 % (a complex estimate's noise modulus over its standard
+                    // error exceeds t with probability exp(-t^2)).
+                    let level = (rows.len().max(1) as f64 / BAND_FALSE_ALARM).ln().sqrt().max(2.0);
+                    let max_significant = rows
+                        .iter()
+                        .filter(|r| r.stderr > 0.0 && r.value.norm() > level * r.stderr)
+                        .map(|r| r.value.norm())
+                        .fold(f64::NAN, f64::max);
                     let mut snr: Vec<f64> = rows
                         .iter()
                         .filter(|r| r.stderr > 0.0)
@@ -335,6 +377,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                         k.to_string(),
                         json!({
                             "max_abs_g": max,
+                            "max_abs_g_significant": max_significant,
                             "median_abs_g_over_stderr": snr.get(snr.len() / 2).copied().unwrap_or(f64::NAN),
                             "significant_points": significant,
                             "points": rows.len(),
@@ -370,6 +413,10 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         },
         "checks": {
             "excited_band": excited.map(|(a, b)| [a, b]),
+            "unexcited": unexcited.iter().map(|(n, ranges)| json!({
+                "n": n,
+                "omega": ranges.iter().map(|&(a, b)| [a, b]).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
             "notes": notes,
             "outer_harmonics": outer.iter().zip(outputs).map(|(list, name)| json!({
                 "output": name,
@@ -403,34 +450,68 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     Ok(())
 }
 
-/// The band (rad/s) where the input's spectrum lies within 40 dB of its peak, smoothed over
-/// 1 % of the bins; `None` for an input without content.
+/// The band (rad/s) where the input's spectrum lies within 40 dB of its peak: from the lowest
+/// to the highest frequency bin above that level, the record Hann-windowed first so that a
+/// strong line's leakage falls below it within a few bins; `None` for an input without
+/// content.
 fn excited_band(u: &[f64], dt: f64) -> Option<(f64, f64)> {
     let n = u.len();
-    let mut buf: Vec<Complex64> = u.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+    let mut buf: Vec<Complex64> = u
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let w = 0.5 - 0.5 * (2.0 * PI * i as f64 / n as f64).cos();
+            Complex64::new(w * v, 0.0)
+        })
+        .collect();
     rustfft::FftPlanner::new()
         .plan_fft_forward(n)
         .process(&mut buf);
     let power: Vec<f64> = buf[1..n / 2].iter().map(|z| z.norm_sqr()).collect();
-    let w = (power.len() / 100).max(1);
-    let smooth: Vec<f64> = (0..power.len())
-        .map(|i| {
-            let (a, b) = (i.saturating_sub(w), (i + w + 1).min(power.len()));
-            power[a..b].iter().sum::<f64>() / (b - a) as f64
-        })
-        .collect();
-    let peak = smooth.iter().copied().fold(0.0, f64::max);
+    let peak = power.iter().copied().fold(0.0, f64::max);
     if peak.is_nan() || peak <= 0.0 {
         return None;
     }
-    let above: Vec<usize> = (0..smooth.len())
-        .filter(|&i| smooth[i] >= 1e-4 * peak)
-        .collect();
+    let first = power.iter().position(|&p| p >= 1e-4 * peak)?;
+    let last = power.iter().rposition(|&p| p >= 1e-4 * peak)?;
     let bin = 2.0 * PI / (n as f64 * dt);
-    Some((
-        (above[0] + 1) as f64 * bin,
-        (*above.last()? + 1) as f64 * bin,
-    ))
+    Some(((first + 1) as f64 * bin, (last + 1) as f64 * bin))
+}
+
+/// Per harmonic of `e`, the ranges of its output frequencies `w` (rad/s) whose input frequency
+/// `|w - n wp|` lies more than a frequency bin outside the excited band `(lo, hi)`, where they
+/// cover more than [`UNEXCITED_SHARE`] of the harmonic's frequencies.
+fn unexcited_ranges(
+    e: &HtfEstimate,
+    wp: f64,
+    (lo, hi): (f64, f64),
+    bin: f64,
+) -> Vec<(i32, Vec<(f64, f64)>)> {
+    let mut out = Vec::new();
+    for &n in e.harmonics() {
+        let rows: Vec<f64> = e.rows().filter(|r| r.n == n).map(|r| r.omega).collect();
+        let outside = |w: f64| {
+            let input = (w - f64::from(n) * wp).abs();
+            input < lo - bin || input > hi + bin
+        };
+        let count = rows.iter().filter(|&&w| outside(w)).count();
+        if rows.is_empty() || (count as f64) <= UNEXCITED_SHARE * rows.len() as f64 {
+            continue;
+        }
+        let mut ranges: Vec<(f64, f64)> = Vec::new();
+        let mut open: Option<(f64, f64)> = None;
+        for &w in &rows {
+            match (outside(w), open.as_mut()) {
+                (true, Some(range)) => range.1 = w,
+                (true, None) => open = Some((w, w)),
+                (false, Some(_)) => ranges.extend(open.take()),
+                (false, None) => {}
+            }
+        }
+        ranges.extend(open);
+        out.push((n, ranges));
+    }
+    out
 }
 
 /// `|G_n|` of one output with its 95 % confidence region (`|G| +- 1.96 stderr`) shaded and
