@@ -14,14 +14,15 @@
 //!   `judge`); the model then holding it, later candidates, the backward pass and the share
 //!   of the explained error are judged on those windows too.
 //!
-//! Later rounds try again every candidate but an effect on the whole motion whose first-round
-//! fit did not move it off its absent value, nor pressed it against a bound (see
-//! `tried_again`): an effect that gains too little held out beside a larger one still missing
-//! (a late switch beside an unmodelled cubic spring; a delay behind a wrong stiffness) or that
-//! does not move at all while another hides it (a threshold masked by damping in flight) is
-//! found once that one is modelled. One pressed against its bound is fitted again only in a
-//! round whose model the data pull it away from (its score statistic, `Context::score`, at
-//! the critical value of one added parameter). The passing candidate with the lowest
+//! Later rounds try again every candidate whose first-round fit moved it off its absent value
+//! (see `tried_again`): an effect that gains too little held out beside a larger one still
+//! missing (a late switch beside an unmodelled cubic spring; a delay behind a wrong stiffness)
+//! or that does not move at all while another hides it (a threshold masked by damping in
+//! flight) is found once that one is modelled. One that stayed at its absent value or was
+//! pressed against a bound is fitted again only in a round whose model the data pull it away
+//! from there (its score statistic, `Context::score`, at the critical value of one added
+//! parameter): beside a larger effect its first fit can be swamped (drag beside a sensor's gain
+//! error). The passing candidate with the lowest
 //! held-out error is added, except that a candidate
 //! nested in it (its added parameters a subset) that passes too is preferred unless the
 //! richer one is itself a significant improvement over it. Selection stops when no candidate
@@ -414,15 +415,15 @@ fn negative_friction(fit: &FitResult) -> Option<String> {
 /// of the motion only (a switching threshold, a contact) always is: its cost is flat or kinked
 /// where it does not act, so another effect can hide it until that one is modelled (damping
 /// while the damper is off hides a late switch, whose threshold alone stays at zero). An
-/// effect acting on the whole motion is tried again unless its fit alone left every added
-/// parameter within one standard error of its absent value (or undetermined): its cost is
-/// smooth, one that does not move alone is absent, and trying it beside others would only let
-/// it compensate for them. One that moved without passing may gain too little held out beside a
-/// larger effect still missing (a delay behind a wrong stiffness) and is found once that one is
-/// modelled. A parameter held on its bound did not stay by choice: the fit wanted to cross it
-/// (damping in flight pushed below zero by a wrong stiffness, a cubic spring or a gain error
-/// beside it), so that effect is tried again as well, in each round whose model the data pull
-/// it away from that bound ([`Retry::IfPulledOff`]).
+/// effect acting on the whole motion that moved without passing may gain too little held out
+/// beside a larger effect still missing (a delay behind a wrong stiffness) and is tried again
+/// in every later round. One whose fit alone left every added parameter within one standard
+/// error of its absent value, or held on a bound, is tried again only in a round whose model
+/// the data pull it away from there ([`Retry::IfPulledOff`]): its cost is smooth, so where the
+/// model then chosen does not pull it, a fit would only let it compensate for others; but a
+/// larger effect can swamp its first fit (drag beside a sensor's gain error, fitted 8 +- 13
+/// where the truth is 10), and a parameter held on its bound did not stay by choice (damping in
+/// flight pushed below zero by a wrong stiffness, a cubic spring or a gain error beside it).
 fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> Retry {
     if matches!(j.outcome.effect, Effect::SwitchThreshold | Effect::HardStop) {
         return Retry::Always;
@@ -436,17 +437,22 @@ fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> Retry {
     let moved = added.iter().any(|&i| {
         !fit.at_bound[i] && (fit.values[i] - absent.get(fit.slots[i])).abs() > fit.stderr[i]
     });
-    let held: Vec<Slot> = added
-        .iter()
-        .filter(|&&i| fit.at_bound[i])
-        .map(|&i| fit.slots[i])
-        .collect();
     if moved {
-        Retry::Always
-    } else if held.is_empty() {
+        return Retry::Always;
+    }
+    // Held on a bound, or left at its absent value alone: beside a larger effect the fit of
+    // this one can be swamped (drag beside a sensor's gain error, fitted 8 +- 13 where the
+    // truth is 10), so it is scored again in each later round.
+    let idle: Vec<Slot> = fit
+        .slots
+        .iter()
+        .filter(|s| !before.contains(s))
+        .copied()
+        .collect();
+    if idle.is_empty() {
         Retry::Never
     } else {
-        Retry::IfPulledOff(held)
+        Retry::IfPulledOff(idle)
     }
 }
 
@@ -455,11 +461,11 @@ fn tried_again(j: &Judged, before: &[Slot], absent: &ModelPoint) -> Retry {
 enum Retry {
     Always,
     Never,
-    /// It ended the first round with these parameters on their bound: it is fitted again in a
-    /// round where the data, beside the model then chosen, pull one of them off its bound
-    /// (its score statistic, [`Context::score`], reaches the critical value of one added
-    /// parameter). Where they still press it against the bound, a full fit (a lag's or a
-    /// delay's starts across decades) would only find the bound again.
+    /// It ended the first round with these parameters at their absent value or on their
+    /// bound: it is fitted again in a round where the data, beside the model then chosen, pull
+    /// one of them away from there (its score statistic, [`Context::score`], reaches the
+    /// critical value of one added parameter). Where they do not, a full fit (a lag's or a
+    /// delay's starts across decades) would only find the same place again.
     IfPulledOff(Vec<Slot>),
 }
 
@@ -613,9 +619,9 @@ impl Selector<'_, '_, '_, '_> {
                     tried.push(e);
                 } else {
                     (self.progress)(&format!(
-                        "round {}: {}: not fitted again: held on its bound in round 1, and the \
-                         data beside this model still do not pull it off (score {score:.1}, \
-                         critical {critical:.1})",
+                        "round {}: {}: not fitted again: at its absent value or held on its \
+                         bound in round 1, and the data beside this model still do not pull it \
+                         off (score {score:.1}, critical {critical:.1})",
                         round + 1,
                         e.name()
                     ));
