@@ -69,31 +69,6 @@ impl BoundaryEffect {
         }
     }
 
-    /// [`parameter_names`](Self::parameter_names) for a model that already uses the names for
-    /// which `taken` is true (its parameters, states and input, and the terms' parameters):
-    /// each such name gets the first free suffix, `tau_2`, `tau_3`, ..., as the terms'
-    /// parameters do, so that no two values in a fit or in `diagnosis.json` share a name.
-    pub fn parameter_names_avoiding(
-        self,
-        outputs: &[String],
-        taken: impl Fn(&str) -> bool,
-    ) -> Vec<String> {
-        let mut names: Vec<String> = Vec::new();
-        for base in self.parameter_names(outputs) {
-            let used = |n: &str| taken(n) || names.iter().any(|m| m == n);
-            let name = if used(&base) {
-                (2..)
-                    .map(|i| format!("{base}_{i}"))
-                    .find(|n| !used(n))
-                    .unwrap_or_default()
-            } else {
-                base
-            };
-            names.push(name);
-        }
-        names
-    }
-
     /// How many parameters the effect has for a model with `outputs` outputs.
     pub(crate) fn parameter_count(self, outputs: usize) -> usize {
         match self {

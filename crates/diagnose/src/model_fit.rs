@@ -399,21 +399,23 @@ pub fn diagnose_model(
         .into_iter()
         .chain(opts.user_terms.iter().cloned())
         .collect();
-    // The boundary effects' parameters take names the model and the terms leave free.
-    let taken = |n: &str| {
-        model.parameter_index(n).is_some()
-            || model.states().iter().any(|s| s.name == n)
-            || model.input_name() == n
-            || terms
-                .iter()
-                .any(|t| t.parameter_names().iter().any(|p| p == n))
-    };
-    let trials: Vec<Trial> = opts
-        .effects
-        .iter()
-        .map(|&e| Trial::Boundary(e, e.parameter_names_avoiding(&outputs, taken)))
-        .chain(terms.iter().cloned().map(Trial::Term))
-        .collect();
+    // The boundary effects' parameters take names the model and the terms leave free (`tau_2`
+    // beside a model parameter `tau`), as the terms' own do.
+    let mut taken: Vec<String> = terms.iter().flat_map(TermEffect::parameter_names).collect();
+    let mut trials: Vec<Trial> = Vec::new();
+    for &e in &opts.effects {
+        let names: Vec<String> = e
+            .parameter_names(&outputs)
+            .iter()
+            .map(|base| {
+                let name = crate::term::fresh(model, &taken, base);
+                taken.push(name.clone());
+                name
+            })
+            .collect();
+        trials.push(Trial::Boundary(e, names));
+    }
+    trials.extend(terms.into_iter().map(Trial::Term));
     let sel = Selection {
         opts,
         est: &est,

@@ -97,7 +97,7 @@ fn zero(name: String) -> Parameter {
 }
 
 /// A name not yet taken in `model`: `base`, else `base_2`, `base_3`, ...
-fn fresh(model: &Model, taken: &[String], base: &str) -> String {
+pub(crate) fn fresh(model: &Model, taken: &[String], base: &str) -> String {
     let used = |n: &str| {
         model.parameter_index(n).is_some()
             || model.states().iter().any(|s| s.name == n)

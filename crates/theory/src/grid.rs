@@ -45,41 +45,46 @@ pub struct Tabulated<'a> {
     inner: &'a (dyn HarmonicTransferFunction + Sync),
     points: Vec<(i32, f64)>,
     values: Vec<Complex64>,
-    table: HashMap<(i32, u64), Complex64>,
+    /// Where each point's value is in `values`.
+    index: HashMap<(i32, u64), usize>,
 }
 
 impl<'a> Tabulated<'a> {
     /// `inner` with its values at `points` computed now.
     pub fn new(inner: &'a (dyn HarmonicTransferFunction + Sync), points: &[(i32, f64)]) -> Self {
-        let values = inner.values(points);
-        let table = points
+        let index = points
             .iter()
-            .zip(&values)
-            .map(|(&(n, w), &g)| ((n, w.to_bits()), g))
+            .enumerate()
+            .map(|(i, &(n, w))| ((n, w.to_bits()), i))
             .collect();
         Tabulated {
             inner,
             points: points.to_vec(),
-            values,
-            table,
+            values: inner.values(points),
+            index,
         }
     }
 
     /// Points held.
     pub fn len(&self) -> usize {
-        self.table.len()
+        self.index.len()
     }
 
     /// Whether it holds no point.
     pub fn is_empty(&self) -> bool {
-        self.table.is_empty()
+        self.index.is_empty()
+    }
+
+    /// The value held at `(n, w)`, if any.
+    fn held(&self, n: i32, w: f64) -> Option<Complex64> {
+        self.index.get(&(n, w.to_bits())).map(|&i| self.values[i])
     }
 }
 
 impl std::fmt::Debug for Tabulated<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Tabulated")
-            .field("points", &self.table.len())
+            .field("points", &self.index.len())
             .finish_non_exhaustive()
     }
 }
@@ -90,10 +95,7 @@ impl HarmonicTransferFunction for Tabulated<'_> {
     }
 
     fn g(&self, n: i32, w: f64) -> Complex64 {
-        match self.table.get(&(n, w.to_bits())) {
-            Some(&g) => g,
-            None => self.inner.g(n, w),
-        }
+        self.held(n, w).unwrap_or_else(|| self.inner.g(n, w))
     }
 
     fn values(&self, points: &[(i32, f64)]) -> Vec<Complex64> {
@@ -106,10 +108,7 @@ impl HarmonicTransferFunction for Tabulated<'_> {
         if same {
             return self.values.clone();
         }
-        let held: Vec<Option<Complex64>> = points
-            .iter()
-            .map(|&(n, w)| self.table.get(&(n, w.to_bits())).copied())
-            .collect();
+        let held: Vec<Option<Complex64>> = points.iter().map(|&(n, w)| self.held(n, w)).collect();
         let missing: Vec<(i32, f64)> = points
             .iter()
             .zip(&held)

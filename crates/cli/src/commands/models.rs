@@ -12,13 +12,13 @@ use htfid_hybrid::{simulate, EventKind, HybridSystem};
 use htfid_identify::{fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{saltation, LimitCycle, ShootingOptions};
-use htfid_theory::{HtfChannel, HtfGrid, LinearisedHtf, Tabulated};
+use htfid_theory::{HarmonicTransferFunction, HtfChannel, HtfGrid, LinearisedHtf, Tabulated};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::run::{
     aliasing, design, estimate, fill_estimate_csv, harmonic_errors, prepare_all, run_plots,
-    Prepared, ESTIMATE_HEADER,
+    truths_at, Prepared, Truths, ESTIMATE_HEADER,
 };
 use crate::commands::simulate::experiment_input;
 use crate::commands::theory::{fill_theory_csv, theory_plots, write_theory_csv, THEORY_HEADER};
@@ -529,19 +529,11 @@ pub fn run_model(
                 // Each output's HTF at the rows an estimate will have, where the input fixes
                 // them, for its errors.
                 let truths = local.run("HTF at the estimates", || {
-                    designs
-                        .as_deref()
-                        .unwrap_or_default()
+                    let htfs: Vec<&(dyn HarmonicTransferFunction + Sync)> = channels
                         .iter()
-                        .map(|p| {
-                            p.points().map(|points| {
-                                channels
-                                    .iter()
-                                    .map(|c| Tabulated::new(c, &points))
-                                    .collect()
-                            })
-                        })
-                        .collect()
+                        .map(|c| c as &(dyn HarmonicTransferFunction + Sync))
+                        .collect();
+                    truths_at(&htfs, designs.as_deref())
                 });
                 Ok((local, designs, truths))
             },
@@ -691,9 +683,6 @@ fn orbit_deviation(
 
 type Estimates = Vec<Vec<(Estimator, HtfEstimate)>>;
 type JsonMap = serde_json::Map<String, Value>;
-/// Per configured estimator, each output's HTF at its estimate's rows when the input fixes
-/// them (`htfid_estimate::Design::points`).
-type Truths<'a> = Vec<Option<Vec<Tabulated<'a>>>>;
 
 /// Estimates per output and estimator, their errors against the theory, and the fits (one
 /// per estimator, to the estimates of every output together), each estimator's on a thread

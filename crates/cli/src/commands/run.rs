@@ -97,7 +97,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 // The exact HTF at the rows an estimate will have, where the input fixes
                 // them, for its errors.
                 let truths = local.run("exact HTF at the estimates", || {
-                    truths_at(&theory.exact, designs.as_deref())
+                    truths_at(&[&theory.exact], designs.as_deref())
                 });
                 Ok((local, designs, truths))
             },
@@ -135,7 +135,8 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             .map(|(&est, csv)| {
                 let (settings, sim, deviation, theory) = (&settings, sim_ref, &deviation, &theory);
                 let prepared = designs.as_mut().and_then(Iterator::next);
-                let truth = truths.next().flatten();
+                // One output: its truth.
+                let truth = truths.next().flatten().and_then(|t| t.into_iter().next());
                 scope.spawn(move || {
                     let mut local = Stages::silent();
                     let chain = estimator_chain(
@@ -329,19 +330,23 @@ pub(crate) fn estimate(
     design(settings, (t, u), excitation, est)?.estimate(y)
 }
 
-/// Per configured estimator, the exact HTF at its estimate's rows when the input fixes them
-/// (`htfid_estimate::Design::points`).
-type Truths<'a> = Vec<Option<Tabulated<'a>>>;
+/// Per configured estimator, each output's HTF at its estimate's rows when the input fixes
+/// them (`htfid_estimate::Design::points`).
+pub(crate) type Truths<'a> = Vec<Option<Vec<Tabulated<'a>>>>;
 
-/// The truths of `designs` (none when they could not be prepared).
-fn truths_at<'a>(
-    exact: &'a (dyn HarmonicTransferFunction + Sync),
+/// The truths of `designs` for the HTFs `htfs`, one per output (none when the designs could not
+/// be prepared).
+pub(crate) fn truths_at<'a>(
+    htfs: &[&'a (dyn HarmonicTransferFunction + Sync)],
     designs: Option<&[Prepared]>,
 ) -> Truths<'a> {
     designs
         .unwrap_or_default()
         .iter()
-        .map(|p| p.points().map(|points| Tabulated::new(exact, &points)))
+        .map(|p| {
+            p.points()
+                .map(|points| htfs.iter().map(|&h| Tabulated::new(h, &points)).collect())
+        })
         .collect()
 }
 

@@ -12,8 +12,8 @@ use crate::{DiagnoseError, TimeSeries};
 
 /// A candidate effect to try.
 pub(super) enum Trial {
-    /// An effect on the model's boundary, with its parameters' names in this model
-    /// ([`BoundaryEffect::parameter_names_avoiding`]).
+    /// An effect on the model's boundary, with its parameters' names in this model (those of
+    /// [`BoundaryEffect::parameter_names`], suffixed where the model or a term uses them).
     Boundary(BoundaryEffect, Vec<String>),
     Term(TermEffect),
 }
