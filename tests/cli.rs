@@ -752,6 +752,192 @@ fn hopper_truth_config_reproduces_the_committed_record() {
     }
 }
 
+/// A short experiment (a 10 s linear chirp after two settling periods) at `rate` Hz, with
+/// `effects` appended, simulated into `dir/name`; its `t`, `x`, `xd` columns.
+fn short_record(dir: &Path, name: &str, rate: f64, effects: &str) -> Vec<[f64; 3]> {
+    let config = dir.join(format!("{name}.toml"));
+    fs::write(
+        &config,
+        format!(
+            "name = \"{name}\"\n\
+             [model]\nm = 1.0\nk = 200.0\nc = 2.0\ng = 9.81\nx0 = 0.2\n\
+             [forcing]\namplitude = 1.0\nperiod = 1.0\n\
+             [simulation]\nsettle_periods = 2\nsample_rate = {rate}\nrtol = 1e-10\natol = 1e-12\n\
+             [excitation]\nkind = \"chirp_train\"\nwaveform = \"linear\"\nf_start_hz = 0.5\n\
+             f_end_hz = 5.0\nduration = 10.0\namplitude = 0.5\n{effects}"
+        ),
+    )
+    .unwrap();
+    let out = dir.join(name);
+    htfid_ok(&[
+        "simulate",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    let text = fs::read_to_string(out.join("timeseries.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (t, x, xd) = (col("t"), col("x"), col("xd"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|c| c.parse().unwrap()).collect();
+            [v[t], v[x], v[xd]]
+        })
+        .collect()
+}
+
+/// `[effects] tau_s`, `b`, `g` put the diagnosis's position sensor into a simulated record:
+/// the recorded `x` is `b + g s` with `tau_s s' = x - s`, the velocity `xd` untouched.
+///
+/// Offset and gain: exactly `b + g x` of the record without them (to rounding, 1e-15 m).
+/// The lag against a filter written here from its definition: the same experiment sampled at
+/// 2 kHz, filtered exactly for a position linear between those samples (from `s = x` at the
+/// first sample, as a sensor slower than the sampling starts), read every 20th sample. Its own
+/// error is `h^2 |x''| / 8`, about 1e-9 m. The record's filter reads the 100 Hz samples through
+/// a cubic interpolant, whose error near the damper's 42 switches (where `x''` jumps) is
+/// 6.6e-8 m, 1.5e-6 of the 0.045 m peak to peak, measured; 5e-6 of it is allowed.
+#[test]
+fn a_simulated_sensor_lags_offsets_and_scales_the_recorded_position() {
+    let tmp = tempfile::tempdir().unwrap();
+    let ideal = short_record(tmp.path(), "ideal", 100.0, "");
+    let scaled = short_record(
+        tmp.path(),
+        "scaled",
+        100.0,
+        "[effects]\nb = 0.01\ng = 1.1\n",
+    );
+    assert_eq!(ideal.len(), scaled.len());
+    for (a, b) in ideal.iter().zip(&scaled) {
+        assert!((b[1] - (0.01 + 1.1 * a[1])).abs() <= 1e-15, "{a:?} {b:?}");
+        assert_eq!(
+            a[2].to_bits(),
+            b[2].to_bits(),
+            "the velocity is not measured"
+        );
+    }
+
+    let (tau, h, stride): (f64, f64, usize) = (0.05, 1.0 / 2000.0, 20);
+    let fine = short_record(tmp.path(), "fine", 2000.0, "");
+    let lagged = short_record(
+        tmp.path(),
+        "lagged",
+        100.0,
+        "[effects]\ntau_s = 0.05\nb = 0.01\ng = 1.1\n",
+    );
+    // tau s' = x - s for x linear from x0 to x1 over h: s1 = e s0 + (1 - e) x0 + w (x1 - x0).
+    let a = h / tau;
+    let e = (-a).exp();
+    let w = (1.0 - e) - (1.0 - e * (1.0 + a)) / a;
+    let mut s = fine[0][1];
+    let mut filtered = vec![s];
+    for pair in fine.windows(2) {
+        let (x0, x1) = (pair[0][1], pair[1][1]);
+        s = e * s + (1.0 - e) * x0 + w * (x1 - x0);
+        filtered.push(s);
+    }
+    let (lo, hi) = ideal
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r[1]), hi.max(r[1]))
+        });
+    let worst = lagged
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            assert!((r[0] - fine[i * stride][0]).abs() < 1e-12, "the same times");
+            (r[1] - (0.01 + 1.1 * filtered[i * stride])).abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst <= 5e-6 * (hi - lo), "worst {worst} of {}", hi - lo);
+
+    // A gain of 0 records nothing and a negative lag is no lag: both named.
+    for (effects, key) in [
+        ("[effects]\ng = 0.0\n", "effects.g"),
+        ("[effects]\ntau_s = -1.0\n", "effects.tau_s"),
+    ] {
+        let config = tmp.path().join("bad.toml");
+        let good = fs::read_to_string(tmp.path().join("ideal.toml")).unwrap();
+        fs::write(&config, format!("{good}{effects}")).unwrap();
+        let out = tmp.path().join("bad");
+        let o = htfid(&[
+            "simulate",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(key), "{}", stderr(&o));
+        assert!(!out.exists(), "no output for a refused config");
+    }
+}
+
+/// `[effects] mu_pos`, `mu_neg` (the diagnosis's asymmetric friction): friction `mu_pos`
+/// against upward motion and `mu_neg` against downward motion. Worked by hand for 0.3 N and
+/// 0.1 N: up, `-0.3 = -0.2 - 0.1`; down, `+0.1 = +0.2 - 0.1`: symmetric friction `mu = 0.2`
+/// and a constant force of -0.1 N, so the two records are the same, sample for sample. One
+/// level alone, or beside `mu`, is named.
+#[test]
+fn asymmetric_friction_is_simulated_as_its_mean_and_a_constant_force() {
+    let tmp = tempfile::tempdir().unwrap();
+    let asymmetric = short_record(
+        tmp.path(),
+        "asym",
+        100.0,
+        "[effects]\nmu_pos = 0.3\nmu_neg = 0.1\n",
+    );
+    let split = short_record(
+        tmp.path(),
+        "split",
+        100.0,
+        "[effects]\nmu = 0.2\ninput_offset = -0.1\n",
+    );
+    let symmetric = short_record(tmp.path(), "sym", 100.0, "[effects]\nmu = 0.2\n");
+    assert_eq!(asymmetric.len(), split.len());
+    // The same up to one rounding of the constant (`0.5 (0.1 - 0.3)` is -0.09999999999999999),
+    // which the integrator (rtol 1e-10) may turn into a different step: 1e-9 m and m/s allowed.
+    for (a, b) in asymmetric.iter().zip(&split) {
+        assert_eq!(a[0].to_bits(), b[0].to_bits());
+        assert!(
+            (a[1] - b[1]).abs() < 1e-9 && (a[2] - b[2]).abs() < 1e-9,
+            "{a:?} {b:?}"
+        );
+    }
+    // The constant force moves the record: the asymmetry is not lost.
+    let moved = asymmetric
+        .iter()
+        .zip(&symmetric)
+        .map(|(a, b)| (a[1] - b[1]).abs())
+        .fold(0.0, f64::max);
+    assert!(moved > 1e-4, "{moved}");
+    for (effects, key) in [
+        ("[effects]\nmu_pos = 0.3\n", "effects.mu_pos"),
+        ("[effects]\nmu_neg = 0.3\n", "effects.mu_neg"),
+        (
+            "[effects]\nmu = 0.2\nmu_pos = 0.3\nmu_neg = 0.1\n",
+            "effects.mu",
+        ),
+        ("[effects]\nmu_pos = -0.3\nmu_neg = 0.1\n", "effects.mu_pos"),
+    ] {
+        let config = tmp.path().join("bad.toml");
+        let good = fs::read_to_string(tmp.path().join("sym.toml")).unwrap();
+        let good = good.split("[effects]").next().unwrap().to_string();
+        fs::write(&config, format!("{good}{effects}")).unwrap();
+        let out = tmp.path().join("bad");
+        let o = htfid(&[
+            "simulate",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{effects}");
+        assert!(stderr(&o).contains(key), "{effects}: {}", stderr(&o));
+        assert!(!out.exists(), "no output for a refused config");
+    }
+}
+
 /// Real measured data: the Silverbox benchmark must be diagnosed as a cubic spring, with a
 /// simulation error near the published grey-box figure (~1 mV; linear ~7 mV). The data file
 /// lives in ../shared; a missing file fails this test.

@@ -46,7 +46,7 @@ impl Sensor {
     /// derivative.
     // Exact comparisons: the identity map is skipped only when it is exactly the identity.
     #[allow(clippy::float_cmp)]
-    pub(crate) fn apply(&self, dt: f64, x: &mut [f64]) {
+    pub fn apply(&self, dt: f64, x: &mut [f64]) {
         if self.tau_s > 0.0 && x.len() >= 5 {
             low_pass(self.tau_s, dt, x);
         }

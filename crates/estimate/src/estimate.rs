@@ -138,6 +138,32 @@ pub struct HarmonicSeries<'a> {
     pub stderr: &'a [f64],
 }
 
+/// The level, in standard errors, that noise alone passes at any of `points` independent
+/// frequencies with probability `false_alarm` (in `(0, 1)`), and never below 2.
+///
+/// A circular complex estimate's noise `e` with `E|e|^2 = stderr^2` has `|e|^2 / stderr^2`
+/// exponentially distributed, so `|e| > t stderr` with probability `exp(-t^2)`; over `points`
+/// frequencies the chance that any passes is at most `points exp(-t^2)` (Bonferroni), which is
+/// `false_alarm` at `t = sqrt(ln(points / false_alarm))`.
+pub fn band_level(points: usize, false_alarm: f64) -> f64 {
+    (points.max(1) as f64 / false_alarm).ln().sqrt().max(2.0)
+}
+
+impl HarmonicSeries<'_> {
+    /// The largest `|G_n|` among the values that stand out of their noise over the whole
+    /// band: above [`band_level`]`(points, false_alarm)` standard errors. `None` when none does
+    /// (or no value has a positive, finite standard error).
+    pub fn largest_significant(&self, false_alarm: f64) -> Option<f64> {
+        let level = band_level(self.values.len(), false_alarm);
+        self.values
+            .iter()
+            .zip(self.stderr)
+            .filter(|(v, &s)| s > 0.0 && s.is_finite() && v.norm() > level * s)
+            .map(|(v, _)| v.norm())
+            .reduce(f64::max)
+    }
+}
+
 impl HtfEstimate {
     /// Assembles an estimate, checking that every harmonic has one value and one standard error
     /// per frequency.

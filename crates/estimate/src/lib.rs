@@ -107,7 +107,7 @@ mod smooth;
 mod uncertainty;
 
 pub use error::{Error, Result};
-pub use estimate::{BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
+pub use estimate::{band_level, BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
 pub use experiment::{
     estimate_experiment, Design, Estimator, Layout, LineWindows, Request, Sampled,
 };

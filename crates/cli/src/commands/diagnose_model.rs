@@ -297,22 +297,35 @@ fn parameter_unit(s: &ModelDiagnoseSettings, name: &str) -> Option<String> {
     if s.model.parameter_index(name).is_some() {
         return s.model.parameter_unit(name).map(str::to_string);
     }
-    match name {
+    let input = s.format.unit(&s.input).or(s.model.input_unit());
+    let output = |output: &str| {
+        let o = s.outputs.iter().position(|n| n == output)?;
+        s.format
+            .unit(output)
+            .or(s.model.outputs()[o].unit.as_deref())
+    };
+    boundary_unit(name, input, output)
+}
+
+/// The unit of a boundary effect's parameter `name`: `delay`, `tau`, `tau_s` in s,
+/// `input_offset` in the input's unit, `b_<output>` in that output's. A boundary parameter
+/// whose name a model parameter holds takes the next free one (`tau_2`), so a name that is
+/// none of these is read again without a trailing `_<number>`.
+fn boundary_unit<'a>(
+    name: &str,
+    input: Option<&'a str>,
+    output: impl Fn(&str) -> Option<&'a str>,
+) -> Option<String> {
+    let exact = |name: &str| match name {
         "delay" | "tau" | "tau_s" => Some("s".to_string()),
-        "input_offset" => s
-            .format
-            .unit(&s.input)
-            .or(s.model.input_unit())
-            .map(str::to_string),
-        _ => {
-            let output = name.strip_prefix("b_")?;
-            let o = s.outputs.iter().position(|n| n == output)?;
-            s.format
-                .unit(output)
-                .or(s.model.outputs()[o].unit.as_deref())
-                .map(str::to_string)
-        }
-    }
+        "input_offset" => input.map(str::to_string),
+        _ => output(name.strip_prefix("b_")?).map(str::to_string),
+    };
+    exact(name).or_else(|| {
+        let (base, number) = name.rsplit_once('_')?;
+        let renamed = !number.is_empty() && number.bytes().all(|b| b.is_ascii_digit());
+        renamed.then(|| exact(base)).flatten()
+    })
 }
 
 /// The configured and the refitted simulation of output `o`, the refitted last.
@@ -934,5 +947,35 @@ fn errors_and_parameters(
     ));
     if d.input_noise.is_some() {
         r.para(crate::validation::noisy_input_note(&format!("input `{}`", s.input)).trim_end());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::boundary_unit;
+
+    #[test]
+    fn a_renamed_boundary_parameter_keeps_its_unit() {
+        let output = |o: &str| match o {
+            "x" => Some("m"),
+            "x_2" => Some("mm"),
+            _ => None,
+        };
+        let unit = |name: &str| boundary_unit(name, Some("N"), output);
+        assert_eq!(unit("tau").as_deref(), Some("s"));
+        assert_eq!(unit("tau_2").as_deref(), Some("s"));
+        assert_eq!(unit("tau_s_3").as_deref(), Some("s"));
+        assert_eq!(unit("delay_2").as_deref(), Some("s"));
+        assert_eq!(unit("input_offset_2").as_deref(), Some("N"));
+        assert_eq!(unit("b_x").as_deref(), Some("m"));
+        assert_eq!(unit("b_x_2").as_deref(), Some("mm"), "an output named x_2");
+        assert_eq!(unit("b_x_3").as_deref(), Some("m"), "b_x renamed");
+        assert_eq!(
+            unit("drag_v_2"),
+            None,
+            "a term's parameter has no declared unit"
+        );
+        assert_eq!(unit("tau_"), None);
+        assert_eq!(unit("g_x"), None, "a gain has no unit");
     }
 }

@@ -344,16 +344,11 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                 .map(|&k| {
                     let rows: Vec<_> = e.rows().filter(|r| r.n == k).collect();
                     let max = rows.iter().map(|r| r.value.norm()).fold(0.0, f64::max);
-                    // Where the estimate stands out of its noise over the whole band: noise
-                    // alone passes this level at any of the harmonic's frequencies with
-                    // probability 5 % (a complex estimate's noise modulus over its standard
-                    // error exceeds t with probability exp(-t^2)).
-                    let level = (rows.len().max(1) as f64 / BAND_FALSE_ALARM).ln().sqrt().max(2.0);
-                    let max_significant = rows
-                        .iter()
-                        .filter(|r| r.stderr > 0.0 && r.value.norm() > level * r.stderr)
-                        .map(|r| r.value.norm())
-                        .fold(f64::NAN, f64::max);
+                    // Where the estimate stands out of its noise over the whole band.
+                    let max_significant = e
+                        .harmonic(k)
+                        .and_then(|h| h.largest_significant(BAND_FALSE_ALARM))
+                        .unwrap_or(f64::NAN);
                     let mut snr: Vec<f64> = rows
                         .iter()
                         .filter(|r| r.stderr > 0.0)

@@ -130,7 +130,11 @@ pub fn simulate_on(
         trajectory: traj,
         mut outputs,
     } = driven;
-    // Measurement noise on the recorded position (seeded), as configured.
+    // The position sensor's lag, offset and gain, then measurement noise on the recorded
+    // position (seeded), as configured.
+    settings
+        .sensor()
+        .apply(1.0 / settings.sample_rate, &mut outputs[0]);
     if let Some(noise) = settings.noise {
         add_noise(&mut outputs, noise.output_std, noise.seed).context("noise.output_std")?;
     }

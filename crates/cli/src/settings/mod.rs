@@ -45,6 +45,39 @@ pub struct RawEffects {
     pub x_stop: OptNum,
     pub k_stop: OptNum,
     pub input_offset: OptNum,
+    /// Asymmetric friction (the diagnosis's `asymmetric_friction`): `mu_pos` while `x' > 0`,
+    /// `mu_neg` while `x' < 0`, simulated as `mu` and a constant force.
+    pub mu_pos: OptNum,
+    pub mu_neg: OptNum,
+    /// The position sensor's lag, offset and gain (the diagnosis's `sensor_lag` and
+    /// `sensor_offset_gain`): the recorded `x` is `b + g s` with `tau_s s' = x - s`.
+    pub tau_s: OptNum,
+    pub b: OptNum,
+    pub g: OptNum,
+}
+
+/// The position sensor of an `[effects]` table (`tau_s`, `b`, `g`); the ideal one without.
+pub fn resolve_sensor(
+    src: &Source,
+    e: Option<&RawEffects>,
+    table: &str,
+) -> Result<htfid_diagnose::Sensor, ConfigError> {
+    let ideal = htfid_diagnose::Sensor::default();
+    let Some(e) = e else {
+        return Ok(ideal);
+    };
+    let key = |k: &str| format!("{table}.{k}");
+    Ok(htfid_diagnose::Sensor {
+        tau_s: src.opt_number(&e.tau_s, 0.0, &key("tau_s"), ">= 0 (s)", |v| v >= 0.0)?,
+        b: src.opt_number(&e.b, 0.0, &key("b"), "a finite number (m)", f64::is_finite)?,
+        g: src.opt_number(
+            &e.g,
+            1.0,
+            &key("g"),
+            "a finite number other than 0 (the sensor's gain; gravity is model.g)",
+            |v| v.is_finite() && v != 0.0,
+        )?,
+    })
 }
 
 /// Resolves an `[effects]` table.
@@ -80,22 +113,55 @@ pub fn resolve_effects(
             ))
         }
     };
+    let input_offset = src.opt_number(
+        &e.input_offset,
+        0.0,
+        &key("input_offset"),
+        "a finite number (N)",
+        any,
+    )?;
+    // Asymmetric friction is symmetric friction, their mean, and a constant force, half their
+    // difference: the same force law, sticking included.
+    let (mu, input_offset) = match (&e.mu_pos, &e.mu_neg) {
+        (None, None) => (
+            src.opt_number(&e.mu, 0.0, &key("mu"), ">= 0 (N)", nonneg)?,
+            input_offset,
+        ),
+        (Some(pos), Some(neg)) => {
+            if let Some(mu) = &e.mu {
+                return Err(src.error(
+                    Some(&mu.span()),
+                    &key("mu"),
+                    "is not used with mu_pos and mu_neg (asymmetric friction has both levels)",
+                ));
+            }
+            let pos = src.number(pos, &key("mu_pos"), ">= 0 (N)", nonneg)?;
+            let neg = src.number(neg, &key("mu_neg"), ">= 0 (N)", nonneg)?;
+            (0.5 * (pos + neg), input_offset + 0.5 * (neg - pos))
+        }
+        (Some(one), None) | (None, Some(one)) => {
+            let (given, other) = if e.mu_pos.is_some() {
+                ("mu_pos", "mu_neg")
+            } else {
+                ("mu_neg", "mu_pos")
+            };
+            return Err(src.error(
+                Some(&one.span()),
+                &key(given),
+                format!("needs {other} too (asymmetric friction has both levels)"),
+            ));
+        }
+    };
     Ok(Effects {
         k3: src.opt_number(&e.k3, 0.0, &key("k3"), "a finite number (N/m^3)", any)?,
-        mu: src.opt_number(&e.mu, 0.0, &key("mu"), ">= 0 (N)", nonneg)?,
+        mu,
         c_f: src.opt_number(&e.c_f, 0.0, &key("c_f"), ">= 0 (N s/m)", nonneg)?,
         c2: src.opt_number(&e.c2, 0.0, &key("c2"), ">= 0 (N s^2/m^2)", nonneg)?,
         tau: src.opt_number(&e.tau, 0.0, &key("tau"), ">= 0 (s)", nonneg)?,
         delay: src.opt_number(&e.delay, 0.0, &key("delay"), ">= 0 (s)", nonneg)?,
         v_th: src.opt_number(&e.v_th, 0.0, &key("v_th"), "a finite number (m/s)", any)?,
         hard_stop,
-        input_offset: src.opt_number(
-            &e.input_offset,
-            0.0,
-            &key("input_offset"),
-            "a finite number (N)",
-            any,
-        )?,
+        input_offset,
     })
 }
 
@@ -153,6 +219,8 @@ pub enum System {
         params: HopperParams,
         damper: DamperLaw,
         effects: Effects,
+        /// What the position sensor does to the recorded `x` (`[effects] tau_s`, `b`, `g`).
+        sensor: htfid_diagnose::Sensor,
     },
     /// A model written in the model language (`[model] file = "..."`, or inline).
     Model(Box<htfid_lang::Model>),
@@ -560,6 +628,16 @@ impl Settings {
         (end, (0..n).map(|i| i as f64 * dt).collect())
     }
 
+    /// The position sensor between the simulated position and the recorded `x`: the
+    /// configured one for the built-in hopper, the ideal one for a model file (whose outputs
+    /// are written in the model).
+    pub fn sensor(&self) -> htfid_diagnose::Sensor {
+        match &self.system {
+            System::Hopper { sensor, .. } => *sensor,
+            System::Model(_) => htfid_diagnose::Sensor::default(),
+        }
+    }
+
     /// The built-in hopper's settings, or an error for a command that does not take
     /// model-language configs yet.
     pub fn hopper(&self, command: &str) -> Result<(HopperParams, DamperLaw, Effects), ConfigError> {
@@ -568,6 +646,7 @@ impl Settings {
                 params,
                 damper,
                 effects,
+                ..
             } => Ok((*params, *damper, *effects)),
             System::Model(_) => Err(ConfigError {
                 path: self.path.clone(),

@@ -140,7 +140,7 @@ fn check_effect_scales(
     let critical = 2.0 * (p.k * p.m).sqrt();
     let stop_k = e.hard_stop.map_or(0.0, |h| h.k_stop);
     let stop_x = e.hard_stop.map_or(0.0, |h| h.x_stop);
-    let checks: [(&str, &OptNum, f64, f64, String); 9] = [
+    let checks: [(&str, &OptNum, f64, f64, String); 12] = [
         (
             "k3",
             &raw.k3,
@@ -173,6 +173,20 @@ fn check_effect_scales(
             "the friction force's deflection mu / k (m)".to_owned(),
         ),
         (
+            "mu_pos",
+            &raw.mu_pos,
+            raw.mu_pos.as_ref().map_or(0.0, |v| *v.get_ref()) / p.k,
+            MAX_LENGTH,
+            "the friction force's deflection mu_pos / k (m)".to_owned(),
+        ),
+        (
+            "mu_neg",
+            &raw.mu_neg,
+            raw.mu_neg.as_ref().map_or(0.0, |v| *v.get_ref()) / p.k,
+            MAX_LENGTH,
+            "the friction force's deflection mu_neg / k (m)".to_owned(),
+        ),
+        (
             "input_offset",
             &raw.input_offset,
             (e.input_offset / p.k).abs(),
@@ -192,6 +206,13 @@ fn check_effect_scales(
             e.delay / p.period,
             MAX_PERIOD_RATIO,
             "the delay in forcing periods, delay / T".to_owned(),
+        ),
+        (
+            "tau_s",
+            &raw.tau_s,
+            raw.tau_s.as_ref().map_or(0.0, |v| *v.get_ref()) / p.period,
+            MAX_PERIOD_RATIO,
+            "the sensor's lag in forcing periods, tau_s / T".to_owned(),
         ),
         (
             "k_stop",
@@ -272,6 +293,7 @@ pub(super) fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, Co
         )?;
         let damper = damper_law(src, m.damper.as_ref())?;
         let effects = resolve_effects(src, raw.effects.as_ref(), "effects")?;
+        let sensor = resolve_sensor(src, raw.effects.as_ref(), "effects")?;
         if let Some(e) = &raw.effects {
             check_effect_scales(src, &params, &effects, e, "effects")?;
         }
@@ -279,6 +301,7 @@ pub(super) fn resolve_system(src: &Source, raw: &RawConfig) -> Result<System, Co
             params,
             damper,
             effects,
+            sensor,
         });
     }
     let why = "with a model-language model (its parameters are in [model.parameters])";
