@@ -1318,12 +1318,12 @@ fn model_config_errors_are_located() {
         (
             "[simulation]",
             "[model.parameters]\nk99 = 1.0\n\n[simulation]",
-            &["model.parameters", "k99", "no such parameter"],
+            &["model.parameters.k99:", "no such parameter"],
         ),
         (
             "[simulation]",
             "[model.parameters]\nc1 = -2.0\n\n[simulation]",
-            &["model.parameters", "c1", "outside its bounds"],
+            &["model.parameters.c1:", "outside its bounds"],
         ),
         (
             "# [model.parameters]",
@@ -1544,6 +1544,74 @@ fn an_outsiders_drag_beside_a_sensor_gain_error_is_named() {
     assert!((b / 0.002 - 1.0).abs() < 0.1, "b {b}");
     let g = param("sensor_offset_gain", "g");
     assert!(((g - 1.0) / 0.05 - 1.0).abs() < 0.1, "g {g}");
+}
+
+/// An outside tester's forced oscillator with a one-sided soft stop (a model file of theirs),
+/// recorded by their own simulator with the stop's stiffness 1.5 times the model's, which is
+/// not refitted (`tests/fixtures/outsider/p4-contact-stiffness`). No library effect is that,
+/// so none may be named; the term search outside the library proposes terms up to its cap of
+/// three and says so (it said "stopped because ." before).
+#[test]
+fn an_outsiders_stiffer_stop_is_not_claimed_and_the_term_search_says_why_it_stopped() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("d");
+    htfid_ok(&[
+        "diagnose",
+        "tests/fixtures/outsider/p4-contact-stiffness/diagnose.toml",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let d = diagnosis(&out);
+    let cause = d["cause"].as_str().unwrap();
+    assert!(
+        ["unexplained", "ambiguous"].contains(&cause),
+        "a library effect claimed: {cause}"
+    );
+    if let Some(stopped) = d["discovered"]["stopped"].as_str() {
+        assert!(stopped.len() > 10, "stopped: {stopped:?}");
+    }
+    let report = fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(!report.contains("because ."), "{report}");
+}
+
+/// The same outsider's record with its output's sign flipped, and in centimetres against the
+/// model's metres: refused at once (it ran for over ten minutes with the flipped sign), naming
+/// the check, exit 1, nothing written.
+#[test]
+fn a_flipped_or_rescaled_output_against_a_model_file_is_refused_at_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fixture = root().join("tests/fixtures/outsider/p4-contact-stiffness");
+    fs::copy(
+        fixture.join("contact.toml"),
+        tmp.path().join("contact.toml"),
+    )
+    .unwrap();
+    let config = fs::read_to_string(fixture.join("diagnose.toml")).unwrap();
+    fs::write(tmp.path().join("diagnose.toml"), config).unwrap();
+    let text = fs::read_to_string(fixture.join("record.csv")).unwrap();
+    for (factor, check) in [(-1.0, "sign:"), (100.0, "units:")] {
+        let mut lines = text.lines();
+        let mut edited = vec![lines.next().unwrap().to_string()];
+        for line in lines {
+            let mut v: Vec<f64> = line.split(',').map(|c| c.parse().unwrap()).collect();
+            v[2] *= factor;
+            edited.push(format!("{},{},{}", v[0], v[1], v[2]));
+        }
+        fs::write(tmp.path().join("record.csv"), edited.join("\n")).unwrap();
+        let out = tmp.path().join("d");
+        let o = htfid(&[
+            "diagnose",
+            tmp.path().join("diagnose.toml").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(check), "{}", stderr(&o));
+        assert!(stderr(&o).contains("data.outputs"), "{}", stderr(&o));
+        assert!(!out.exists(), "nothing written");
+    }
 }
 
 /// Writes `toml` as `DIR/estimate.toml` and runs `htfid estimate` on it into `DIR/est`.

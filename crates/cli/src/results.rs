@@ -536,12 +536,20 @@ pub fn diagnose_model(
     if causes.len() > 1 {
         t.row("causes", causes.join(", "));
     }
+    let gain = f(&d["gain"]);
     t.row(
         "gain",
-        format!(
-            "{} lower held-out NRMSE refitted than configured",
-            pct(f(&d["gain"]))
-        ),
+        if gain < 0.0 {
+            format!(
+                "{} higher held-out NRMSE refitted than configured",
+                pct(-gain)
+            )
+        } else {
+            format!(
+                "{} lower held-out NRMSE refitted than configured",
+                pct(gain)
+            )
+        },
     );
     let lines = d["parameters"]
         .as_array()

@@ -97,6 +97,42 @@ fn separating_experiment(a: Effect, b: Effect) -> &'static str {
     }
 }
 
+/// How a measured output follows a simulated one: the regression gain of the measured on the
+/// simulated (about 1 when they agree, negative when one moves against the other), the ratio
+/// of their spreads, and their correlation.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Agreement {
+    pub gain: f64,
+    pub scale: f64,
+    pub correlation: f64,
+}
+
+impl Agreement {
+    /// The agreement of paired samples; `None` with fewer than two. Non-finite where the
+    /// simulated output does not vary.
+    pub(crate) fn of(measured: &[f64], simulated: &[f64]) -> Option<Agreement> {
+        let n = measured.len().min(simulated.len());
+        if n < 2 {
+            return None;
+        }
+        let (measured, simulated) = (&measured[..n], &simulated[..n]);
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
+        let (my, ms) = (mean(measured), mean(simulated));
+        let cov: f64 = measured
+            .iter()
+            .zip(simulated)
+            .map(|(a, b)| (a - my) * (b - ms))
+            .sum::<f64>();
+        let var_s: f64 = simulated.iter().map(|b| (b - ms).powi(2)).sum::<f64>();
+        let var_y: f64 = measured.iter().map(|a| (a - my).powi(2)).sum::<f64>();
+        Some(Agreement {
+            gain: cov / var_s,
+            scale: (var_y / var_s).sqrt(),
+            correlation: cov / (var_s * var_y).sqrt(),
+        })
+    }
+}
+
 /// Checks whether the nominal model describes the data at all, before any effect is named.
 /// Returns the reasons it does not, each with the check that found it.
 pub(crate) fn mismatch_checks(
@@ -112,22 +148,14 @@ pub(crate) fn mismatch_checks(
             simulated.push(x[k] + ri);
         }
     }
-    let n = measured.len() as f64;
-    if n < 2.0 {
+    let Some(Agreement {
+        gain,
+        scale,
+        correlation,
+    }) = Agreement::of(&measured, &simulated)
+    else {
         return Vec::new();
-    }
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / n;
-    let (my, ms) = (mean(&measured), mean(&simulated));
-    let cov: f64 = measured
-        .iter()
-        .zip(&simulated)
-        .map(|(a, b)| (a - my) * (b - ms))
-        .sum::<f64>();
-    let var_s: f64 = simulated.iter().map(|b| (b - ms).powi(2)).sum::<f64>();
-    let var_y: f64 = measured.iter().map(|a| (a - my).powi(2)).sum::<f64>();
-    let gain = cov / var_s;
-    let scale = (var_y / var_s).sqrt();
-    let correlation = cov / (var_s * var_y).sqrt();
+    };
     let mut reasons = Vec::new();
     if gain.is_finite() && gain < -0.2 {
         reasons.push(format!(

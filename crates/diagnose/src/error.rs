@@ -151,6 +151,18 @@ pub enum DiagnoseError {
         /// The largest accepted ratio.
         limit: f64,
     },
+    /// The configured model's output moves against the record's, or has its shape at a scale
+    /// off by more than a factor 10, before any fit: a flipped sign or a unit slip, which a
+    /// refit would only hide behind absurd values (and would run for long).
+    #[error(
+        "the configured model does not describe the record, so nothing is fitted; check, one by \
+         one: {}",
+        reasons.join("; ")
+    )]
+    ModelMismatch {
+        /// Each reason, with the output and the check that found it.
+        reasons: Vec<String>,
+    },
     /// The fit of the nominal model failed.
     #[error("fitting the nominal model failed: {reason}")]
     NominalFit {

@@ -626,6 +626,47 @@ struct Refit {
     inflation: f64,
 }
 
+/// Largest ratio of the measured output's spread to the configured model's (either way) that
+/// [`mismatch_reasons`] leaves to the refit. Unit slips are factors of 100 and more (cm, mm,
+/// um against m); a configured hopper's stiffness a quarter of the truth's already gives 13.
+const MAX_SCALE_RATIO: f64 = 30.0;
+
+/// Why the configured model, simulated from its fitted initial state, does not describe the
+/// fitted samples at all: an output that moves against the measured one (regression gain
+/// below -0.2 at a correlation below -0.5), or one of the measured shape (correlation above
+/// 0.5 in size) whose spread is off by more than [`MAX_SCALE_RATIO`]. Both leave the shape
+/// plain, so a configured parameter that is merely off (a refit's business) rarely trips them.
+fn mismatch_reasons(est: &Prepared<'_>, model: &Model, simulated: &[Vec<f64>]) -> Vec<String> {
+    let mut reasons = Vec::new();
+    for (o, (measured, sim)) in est.rec.outputs().iter().zip(simulated).enumerate() {
+        let name = &model.outputs()[o].name;
+        let rows = est.rows.clone();
+        let Some(a) = crate::decide::Agreement::of(&measured[rows.clone()], &sim[rows]) else {
+            continue;
+        };
+        if a.gain < -0.2 && a.correlation < -0.5 {
+            reasons.push(format!(
+                "sign: the measured {name} moves against the configured model's (regression \
+                 gain {:.3}, correlation {:.3}); check the sign of the {name} column or of the \
+                 input, and, for a model with a periodic forcing, that the time column's zero \
+                 is the forcing's phase 0",
+                a.gain, a.correlation
+            ));
+        } else if !(1.0 / MAX_SCALE_RATIO..=MAX_SCALE_RATIO).contains(&a.scale)
+            && a.correlation.abs() > 0.5
+        {
+            reasons.push(format!(
+                "units: the measured {name} varies {} times as much as the configured model's, \
+                 with its shape (correlation {:.3}); check the units of the {name} and input \
+                 columns (mm against m, mN against N), or start the parameters nearer the data",
+                htfid_number::sig(a.scale, 3),
+                a.correlation
+            ));
+        }
+    }
+    reasons
+}
+
 /// The configured simulation and the refit of `joint`'s free parameters (and the initial
 /// state) alone, scored as [`score_on`] scores. A configured model off by orders of
 /// magnitude is refused before the fits, which would spend hundreds of simulations on it.
@@ -652,6 +693,10 @@ fn refit(
     }
     let x_configured = est.fit_state(model, &est.guess, &ideal)?;
     let (configured, simulated_configured) = score_on(est, val, cut, model, &x_configured, &ideal)?;
+    let reasons = mismatch_reasons(est, model, &simulated_configured);
+    if !reasons.is_empty() {
+        return Err(DiagnoseError::ModelMismatch { reasons });
+    }
     let base = joint.fit(&[], &[], &x_configured)?;
     let k = joint.index.len();
     let refitted_model = joint.model_at(&base.params[..k])?;

@@ -295,3 +295,42 @@ fn an_effect_parameter_named_like_a_model_parameter_takes_the_next_free_name() {
     assert!((lag / 0.01 - 1.0).abs() < 0.1, "lag {lag}");
     assert!((damping / 2.0 - 1.0).abs() < 0.01, "damping {damping}");
 }
+
+/// A record whose output was recorded with its sign flipped, or in centimetres against a model
+/// in metres, is refused before any fit, naming the check: a refit would only hide either
+/// behind absurd parameters (and ran for minutes on the flipped one). The same record as
+/// recorded, and ones whose configured stiffness is a quarter or twice the truth's (a refit's
+/// business; the quarter moves 13 times as much), are diagnosed.
+#[test]
+fn a_flipped_sign_or_a_unit_slip_is_refused_before_any_fit() {
+    let scenario = Scenario {
+        noise: htfid_truth::Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.0,
+        },
+        record_s: 60.0,
+        ..Scenario::default()
+    };
+    let r = generate(&scenario).unwrap();
+    let edited = |f: fn(f64) -> f64| {
+        let x: Vec<f64> = r.x.iter().map(|&v| f(v)).collect();
+        TimeSeries::new(r.t.clone(), r.f.clone(), x, "generator").unwrap()
+    };
+    for (rec, check) in [(edited(|v| -v), "sign:"), (edited(|v| 1e2 * v), "units:")] {
+        match diagnose_model(&hopper(), &rec, None, &options()) {
+            Err(htfid_diagnose::DiagnoseError::ModelMismatch { reasons }) => {
+                assert!(reasons.iter().any(|r| r.starts_with(check)), "{reasons:?}");
+            }
+            other => panic!(
+                "{check} expected a refusal, got {:?}",
+                other.map(|d| d.cause)
+            ),
+        }
+    }
+    assert!(diagnose_model(&hopper(), &edited(|v| v), None, &options()).is_ok());
+    for k in [50.0, 400.0] {
+        let off = hopper().with_parameters(&[("k", k)]).unwrap();
+        let d = diagnose_model(&off, &edited(|v| v), None, &options());
+        assert!(d.is_ok(), "k = {k}: {:?}", d.map(|_| ()));
+    }
+}

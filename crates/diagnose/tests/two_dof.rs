@@ -209,6 +209,8 @@ fn a_force_outside_the_library_is_written_as_a_formula() {
         -a
     );
     assert!(found.gain > 0.5, "{}: gain {}", found.formula, found.gain);
+    // Why no further term was added, whichever way the search ended (its cap included).
+    assert!(found.stopped.len() > 10, "stopped: {:?}", found.stopped);
 }
 
 /// On clean data the term search does not run (no structure is left), so no formula.

@@ -247,7 +247,14 @@ pub enum Error {
         ratio: f64,
     },
     /// A multisine period is not a whole number of samples.
-    #[error("multisine period {multisine_period} s is {ratio} samples of {dt} s; it must be a whole number")]
+    #[error(
+        "multisine period {} s is {} samples of {} s ({} Hz); it must be a whole number: choose \
+         a sample rate that gives a whole number of samples per forcing period",
+        short(*multisine_period),
+        short(*ratio),
+        short(*dt),
+        short(1.0 / *dt)
+    )]
     MultisineNotWholeSamples {
         /// Multisine period, s.
         multisine_period: f64,
@@ -451,8 +458,11 @@ pub enum Error {
     },
     /// A window's length is not a whole number of samples.
     #[error(
-        "a window of {duration} s is not a whole number of samples of {dt} s; choose a sample \
-         interval that divides the period"
+        "a window of {} s is not a whole number of samples of {} s ({} Hz): choose a sample \
+         rate that gives a whole number of samples per forcing period",
+        short(*duration),
+        short(*dt),
+        short(1.0 / *dt)
     )]
     WindowNotWholeSamples {
         /// The window's length, s.
@@ -483,3 +493,9 @@ pub enum Error {
 
 /// Shorthand for results of this crate.
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// `x` to ten significant digits, shown without trailing zeros (`127.19999999999999` reads
+/// `127.2`).
+fn short(x: f64) -> f64 {
+    format!("{x:.9e}").parse().unwrap_or(x)
+}

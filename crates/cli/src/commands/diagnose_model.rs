@@ -61,6 +61,9 @@ pub fn run(
                 htfid_diagnose::DiagnoseError::ScaleMismatch { .. } => {
                     "model.parameters (or the units of data.outputs)"
                 }
+                htfid_diagnose::DiagnoseError::ModelMismatch { .. } => {
+                    "data.outputs (or data.input, model.parameters)"
+                }
                 htfid_diagnose::DiagnoseError::ConstantOutput { .. } => "data.outputs",
                 htfid_diagnose::DiagnoseError::StartState { .. } => {
                     "diagnose.rtol (a smaller tolerance), or model.parameters"

@@ -386,11 +386,13 @@ pub fn with_overrides(
         changes.push((name.as_str(), v));
     }
     model.with_parameters(&changes).map_err(|e| {
-        let span = match &e {
-            htfid_lang::ModelError::Parameter { name, .. } => at(name),
-            _ => table.span(),
+        let (span, key) = match &e {
+            htfid_lang::ModelError::Parameter { name, .. } => {
+                (at(name), format!("model.parameters.{name}"))
+            }
+            _ => (table.span(), "model.parameters".to_string()),
         };
-        src.error(Some(&span), "model.parameters", e.to_string())
+        src.error(Some(&span), &key, e.to_string())
     })
 }
 

@@ -116,7 +116,8 @@ impl Search<'_, '_> {
             ratios: Vec::new(),
         };
         let critical = crate::select::chi2_quantile(1, self.opts.alpha);
-        let mut stop = String::new();
+        // Set by every way out of the loop below but its end: the cap on the terms.
+        let mut stop = format!("it reached its cap of {MAX_TERMS} terms (a hint stays short)");
         while chosen.len() < MAX_TERMS {
             let Some((j, statistic)) = (match self.screen(&dictionary, &chosen, &reached) {
                 Ok(best) => best,
