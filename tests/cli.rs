@@ -1550,7 +1550,8 @@ fn an_outsiders_drag_beside_a_sensor_gain_error_is_named() {
 /// recorded by their own simulator with the stop's stiffness 1.5 times the model's, which is
 /// not refitted (`tests/fixtures/outsider/p4-contact-stiffness`). No library effect is that,
 /// so none may be named; the term search outside the library proposes terms up to its cap of
-/// three and says so (it said "stopped because ." before).
+/// three and says so (it said "stopped because ." before), and the advice names the parameters
+/// held at their configured values, `kc` among them.
 #[test]
 fn an_outsiders_stiffer_stop_is_not_claimed_and_the_term_search_says_why_it_stopped() {
     let tmp = tempfile::tempdir().unwrap();
@@ -1573,6 +1574,13 @@ fn an_outsiders_stiffer_stop_is_not_claimed_and_the_term_search_says_why_it_stop
     }
     let report = fs::read_to_string(out.join("report.md")).unwrap();
     assert!(!report.contains("because ."), "{report}");
+    // The stiffness that is off is held at its configured value: the advice names it.
+    if cause == "unexplained" {
+        assert!(
+            report.contains("free more of the model's parameters") && report.contains("`kc`"),
+            "{report}"
+        );
+    }
 }
 
 /// The same outsider's record with its output's sign flipped, and in centimetres against the
@@ -1612,6 +1620,60 @@ fn a_flipped_or_rescaled_output_against_a_model_file_is_refused_at_once() {
         assert!(stderr(&o).contains("data.outputs"), "{}", stderr(&o));
         assert!(!out.exists(), "nothing written");
     }
+}
+
+/// A column the config names but the file lacks is reported at the config line that names it,
+/// as every other config error is, with the columns the file has.
+#[test]
+fn a_missing_column_is_named_at_its_config_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fixture = root().join("tests/fixtures/outsider/p4-contact-stiffness");
+    for f in ["contact.toml", "record.csv"] {
+        fs::copy(fixture.join(f), tmp.path().join(f)).unwrap();
+    }
+    let config = fs::read_to_string(fixture.join("diagnose.toml")).unwrap();
+    for (from, to, key) in [
+        ("input = \"u\"", "input = \"force\"", "data.input"),
+        ("outputs = [\"x\"]", "outputs = [\"y\"]", "data.output"),
+    ] {
+        let path = tmp.path().join("diagnose.toml");
+        fs::write(&path, config.replace(from, to)).unwrap();
+        let line = line_of(&path, to);
+        let o = htfid(&[
+            "diagnose",
+            path.to_str().unwrap(),
+            "--out",
+            tmp.path().join("d").to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1));
+        let e = stderr(&o);
+        assert!(e.contains(&format!("diagnose.toml:{line}:1: {key}")), "{e}");
+        assert!(e.contains("available columns: \"t\", \"u\", \"x\""), "{e}");
+    }
+}
+
+/// A `[forcing]` table beside a model file is refused with the reason (the forcing is part of
+/// the model), at its line, not as an unknown field.
+#[test]
+fn a_forcing_table_beside_a_model_file_is_refused_with_the_reason() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fixture = root().join("tests/fixtures/outsider/p4-contact-stiffness");
+    let config = fs::read_to_string(fixture.join("diagnose.toml")).unwrap();
+    let path = tmp.path().join("diagnose.toml");
+    fs::write(&path, format!("{config}\n[forcing]\nperiod = 1.0\n")).unwrap();
+    let line = line_of(&path, "[forcing]");
+    let out = tmp.path().join("d");
+    let o = htfid(&[
+        "diagnose",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains(&format!("diagnose.toml:{line}:")), "{e}");
+    assert!(e.contains("forcing: is not used with a model file"), "{e}");
+    assert!(!out.exists());
 }
 
 /// Writes `toml` as `DIR/estimate.toml` and runs `htfid estimate` on it into `DIR/est`.

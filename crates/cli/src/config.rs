@@ -85,6 +85,25 @@ impl Source {
         None
     }
 
+    /// Where `key = ...` is written in the table `[table]` (a top-level table written with its
+    /// own header), for an error found after the config was read.
+    pub fn key_location(&self, table: &str, key: &str) -> Option<Range<usize>> {
+        let header = format!("[{table}]");
+        let mut offset = 0;
+        for line in self.text.split_inclusive('\n') {
+            let trimmed = line.trim();
+            if trimmed == header
+                || trimmed
+                    .strip_prefix(header.as_str())
+                    .is_some_and(|rest| rest.trim_start().starts_with('#'))
+            {
+                return self.key_in_table(offset, key);
+            }
+            offset += line.len();
+        }
+        None
+    }
+
     pub fn error(
         &self,
         span: Option<&Range<usize>>,

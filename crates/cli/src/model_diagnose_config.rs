@@ -17,6 +17,8 @@ struct RawModelDiagnoseConfig {
     data: RawData,
     model: RawModelRef,
     diagnose: Option<RawOptions>,
+    /// Refused with a reason: a model file's forcing is part of the model.
+    forcing: Option<Spanned<toml::Value>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -113,6 +115,14 @@ pub fn names_a_model_file(path: &Path) -> bool {
 impl ModelDiagnoseSettings {
     pub fn from_file(path: &Path, data: Option<PathBuf>) -> Result<Self, ConfigError> {
         let (raw, src): (RawModelDiagnoseConfig, Source) = load(path, Kind::Diagnosis)?;
+        if let Some(f) = &raw.forcing {
+            return Err(src.error(
+                Some(&f.span()),
+                "forcing",
+                "is not used with a model file: its [forcing] is part of the model (change the \
+                 period or the amplitude through [model.parameters])",
+            ));
+        }
         let name = src.run_name(raw.name.as_ref(), "diagnosis")?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let d = &raw.data;

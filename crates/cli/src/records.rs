@@ -189,8 +189,16 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
     spec.matrix.clone_from(&c.format.matrix);
     spec.columns.clone_from(&c.format.columns);
     read_any(file, &spec).map_err(|e| {
+        let config_path = config;
         let config = config.display();
         let context = match &e {
+            DataError::NonUniformTime {
+                found_dt,
+                expected_dt,
+                ..
+            } if htfid_data::missing_samples(*found_dt, *expected_dt).is_some() => {
+                format!("{config}: [data] file")
+            }
             DataError::NonUniformTime { .. } => format!(
                 "{config}: [data] file (a non-uniform time step can be allowed with \
                  data.time_tolerance, now {:e})",
@@ -211,7 +219,22 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
                 } else {
                     "data"
                 };
-                format!("{config}: {key}: the column it names is not in the file")
+                // Its line in the config, as every other config error gives it.
+                let at = std::fs::read_to_string(config_path)
+                    .ok()
+                    .and_then(|text| {
+                        let src = crate::config::Source {
+                            path: config_path.to_path_buf(),
+                            text,
+                        };
+                        let name = key.split([' ', '.']).nth(1)?;
+                        let span = src
+                            .key_location("data", name)
+                            .or_else(|| src.key_location("data", &format!("{name}s")))?;
+                        Some(format!(":{}:{}", src.line_of(&span), src.column_of(&span)))
+                    })
+                    .unwrap_or_default();
+                format!("{config}{at}: {key}: the column it names is not in the file")
             }
             DataError::NoSuchColumn { .. }
             | DataError::NoSuchMatrix { .. }

@@ -196,9 +196,9 @@ pub enum DataError {
     /// A time step differs from the typical (median) step by more than the tolerance.
     #[error(
         "{}{location}: column {column}: time step {found_dt} s differs from the expected {expected_dt} s \
-         by more than the relative tolerance {tolerance:e} (the data must be uniformly sampled; \
-         if the times are printed with few digits, raise the time tolerance or give the sample rate instead)",
-        path.display()
+         by more than the relative tolerance {tolerance:e} ({})",
+        path.display(),
+        step_advice(*found_dt, *expected_dt)
     )]
     NonUniformTime {
         /// The file.
@@ -600,5 +600,26 @@ fn commit_state(dir: &std::path::Path, unrestored: &[String], backup: &std::path
             quoted_list(unrestored),
             backup.display()
         )
+    }
+}
+
+/// The samples missing where a time step `found` stands for a whole multiple (2 or more, within
+/// 5 % of a step) of the `expected` one: a gap, which no tolerance mends. `None` otherwise.
+pub fn missing_samples(found: f64, expected: f64) -> Option<u64> {
+    let ratio = found / expected;
+    let whole = ratio.round();
+    ((2.0..1e15).contains(&whole) && (ratio - whole).abs() < 0.05).then(|| whole as u64 - 1)
+}
+
+/// What to do about a time step `found` where `expected` was due.
+fn step_advice(found: f64, expected: f64) -> String {
+    match missing_samples(found, expected) {
+        Some(missing) => format!(
+            "{missing} sample(s) missing before this one; the data must be uniformly sampled, so \
+             fill the gap or cut the record there (a tolerance does not mend a gap)"
+        ),
+        None => "the data must be uniformly sampled; if the times are printed with few digits, \
+                 raise the time tolerance or give the sample rate instead"
+            .to_string(),
     }
 }

@@ -97,7 +97,7 @@ mod write;
 mod zip;
 
 pub use csv_read::{read_csv, CsvSpec, Delimiter, TimeSource};
-pub use error::{ColumnId, DataError, Location};
+pub use error::{missing_samples, ColumnId, DataError, Location};
 pub use npy::{read_npy, NpySpec};
 pub use outdir::OutputDir;
 pub use record::{read_record, Format, RecordSpec};

@@ -220,8 +220,9 @@ fn non_uniform_time_reports_the_gap_line_and_both_steps() {
             &CsvSpec::default()
         ),
         "DIR/m.csv:6: column \"t\": time step 2 s differs from the expected 1 s by more than the \
-         relative tolerance 1e-6 (the data must be uniformly sampled; if the times are printed \
-         with few digits, raise the time tolerance or give the sample rate instead)"
+         relative tolerance 1e-6 (1 sample(s) missing before this one; the data must be \
+         uniformly sampled, so fill the gap or cut the record there (a tolerance does not mend a \
+         gap))"
     );
 }
 

@@ -91,3 +91,26 @@ fn slice_keeps_absolute_time_and_step() {
         );
     }
 }
+
+/// A step of two or three typical ones is a gap of lost samples: the message counts them and
+/// says a tolerance does not mend it; a step off by a fraction may be printing, and the message
+/// says so.
+#[test]
+fn a_gap_of_lost_samples_is_named_as_one() {
+    let mut t: Vec<f64> = (0..20).map(|k| k as f64 * 0.01).collect();
+    t.drain(10..12); // samples 10 and 11 lost: the step from 0.09 to 0.12 is three steps
+    let n = t.len();
+    let err = TimeSeries::new(t, vec![0.0; n], vec![0.0; n], "sim").unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("2 sample(s) missing"), "{text}");
+    assert!(!text.contains("raise the time tolerance"), "{text}");
+    let err =
+        TimeSeries::new(vec![0.0, 1.0, 2.0, 3.5], vec![0.0; 4], vec![0.0; 4], "sim").unwrap_err();
+    assert!(
+        err.to_string().contains("raise the time tolerance"),
+        "{err}"
+    );
+    assert_eq!(htfid_data::missing_samples(0.02, 0.01), Some(1));
+    assert_eq!(htfid_data::missing_samples(0.015, 0.01), None);
+    assert_eq!(htfid_data::missing_samples(0.0102, 0.01), None);
+}

@@ -293,6 +293,27 @@ pub fn run(
     Ok(())
 }
 
+/// The model's parameters a diagnosis holds at their configured values (not in `free`), as
+/// advice: one of them may be what is off, which no effect of the library stands in for.
+fn held_parameters(s: &ModelDiagnoseSettings) -> String {
+    let held: Vec<String> = s
+        .model
+        .parameters()
+        .iter()
+        .filter(|p| !s.options.free.contains(&p.name))
+        .map(|p| format!("`{}`", p.name))
+        .collect();
+    if held.is_empty() {
+        String::new()
+    } else {
+        format!(
+            ", or free more of the model's parameters (`[model] free`; held at their configured \
+             values now: {}): one of them may be what is off",
+            held.join(", ")
+        )
+    }
+}
+
 /// The unit of a fitted parameter: the model's own parameters as declared (a term's are not
 /// declared); on the boundary, a delay or a lag in s, an input offset in the input's unit and a sensor offset
 /// `b_<output>` in that output's (the data's `data.units`, else the model's).
@@ -546,7 +567,8 @@ fn decision(
             "Clear structure remains in the residual of `{}` that neither the refit nor any \
              effect tried explains: the best model's held-out NRMSE {:.3} % stays above {} \
              times the noise floor {:.3} %{}. Write the suspected effect as a term of the \
-             model's equations (`[[diagnose.terms]]`, see docs/config.md) and diagnose again.",
+             model's equations (`[[diagnose.terms]]`, see docs/config.md) and diagnose \
+             again{}.",
             s.model.name(),
             100.0
                 * d.extended
@@ -561,7 +583,8 @@ fn decision(
                     100.0 * d.explained
                 ),
                 None => String::new(),
-            }
+            },
+            held_parameters(s)
         ),
         ModelCause::None => format!(
             "**The configured model `{model}` describes the data.** A refit moves no parameter \

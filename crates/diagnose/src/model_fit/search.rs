@@ -193,11 +193,11 @@ impl Search<'_, '_> {
         let after = reached.score.validation();
         let sentence = format!(
             "term search outside the library: {formula} lowers the refitted model's held-out \
-             NRMSE from {:.4} % to {:.4} % (gain {:.1} %); the search stopped because {stop}; \
-             a hint, not a library effect",
-            100.0 * before,
-            100.0 * after,
-            100.0 * (1.0 - after / before)
+             NRMSE from {} to {} (gain {}); the search stopped because {stop}; a hint, not a \
+             library effect",
+            htfid_number::percent(before, 3),
+            htfid_number::percent(after, 3),
+            htfid_number::percent(1.0 - after / before, 3)
         );
         (
             Some(ModelDiscovered {
