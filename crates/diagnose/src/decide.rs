@@ -131,6 +131,72 @@ impl Agreement {
             correlation: cov / (var_s * var_y).sqrt(),
         })
     }
+
+    /// What plainly keeps the simulated output from describing the measured one, whatever
+    /// the parameters: the measured moves against it (regression gain below -0.2 at a
+    /// correlation below -0.5: a flipped sign), or follows its shape (correlation above 0.5 in
+    /// size) at a spread more than [`MAX_SCALE_RATIO`] times larger or smaller (a unit slip).
+    /// Both leave the shape plain, so a configured parameter that is merely off (a refit's
+    /// business) rarely trips them.
+    pub(crate) fn plain(&self) -> Option<Plain> {
+        if self.gain < -0.2 && self.correlation < -0.5 {
+            Some(Plain::Sign)
+        } else if !(1.0 / MAX_SCALE_RATIO..=MAX_SCALE_RATIO).contains(&self.scale)
+            && self.correlation.abs() > 0.5
+        {
+            Some(Plain::Units)
+        } else {
+            None
+        }
+    }
+}
+
+/// Largest ratio of the measured output's spread to the configured model's (either way) that
+/// [`Agreement::plain`] leaves to the refit. Unit slips are factors of 100 and more (cm, mm,
+/// um against m); a configured hopper's stiffness a quarter of the truth's already gives 13.
+pub(crate) const MAX_SCALE_RATIO: f64 = 30.0;
+
+/// A plain mismatch of a simulated output with the measured one ([`Agreement::plain`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Plain {
+    Sign,
+    Units,
+}
+
+/// The measured output and the one `eval` simulated, on the held-out samples scored.
+fn held_out_pairs(ctx: &Context<'_>, eval: &Evaluation) -> (Vec<f64>, Vec<f64>) {
+    let x = ctx.record.output();
+    let (mut measured, mut simulated) = (Vec::new(), Vec::new());
+    for (seg, r) in ctx.validation.iter().zip(&eval.residuals) {
+        for (k, ri) in seg.scored().zip(r) {
+            measured.push(x[k]);
+            simulated.push(x[k] + ri);
+        }
+    }
+    (measured, simulated)
+}
+
+/// The plain mismatch of the model as configured ([`Agreement::plain`]), as a reason. A refit
+/// can move a flipped sign into other parameters (a lag of a fifth of a period stood in for one
+/// on the paper's record); the model as configured shows it plainly.
+pub(crate) fn configured_mismatch(ctx: &Context<'_>, configured: &Evaluation) -> Option<String> {
+    let (measured, simulated) = held_out_pairs(ctx, configured);
+    let a = Agreement::of(&measured, &simulated)?;
+    Some(match a.plain()? {
+        Plain::Sign => format!(
+            "sign: the measured output moves against the model's as configured (regression gain \
+             {:.3}, correlation {:.3}); check the sign of the output column or of the input, and \
+             that the time column's zero is the forcing's phase 0",
+            a.gain, a.correlation
+        ),
+        Plain::Units => format!(
+            "scale: the measured output varies {} times as much as the model's as configured, \
+             with its shape (correlation {:.3}); check the units of the output and input columns \
+             (mm against m, mN against N)",
+            sig(a.scale, 3),
+            a.correlation
+        ),
+    })
 }
 
 /// Checks whether the nominal model describes the data at all, before any effect is named.
@@ -140,14 +206,7 @@ pub(crate) fn mismatch_checks(
     nominal_val: &Evaluation,
     nominal: &Score,
 ) -> Vec<String> {
-    let x = ctx.record.output();
-    let (mut measured, mut simulated) = (Vec::new(), Vec::new());
-    for (seg, r) in ctx.validation.iter().zip(&nominal_val.residuals) {
-        for (k, ri) in seg.scored().zip(r) {
-            measured.push(x[k]);
-            simulated.push(x[k] + ri);
-        }
-    }
+    let (measured, simulated) = held_out_pairs(ctx, nominal_val);
     let Some(Agreement {
         gain,
         scale,

@@ -19,7 +19,7 @@ use crate::sim::{Extent, MeasuredForce, SimMethod, Stepping};
 use crate::{DiagnoseError, Effect, NominalModel, TimeSeries};
 
 use crate::answer::{DiagnosisReport, FittedModel, InputNoise, Score};
-use crate::decide::{check_parameters, conclude, mismatch_checks};
+use crate::decide::{check_parameters, conclude, configured_mismatch, mismatch_checks};
 use crate::options::DiagnoseOptions;
 use crate::ranges::{auto_burn_in, resolve_ranges, segments};
 
@@ -160,7 +160,13 @@ pub fn diagnose_with_progress(
     let mut mismatch = mismatch_checks(&ctx, &nominal_val, &nominal_val.score);
     // A refit of the free parameters can hide a flipped sign or a unit slip behind absurd
     // values; the model as configured shows them plainly.
-    if !mismatch.is_empty() {
+    if mismatch.is_empty() {
+        mismatch.extend(
+            configured_val
+                .as_ref()
+                .and_then(|c| configured_mismatch(&ctx, c)),
+        );
+    } else {
         if let Some(c) = &configured_val {
             for reason in mismatch_checks(&ctx, c, &c.score) {
                 let kind = reason.split(':').next().unwrap_or_default().to_string();

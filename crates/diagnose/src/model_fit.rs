@@ -6,6 +6,7 @@ use htfid_lang::Model;
 use serde::Serialize;
 
 use crate::boundary::{Boundary, BoundaryEffect};
+use crate::decide::{Agreement, Plain};
 use crate::term::{term_library, TermEffect, TermKind};
 use crate::{DiagnoseError, TimeSeries};
 
@@ -626,25 +627,21 @@ struct Refit {
     inflation: f64,
 }
 
-/// Largest ratio of the measured output's spread to the configured model's (either way) that
-/// [`mismatch_reasons`] leaves to the refit. Unit slips are factors of 100 and more (cm, mm,
-/// um against m); a configured hopper's stiffness a quarter of the truth's already gives 13.
-const MAX_SCALE_RATIO: f64 = 30.0;
-
 /// Why the configured model, simulated from its fitted initial state, does not describe the
-/// fitted samples at all: an output that moves against the measured one (regression gain
-/// below -0.2 at a correlation below -0.5), or one of the measured shape (correlation above
-/// 0.5 in size) whose spread is off by more than [`MAX_SCALE_RATIO`]. Both leave the shape
-/// plain, so a configured parameter that is merely off (a refit's business) rarely trips them.
+/// fitted samples at all ([`Agreement::plain`]): an output that moves against the measured
+/// one, or one of the measured shape at a spread off by a unit's factor.
 fn mismatch_reasons(est: &Prepared<'_>, model: &Model, simulated: &[Vec<f64>]) -> Vec<String> {
     let mut reasons = Vec::new();
     for (o, (measured, sim)) in est.rec.outputs().iter().zip(simulated).enumerate() {
         let name = &model.outputs()[o].name;
         let rows = est.rows.clone();
-        let Some(a) = crate::decide::Agreement::of(&measured[rows.clone()], &sim[rows]) else {
+        let Some(a) = Agreement::of(&measured[rows.clone()], &sim[rows]) else {
             continue;
         };
-        if a.gain < -0.2 && a.correlation < -0.5 {
+        let Some(plain) = a.plain() else {
+            continue;
+        };
+        if plain == Plain::Sign {
             reasons.push(format!(
                 "sign: the measured {name} moves against the configured model's (regression \
                  gain {:.3}, correlation {:.3}); check the sign of the {name} column or of the \
@@ -652,9 +649,7 @@ fn mismatch_reasons(est: &Prepared<'_>, model: &Model, simulated: &[Vec<f64>]) -
                  is the forcing's phase 0",
                 a.gain, a.correlation
             ));
-        } else if !(1.0 / MAX_SCALE_RATIO..=MAX_SCALE_RATIO).contains(&a.scale)
-            && a.correlation.abs() > 0.5
-        {
+        } else {
             reasons.push(format!(
                 "units: the measured {name} varies {} times as much as the configured model's, \
                  with its shape (correlation {:.3}); check the units of the {name} and input \
