@@ -858,20 +858,27 @@ fn a_simulated_sensor_lags_offsets_and_scales_the_recorded_position() {
         ("[effects]\ng = 0.0\n", "effects.g"),
         ("[effects]\ntau_s = -1.0\n", "effects.tau_s"),
     ] {
-        let config = tmp.path().join("bad.toml");
-        let good = fs::read_to_string(tmp.path().join("ideal.toml")).unwrap();
-        fs::write(&config, format!("{good}{effects}")).unwrap();
-        let out = tmp.path().join("bad");
-        let o = htfid(&[
-            "simulate",
-            config.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(!o.status.success());
-        assert!(stderr(&o).contains(key), "{}", stderr(&o));
-        assert!(!out.exists(), "no output for a refused config");
+        simulate_refuses(tmp.path(), "ideal", effects, key);
     }
+}
+
+/// `simulate` of the short experiment `name` (written by [`short_record`] into `dir`) with
+/// `effects` in place of its own fails, names `key` and writes nothing.
+fn simulate_refuses(dir: &Path, name: &str, effects: &str, key: &str) {
+    let config = dir.join("bad.toml");
+    let good = fs::read_to_string(dir.join(format!("{name}.toml"))).unwrap();
+    let good = good.split("[effects]").next().unwrap().to_string();
+    fs::write(&config, format!("{good}{effects}")).unwrap();
+    let out = dir.join("bad");
+    let o = htfid(&[
+        "simulate",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success(), "{effects}");
+    assert!(stderr(&o).contains(key), "{effects}: {}", stderr(&o));
+    assert!(!out.exists(), "no output for a refused config");
 }
 
 /// `[effects] mu_pos`, `mu_neg` (the diagnosis's asymmetric friction): friction `mu_pos`
@@ -921,20 +928,7 @@ fn asymmetric_friction_is_simulated_as_its_mean_and_a_constant_force() {
         ),
         ("[effects]\nmu_pos = -0.3\nmu_neg = 0.1\n", "effects.mu_pos"),
     ] {
-        let config = tmp.path().join("bad.toml");
-        let good = fs::read_to_string(tmp.path().join("sym.toml")).unwrap();
-        let good = good.split("[effects]").next().unwrap().to_string();
-        fs::write(&config, format!("{good}{effects}")).unwrap();
-        let out = tmp.path().join("bad");
-        let o = htfid(&[
-            "simulate",
-            config.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(!o.status.success(), "{effects}");
-        assert!(stderr(&o).contains(key), "{effects}: {}", stderr(&o));
-        assert!(!out.exists(), "no output for a refused config");
+        simulate_refuses(tmp.path(), "sym", effects, key);
     }
 }
 

@@ -638,25 +638,22 @@ fn mismatch_reasons(est: &Prepared<'_>, model: &Model, simulated: &[Vec<f64>]) -
         let Some(a) = Agreement::of(&measured[rows.clone()], &sim[rows]) else {
             continue;
         };
-        let Some(plain) = a.plain() else {
-            continue;
-        };
-        if plain == Plain::Sign {
-            reasons.push(format!(
+        match a.plain() {
+            None => {}
+            Some(Plain::Sign) => reasons.push(format!(
                 "sign: the measured {name} moves against the configured model's (regression \
                  gain {:.3}, correlation {:.3}); check the sign of the {name} column or of the \
                  input, and, for a model with a periodic forcing, that the time column's zero \
                  is the forcing's phase 0",
                 a.gain, a.correlation
-            ));
-        } else {
-            reasons.push(format!(
+            )),
+            Some(Plain::Units) => reasons.push(format!(
                 "units: the measured {name} varies {} times as much as the configured model's, \
                  with its shape (correlation {:.3}); check the units of the {name} and input \
                  columns (mm against m, mN against N), or start the parameters nearer the data",
                 htfid_number::sig(a.scale, 3),
                 a.correlation
-            ));
+            )),
         }
     }
     reasons
