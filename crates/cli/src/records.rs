@@ -188,9 +188,9 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
     }
     spec.matrix.clone_from(&c.format.matrix);
     spec.columns.clone_from(&c.format.columns);
+    let config_path = config;
     read_any(file, &spec).map_err(|e| {
-        let config_path = config;
-        let config = config.display();
+        let config = config_path.display();
         let context = match &e {
             DataError::NonUniformTime {
                 found_dt,
@@ -209,15 +209,15 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
                 Delimiter::for_char(*found).map_or("\"auto\"", Delimiter::describe)
             ),
             DataError::MissingColumn { column, .. } => {
-                // The key that named the missing column.
-                let key = if Some(column.as_str()) == c.time {
-                    "data.time"
+                // The key that named the missing column, and how it may be written in [data].
+                let (key, written): (&str, &[&str]) = if Some(column.as_str()) == c.time {
+                    ("data.time", &["time"])
                 } else if column == c.input {
-                    "data.input"
+                    ("data.input", &["input"])
                 } else if column == c.output {
-                    "data.output (or data.outputs)"
+                    ("data.output (or data.outputs)", &["output", "outputs"])
                 } else {
-                    "data"
+                    ("data", &[])
                 };
                 // Its line in the config, as every other config error gives it.
                 let at = std::fs::read_to_string(config_path)
@@ -227,10 +227,9 @@ pub fn read_record(config: &Path, file: &Path, c: Columns<'_>) -> Result<TimeSer
                             path: config_path.to_path_buf(),
                             text,
                         };
-                        let name = key.split([' ', '.']).nth(1)?;
-                        let span = src
-                            .key_location("data", name)
-                            .or_else(|| src.key_location("data", &format!("{name}s")))?;
+                        let span = written
+                            .iter()
+                            .find_map(|name| src.key_location("data", name))?;
                         Some(format!(":{}:{}", src.line_of(&span), src.column_of(&span)))
                     })
                     .unwrap_or_default();

@@ -140,6 +140,9 @@ fn check_effect_scales(
     let critical = 2.0 * (p.k * p.m).sqrt();
     let stop_k = e.hard_stop.map_or(0.0, |h| h.k_stop);
     let stop_x = e.hard_stop.map_or(0.0, |h| h.x_stop);
+    // A key's value as written (0 where absent).
+    let given = |v: &OptNum| v.as_ref().map_or(0.0, |v| *v.get_ref());
+    // The levels of asymmetric friction come before `mu` and `input_offset`, which they set.
     let checks: [(&str, &OptNum, f64, f64, String); 12] = [
         (
             "k3",
@@ -166,25 +169,25 @@ fn check_effect_scales(
             "the flight damping ratio c_f / (2 sqrt(k m))".to_owned(),
         ),
         (
-            "mu",
-            &raw.mu,
-            e.mu / p.k,
-            MAX_LENGTH,
-            "the friction force's deflection mu / k (m)".to_owned(),
-        ),
-        (
             "mu_pos",
             &raw.mu_pos,
-            raw.mu_pos.as_ref().map_or(0.0, |v| *v.get_ref()) / p.k,
+            given(&raw.mu_pos) / p.k,
             MAX_LENGTH,
             "the friction force's deflection mu_pos / k (m)".to_owned(),
         ),
         (
             "mu_neg",
             &raw.mu_neg,
-            raw.mu_neg.as_ref().map_or(0.0, |v| *v.get_ref()) / p.k,
+            given(&raw.mu_neg) / p.k,
             MAX_LENGTH,
             "the friction force's deflection mu_neg / k (m)".to_owned(),
+        ),
+        (
+            "mu",
+            &raw.mu,
+            e.mu / p.k,
+            MAX_LENGTH,
+            "the friction force's deflection mu / k (m)".to_owned(),
         ),
         (
             "input_offset",
@@ -210,7 +213,7 @@ fn check_effect_scales(
         (
             "tau_s",
             &raw.tau_s,
-            raw.tau_s.as_ref().map_or(0.0, |v| *v.get_ref()) / p.period,
+            given(&raw.tau_s) / p.period,
             MAX_PERIOD_RATIO,
             "the sensor's lag in forcing periods, tau_s / T".to_owned(),
         ),
@@ -231,7 +234,7 @@ fn check_effect_scales(
     ];
     for (name, raw_value, value, limit, what) in checks {
         if value.is_nan() || value > limit {
-            let got = raw_value.as_ref().map_or(0.0, |v| *v.get_ref());
+            let got = given(raw_value);
             return Err(src.error(
                 raw_value.as_ref().map(Spanned::span).as_ref(),
                 &format!("{table}.{name}"),
