@@ -4223,3 +4223,96 @@ fn a_guard_that_never_fires_on_the_orbit_is_pointed_out() {
         serde_json::json!([])
     );
 }
+
+/// A given period must be a whole number of samples and agree with the data's own. On the
+/// paper's experiment (`htfid simulate`, 100 Hz, `T = 1 s`):
+/// - `period.value = 1.01` is refused, naming the key and the data's own period (over the 270
+///   periods after 30 s the two part by 2.7 periods);
+/// - `period.value = 1 / 1.3` (76.92 samples) is refused with two sample rates to resample to;
+/// - the same record with its times printed as float32 (`data.time_tolerance` raised) gives the
+///   same estimate as with exact times: the step is taken as `T / 100`, which the float32 times
+///   approach to a few parts in 1e8. Tolerance 1e-9 of `max |G_0|`: the two runs differ only in
+///   the step, by rounding.
+#[test]
+fn a_given_period_is_checked_against_the_samples_and_the_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    htfid_ok(&[
+        "simulate",
+        "configs/paper.toml",
+        "--out",
+        sim.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let config = |file: &str, value: &str, extra: &str| {
+        format!(
+            "[data]\nfile = \"{file}\"\ntime = \"t\"\ninput = \"f\"\noutputs = [\"x\"]\n\
+             start = 30.0\n{extra}\n[period]\nvalue = {value}\n\n[estimation]\nomega_min = 1.0\n\
+             omega_max = 40.0\nalpha = 1.0\n"
+        )
+    };
+    let (_, o) = estimate_with(tmp.path(), &config("sim/timeseries.csv", "1.01", ""));
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    let own: f64 = e
+        .split("own period is ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no own period in: {e}"));
+    assert!(
+        e.contains("period.value = 1.01 s")
+            && (own - 1.0).abs() < 1e-5
+            && e.contains("\"estimate\""),
+        "{e}"
+    );
+    let (_, o) = estimate_with(
+        tmp.path(),
+        &config("sim/timeseries.csv", "0.7692307692307693", ""),
+    );
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("76.9231 samples")
+            && e.contains("98.8 Hz (76 samples")
+            && e.contains("100.1 Hz (77)"),
+        "{e}"
+    );
+
+    let exact = {
+        let (out, o) = estimate_with(tmp.path(), &config("sim/timeseries.csv", "1.0", ""));
+        assert!(o.status.success(), "{}", stderr(&o));
+        estimate_rows(&out, "siddiqi")
+    };
+    // The times as float32 prints them (nine significant digits), the rest as it is.
+    let text = fs::read_to_string(sim.join("timeseries.csv")).unwrap();
+    let mut f32_text = String::new();
+    for (i, line) in text.lines().enumerate() {
+        if i == 0 {
+            f32_text.push_str(line);
+        } else {
+            let (t, rest) = line.split_once(',').unwrap();
+            let t32 = t.parse::<f64>().unwrap() as f32;
+            f32_text.push_str(&format!("{t32:.9e},{rest}"));
+        }
+        f32_text.push('\n');
+    }
+    fs::write(tmp.path().join("f32.csv"), f32_text).unwrap();
+    let (out, o) = estimate_with(
+        tmp.path(),
+        &config("f32.csv", "1.0", "time_tolerance = 0.01\n"),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rounded = estimate_rows(&out, "siddiqi");
+    assert_eq!(rounded.len(), exact.len());
+    let scale = exact.iter().map(|r| r[2].hypot(r[3])).fold(0.0, f64::max);
+    for (a, b) in exact.iter().zip(&rounded) {
+        assert!(
+            (a[0] - b[0]).abs() <= 1e-12 * a[0] && a[1].to_bits() == b[1].to_bits(),
+            "rows differ in omega or n: {a:?} against {b:?}"
+        );
+        for k in 2..4 {
+            assert!((a[k] - b[k]).abs() <= 1e-9 * scale, "{a:?} against {b:?}");
+        }
+    }
+}

@@ -93,14 +93,24 @@
 //! ```
 
 use htfid_estimate::{deviation_record, siddiqi, split_periodic};
-use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
+use htfid_theory::HarmonicTransferFunction;
 
 pub use htfid_estimate::{Alpha, HtfEstimate, HtfRow};
-pub use htfid_experiment::{Input, Rhythmic};
+pub use htfid_experiment::{ExperimentError, Input, Rhythmic};
 pub use htfid_hybrid::Options as IntegratorOptions;
+/// The traits a model written in Rust implements to take the whole path (see
+/// `crates/experiment/tests/own_model.rs` for a worked example): its charts, vector fields,
+/// guards and resets ([`HybridSystem`]), its input and outputs ([`InputOutput`]), its named
+/// parameters ([`Parametric`]) and its limit cycle ([`Rhythmic`], usually
+/// [`find_limit_cycle`] on the system with its input off).
+pub use htfid_hybrid::{Crossing, HybridSystem};
+pub use htfid_identify::Parametric;
 pub use htfid_lang::Model;
+pub use htfid_ltp::InputOutput;
 pub use htfid_model::{Effects, Hopper, HopperParams};
+pub use htfid_orbit::find_limit_cycle;
 pub use htfid_orbit::{LimitCycle, ShootingOptions};
+pub use htfid_theory::LinearisedHtf;
 pub use htfid_theory::{HtfGrid, HtfMethod};
 pub use num_complex::Complex64;
 
@@ -127,6 +137,30 @@ pub enum Error {
     /// Any other step of an experiment (`htfid-experiment`).
     #[error(transparent)]
     Experiment(htfid_experiment::ExperimentError),
+    /// An argument of this crate's functions out of its domain: `name` and why.
+    #[error("{name}: {reason}")]
+    Argument {
+        /// The argument, as the function's documentation names it.
+        name: &'static str,
+        /// What is wrong and what is expected.
+        reason: String,
+    },
+}
+
+/// [`Error::Argument`] unless `value` is finite (and positive where `positive`).
+fn check_number(name: &'static str, value: f64, positive: bool) -> Result<(), Error> {
+    if !value.is_finite() || (positive && value <= 0.0) {
+        let expected = if positive {
+            "a finite number > 0"
+        } else {
+            "a finite number"
+        };
+        return Err(Error::Argument {
+            name,
+            reason: format!("{value} is not {expected}"),
+        });
+    }
+    Ok(())
 }
 
 impl From<htfid_experiment::ExperimentError> for Error {
@@ -165,8 +199,9 @@ impl<'a, S: Rhythmic> Htf<'a, S> {
     /// Limit cycle, linearisation and exact HTFs of `system`, with the default options.
     ///
     /// # Errors
-    /// No stable limit cycle ([`Error::Hopper`], [`Error::Model`]), an orbit the linearisation
-    /// does not cover, such as sliding ([`Error::Theory`]).
+    /// No stable limit cycle ([`Error::Hopper`] for the hopper, [`Error::Model`] for a model
+    /// file, [`Error::Experiment`] for a model written in Rust), an orbit the linearisation does
+    /// not cover, such as sliding ([`Error::Theory`]).
     pub fn of(system: &'a S) -> Result<Self, Error> {
         Self::with_options(system, &HtfOptions::default())
     }
@@ -197,16 +232,22 @@ impl<'a, S: Rhythmic> Htf<'a, S> {
     /// `G_n(j omega)` of output `output`.
     ///
     /// # Errors
-    /// [`Error::Theory`] when `output` is out of range.
+    /// [`Error::Theory`] when `output` is out of range; [`Error::Argument`] when `omega` is not
+    /// finite.
     pub fn g_of(&self, output: usize, n: i32, omega: f64) -> Result<Complex64, Error> {
+        check_number("omega", omega, false)?;
         Ok(self.htf.channel(output)?.g(n, omega))
     }
 
     /// `G_n(jw)` on `omegas x harmonics`, one grid per output.
     ///
     /// # Errors
-    /// [`Error::Theory`] when the periodic-response integration fails.
+    /// [`Error::Theory`] when the periodic-response integration fails; [`Error::Argument`]
+    /// when an entry of `omegas` is not finite.
     pub fn grids(&self, harmonics: &[i32], omegas: &[f64]) -> Result<Vec<HtfGrid>, Error> {
+        for &w in omegas {
+            check_number("omegas", w, false)?;
+        }
         Ok(self.htf.grids(harmonics, omegas)?)
     }
 
@@ -241,12 +282,31 @@ impl<'a, S: Rhythmic> Htf<'a, S> {
 /// stands in for a measurement in examples and tests.
 ///
 /// # Errors
-/// [`Error::Simulation`] when the integrator cannot proceed or `times` is not a valid grid.
+/// [`Error::Argument`] when `times` is not finite, non-decreasing and from 0;
+/// [`Error::Simulation`] when the integrator cannot proceed.
 pub fn simulate<S: Rhythmic>(
     htf: &Htf<'_, S>,
     input: Input,
     times: &[f64],
 ) -> Result<Vec<Vec<f64>>, Error> {
+    let mut before = 0.0;
+    for (k, &t) in times.iter().enumerate() {
+        if !(t.is_finite() && t >= before) {
+            return Err(Error::Argument {
+                name: "times",
+                reason: if k == 0 {
+                    format!("times[0] = {t}: the grid starts at 0 s or later (finite)")
+                } else {
+                    format!(
+                        "times[{k}] = {t} after times[{}] = {before}: the grid must be finite \
+                         and non-decreasing",
+                        k - 1
+                    )
+                },
+            });
+        }
+        before = t;
+    }
     Ok(htfid_experiment::drive(
         htf.system,
         htf.limit_cycle(),
@@ -284,13 +344,17 @@ impl Default for EstimateOptions {
 }
 
 /// HTFs of one output estimated from a record: `u` and `y` sampled every `dt` s from absolute
-/// time `t0`, the system's period `period` s. The record is cut to a whole number of periods,
-/// its period average (the orbit) removed from input and output, and Siddiqi's estimator run
-/// on the deviations.
+/// time `t0`, the system's period `period` s. The period must hold a whole number `M` of
+/// samples: `period / dt` may miss one only by a drift of a hundredth of a sample over the
+/// record (a step printed with few digits), and the step is then taken as `period / M`;
+/// resample a record whose sampling is not locked to the period. The record is cut to a whole
+/// number of periods, its period average (the orbit) removed from input and output, and
+/// Siddiqi's estimator run on the deviations.
 ///
 /// # Errors
-/// [`Error::Estimate`]: fewer than two periods, a band the record cannot resolve, unequal
-/// lengths.
+/// [`Error::Argument`]: `t0`, `dt` or `period` not finite (the last two not positive), `u` and
+/// `y` of unequal lengths, a period of no whole number of samples. [`Error::Estimate`]: fewer
+/// than two periods, a band the record cannot resolve.
 pub fn estimate(
     t0: f64,
     dt: f64,
@@ -299,8 +363,34 @@ pub fn estimate(
     period: f64,
     options: &EstimateOptions,
 ) -> Result<HtfEstimate, Error> {
-    let per_period = (period / dt).round().max(1.0) as usize;
-    let n = (u.len().min(y.len()) / per_period) * per_period;
+    check_number("t0", t0, false)?;
+    check_number("dt", dt, true)?;
+    check_number("period", period, true)?;
+    if u.len() != y.len() {
+        return Err(Error::Argument {
+            name: "u, y",
+            reason: format!(
+                "{} input samples against {} output samples: one of each per time",
+                u.len(),
+                y.len()
+            ),
+        });
+    }
+    let per = period / dt;
+    let whole = per.round();
+    if whole < 1.0 || (per - whole).abs() * u.len() as f64 / per > 0.01 {
+        return Err(Error::Argument {
+            name: "period",
+            reason: format!(
+                "{period} s is {per:.4} samples of {dt} s, not a whole number: resample the \
+                 record so that a period holds a whole number of samples (the period average \
+                 and the estimator need N dt = P T)"
+            ),
+        });
+    }
+    let dt = period / whole;
+    let per_period = whole as usize;
+    let n = (u.len() / per_period) * per_period;
     let u = split_periodic(&u[..n], dt, t0, period, options.orbit_harmonics)?;
     let y = split_periodic(&y[..n], dt, t0, period, 2 * options.orbit_harmonics)?;
     let record = deviation_record(u.deviation, y.deviation, dt, t0)?;

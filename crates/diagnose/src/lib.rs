@@ -244,7 +244,7 @@ pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use evidence::{
     amplitude_spectrum, binned_means, error_waterfall, quantile_range, residual_acceleration, Bin,
-    BinnedResidual, ErrorStep, ResidualSamples, Structure, PHASE_BINS, STATE_BINS,
+    BinnedResidual, ErrorStep, ResidualSamples, Structure, MIN_BLOCKS, PHASE_BINS, STATE_BINS,
 };
 pub use htf::{
     htf_comparison, HarmonicDifference, HtfComparison, HtfComparisonSpec, DIFFERENCE_SIGMAS,

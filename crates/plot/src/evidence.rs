@@ -44,7 +44,10 @@ pub fn binned_panel(
             }
         }
         let half = |i: usize| BIN_BAND_STDERRS * s.stderr[i];
-        let band_label = if s.label.is_empty() {
+        // A bin without a standard error (too few independent blocks) has no band; a series
+        // with none at all has no band in the legend either.
+        let banded = s.stderr[..n].iter().any(|e| e.is_finite());
+        let band_label = if s.label.is_empty() || !banded {
             String::new()
         } else {
             format!("{}: ±2 standard errors of the bin mean", s.label)

@@ -877,6 +877,13 @@ fn several_causes(d: &htfid_diagnose::Diagnosis, cause: &str) -> String {
         htfid_number::sig(100.0 * d.gain, 4),
         causes_text(d)
     );
+    let has = |e: &str| d.causes.iter().any(|c| c.effect == e);
+    if has("cubic_stiffness") && has("sensor_offset_gain") {
+        v += " A cubic spring beside a sensor offset is the same model as an asymmetric spring \
+              (a quadratic term beside the cubic one) with the sensor's zero right: the record \
+              cannot tell them apart, and a reading of the sensor at rest separates them (see \
+              the evidence).";
+    }
     if let Some(w) = &d.held_out_on_windows {
         v += &format!(
             " A switching threshold among the speed's extremes decides, period by period, \
@@ -908,6 +915,39 @@ fn causes_text(d: &htfid_diagnose::Diagnosis) -> String {
         .join(", ")
 }
 
+/// A held-out residual at least this multiple of the noise floor is more than noise: three
+/// quarters of its mean square or more are not.
+const LEFT_OVER_RATIO: f64 = 2.0;
+
+/// Beside a named cause, a sentence on a residual still well above the noise floor though
+/// below `unexplained_ratio` (where it would count as clear structure): a smaller effect may be
+/// missing, and the headline says so.
+fn left_over(s: &DiagnoseSettings, report: &DiagnosisReport) -> Option<String> {
+    let d = &report.diagnosis;
+    if matches!(
+        d.cause.as_str(),
+        "none" | "unexplained" | "ambiguous" | "model_mismatch"
+    ) {
+        return None;
+    }
+    let floor = report.noise_floor.filter(|f| f.is_finite() && *f > 0.0)?;
+    let ratio = d.extended.rmse / floor;
+    (ratio >= LEFT_OVER_RATIO).then(|| {
+        let limit = s
+            .thresholds
+            .unexplained_ratio
+            .unwrap_or(DiagnoseOptions::default().unexplained_ratio);
+        format!(
+            " The extended model's held-out residual is still {} times the noise floor: below \
+             `unexplained_ratio` ({limit}), where it would count as clear structure, but more \
+             than noise ({} % of its mean square or more is not), so a smaller effect may be \
+             missing (the whiteness test below says whether the residual is still correlated).",
+            htfid_number::sig(ratio, 3),
+            htfid_number::sig(100.0 * (1.0 - 1.0 / (ratio * ratio)), 2)
+        )
+    })
+}
+
 #[allow(clippy::too_many_arguments)] // reason: the report reads every result of the run
 fn report_md(
     s: &DiagnoseSettings,
@@ -932,7 +972,7 @@ fn report_md(
         c if d.causes.len() > 1 => several_causes(d, c),
         c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {} %.", num(100.0 * d.gain, 4)),
     };
-    let _ = writeln!(m, "{verdict}\n");
+    let _ = writeln!(m, "{verdict}{}\n", left_over(s, report).unwrap_or_default());
     let _ = writeln!(
         m,
         "{}\n",

@@ -439,19 +439,34 @@ fn strongest(ev: &Evidence, s: &DiagnoseSettings) -> Option<String> {
         ("velocity", Structure::of(&ev.nominal.by_velocity)),
         ("the forcing phase", Structure::of(&ev.nominal.by_phase)),
     ];
-    let (what, st) = cands.iter().filter(|(_, st)| st.bins > 0).max_by(|a, b| {
+    let few = format!(
+        "too few independent blocks of {} s (at least {} per bin) for standard errors of the \
+         bin means",
+        num(ev.block_s, 3),
+        htfid_diagnose::MIN_BLOCKS
+    );
+    let Some((what, st)) = cands.iter().filter(|(_, st)| st.bins > 0).max_by(|a, b| {
         (a.1.chi_square / a.1.bins as f64).total_cmp(&(b.1.chi_square / b.1.bins as f64))
-    })?;
+    }) else {
+        return Some(format!(
+            "The held-out data hold {few}: `residual_bins.png` shows the means alone, and no \
+             bin is said to stand off zero."
+        ));
+    };
     let ext = ev.extended.as_ref().map(|e| {
         let st = match *what {
             "position" => Structure::of(&e.by_position),
             "velocity" => Structure::of(&e.by_velocity),
             _ => Structure::of(&e.by_phase),
         };
-        format!(
-            "; the extended model's stand at most {} standard errors from zero there",
-            num(st.max_abs_z, 3)
-        )
+        if st.bins == 0 {
+            format!("; the extended model's bins there hold {few}")
+        } else {
+            format!(
+                "; the extended model's stand at most {} standard errors from zero there",
+                num(st.max_abs_z, 3)
+            )
+        }
     });
     Some(format!(
         "The refitted nominal model's residual acceleration varies most against {what}: bin means from {} to {} {u}/s^2, up to {} standard errors of the bin mean from zero (`residual_bins.png`){}.",

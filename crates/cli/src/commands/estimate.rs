@@ -38,6 +38,104 @@ const BAND_FALSE_ALARM: f64 = 0.05;
 /// names them.
 const UNEXCITED_SHARE: f64 = 0.05;
 
+/// Largest drift, in samples over the whole record, of a given period against a whole number
+/// of samples that is still read as the sampling locked to the period: timestamps printed with
+/// few digits (float32) give a step off by a few parts in 1e8, which drifts by a few 1e-5
+/// samples over 300 periods; a pumping clock not locked to the sampling drifts by samples.
+const LOCKED_DRIFT_SAMPLES: f64 = 0.01;
+
+/// The sample step with which `period` holds a whole number of samples: the record's step
+/// `dt`, or `period / M` where `period` is `M` steps to within [`LOCKED_DRIFT_SAMPLES`] over
+/// the `samples` used. The period average and Siddiqi's estimator need `N dt = P T` exactly.
+fn whole_samples(settings: &EstimateSettings, period: f64, dt: f64, samples: usize) -> Result<f64> {
+    let per = period / dt;
+    let whole = per.round();
+    let periods = samples as f64 / per;
+    if whole >= 1.0 && (per - whole).abs() * periods <= LOCKED_DRIFT_SAMPLES {
+        return Ok(period / whole);
+    }
+    // Six significant digits, without trailing zeros.
+    let short = |x: f64| {
+        let scale = 10f64.powi(5 - x.abs().log10().floor() as i32);
+        (x * scale).round() / scale
+    };
+    let rate = |m: f64| short(m / period);
+    let (below, above) = (per.floor().max(1.0), per.floor().max(1.0) + 1.0);
+    bail!(
+        "{}: period.value = {period} s is {per:.4} samples of the record's step {} s, not a \
+         whole number: the period average and Siddiqi's estimator need a whole number of \
+         samples per period. Resample the record so that a period holds one, e.g. at {} Hz \
+         ({below} samples per period) or {} Hz ({above}), or check period.value",
+        settings.path.display(),
+        short(dt),
+        rate(below),
+        rate(above)
+    )
+}
+
+/// Largest drift, in periods over the record, of the given period against the data's own
+/// before the given period is put to the test below: a twentieth of a period smears the
+/// harmonics' phases by 18 degrees at the fundamental and more at the harmonics.
+const GIVEN_PERIOD_DRIFT: f64 = 0.05;
+
+/// Share of the first output's variance its orbit must carry at its own period for that period
+/// to overrule a given one.
+const CLEAR_ORBIT_SHARE: f64 = 0.5;
+
+/// Share of the orbit's variance at the data's own period that the given period must still
+/// explain (a period of the data's orbit, or a multiple of it, explains all of it; a period
+/// off by a fraction of a period over the record smears the orbit's harmonics out of its
+/// average).
+const GIVEN_PERIOD_SHARE: f64 = 0.9;
+
+/// Refuses a given period that the data contradict: where the first output's own period
+/// (`htfid_estimate::estimate_period`, with a clear orbit) parts from `period` by more than
+/// [`GIVEN_PERIOD_DRIFT`] periods over the record, and the period average at `period` (over
+/// the `n` samples from `t_start` the estimator reads) carries less than
+/// [`GIVEN_PERIOD_SHARE`] of the variance the orbit carries at its own period, every harmonic
+/// would be read at the wrong frequency and the estimate would be confident nonsense. (On a
+/// short record the own period may come out a multiple of the true one; the true one then
+/// explains as much, and passes.)
+fn check_given_period(
+    settings: &EstimateSettings,
+    period: f64,
+    output: &[f64],
+    dt: f64,
+    (n, t_start): (usize, f64),
+) -> Result<()> {
+    let Ok(own) = estimate_period(output, dt) else {
+        return Ok(());
+    };
+    let periods = n as f64 * dt / period;
+    let drift = (period - own.period).abs() / own.period * periods;
+    if own.periodic_share < CLEAR_ORBIT_SHARE || drift <= GIVEN_PERIOD_DRIFT {
+        return Ok(());
+    }
+    let y = &output[..n];
+    let mean = y.iter().sum::<f64>() / n as f64;
+    let total: f64 = y.iter().map(|v| (v - mean).powi(2)).sum();
+    let Ok(split) = split_periodic(y, dt, t_start, period, 1) else {
+        return Ok(());
+    };
+    let left: f64 = split.deviation.iter().map(|v| v * v).sum();
+    let given = if total > 0.0 { 1.0 - left / total } else { 1.0 };
+    if given >= GIVEN_PERIOD_SHARE * own.periodic_share {
+        return Ok(());
+    }
+    bail!(
+        "{}: period.value = {period} s, but the first output's own period is {} s: its orbit \
+         carries {} of the output's variance there and {} at the given period, and over the {} \
+         periods of the record the two periods part by {} periods, so every harmonic would be \
+         read at the wrong frequency. Correct period.value, or set it to \"estimate\"",
+        settings.path.display(),
+        htfid_number::sig(own.period, 9),
+        htfid_number::percent(own.periodic_share, 3),
+        htfid_number::percent(given, 3),
+        htfid_number::sig(periods, 3),
+        htfid_number::sig(drift, 3)
+    )
+}
+
 fn read(settings: &EstimateSettings, output: &str) -> Result<TimeSeries> {
     let columns = Columns {
         input: &settings.input,
@@ -109,8 +207,11 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
 
     // The period: given, or estimated from the first output and snapped to a whole number of
     // samples (the split and the estimator need N dt = P T exactly).
-    let (period, estimated) = match settings.period {
-        PeriodSetting::Given(t) => (t, None),
+    let (period, estimated, dt) = match settings.period {
+        PeriodSetting::Given(t) => {
+            let step = whole_samples(&settings, t, dt, first.len() - i0)?;
+            (t, None, step)
+        }
         PeriodSetting::Estimate => {
             let est = stages
                 .run("estimate period", || {
@@ -130,7 +231,7 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
                     est.period
                 );
             }
-            (snapped * dt, Some(est))
+            (snapped * dt, Some(est), dt)
         }
     };
     let per_period = (period / dt).round() as usize;
@@ -145,6 +246,9 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     }
     let n = periods * per_period;
     let t_start = first.time()[i0];
+    if estimated.is_none() {
+        check_given_period(&settings, period, &first.output()[i0..], dt, (n, t_start))?;
+    }
     check_band(&settings, dt, period, n, hint)?;
 
     let u_split = split_periodic(&first.input()[i0..i0 + n], dt, t_start, period, 5)
