@@ -55,5 +55,5 @@ mod piecewise;
 
 pub use floquet::{expm, Floquet};
 pub use fourier::{fft_fourier, fft_fourier_fn, square_wave_fourier, MatrixFourierSeries};
-pub use linearise::{linearise, InputOutput, LinearSample, Linearisation, Switch};
+pub use linearise::{linearise, refuse_grazes, InputOutput, LinearSample, Linearisation, Switch};
 pub use piecewise::{LtpError, Piece, PiecewiseLti, SystemMatrix};

@@ -123,6 +123,18 @@ fn sample_at<S: InputOutput>(sys: &S, mode: S::Mode, t: f64, x: &[f64]) -> Linea
     }
 }
 
+/// [`LtpError::GrazingOrbit`] when `cycle` touches a guard without crossing it: no linear
+/// model holds there.
+pub fn refuse_grazes<M>(cycle: &LimitCycle<M>) -> Result<(), LtpError> {
+    match cycle.events.iter().find(|e| e.kind == EventKind::Grazing) {
+        Some(e) => Err(LtpError::GrazingOrbit {
+            guard: e.guard,
+            time: e.time,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// Linearises `sys` about `cycle` (which must have been computed with the input off).
 ///
 /// `samples` equally spaced samples of `A(t), B(t), C(t), D(t)` are kept for inspection and
@@ -144,6 +156,7 @@ pub fn linearise<S: InputOutput>(
             intervals: cycle.sliding.len(),
         });
     }
+    refuse_grazes(cycle)?;
     let (t0, period) = (cycle.t0, cycle.period);
     let switches: Vec<Switch<S::Mode>> = cycle
         .events

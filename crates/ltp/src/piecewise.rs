@@ -27,6 +27,21 @@ pub enum LtpError {
         /// Number of sliding intervals in the period.
         intervals: usize,
     },
+    /// The orbit touches a guard without crossing it (a graze): there the motion is not a
+    /// smooth function of its initial state (a small input makes it cross, or not), so no
+    /// linear model describes it, and none is built rather than a wrong one.
+    #[error(
+        "the orbit grazes guard {guard} at t = {time} s (it touches the guard and turns back \
+         without crossing): at a graze the motion does not depend linearly on a small input, \
+         so no LTP model or HTF can be given for this orbit; move the guard or the orbit so \
+         that the orbit crosses it clearly or stays clear of it"
+    )]
+    GrazingOrbit {
+        /// The guard grazed: its index in the chart.
+        guard: usize,
+        /// Time of the first graze in the period (s).
+        time: f64,
+    },
     /// The period must be finite and strictly positive.
     #[error("period must be finite and > 0 (got {period})")]
     InvalidPeriod {

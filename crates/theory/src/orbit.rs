@@ -136,6 +136,7 @@ impl<'a, S: InputOutput> OrbitHtf<'a, S> {
                 intervals: map.sliding.len(),
             }));
         }
+        htfid_ltp::refuse_grazes(cycle)?;
         let residual = map
             .state
             .iter()
