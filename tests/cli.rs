@@ -4229,6 +4229,8 @@ fn a_guard_that_never_fires_on_the_orbit_is_pointed_out() {
 /// - `period.value = 1.01` is refused, naming the key and the data's own period (over the 270
 ///   periods after 30 s the two part by 2.7 periods);
 /// - `period.value = 1 / 1.3` (76.92 samples) is refused with two sample rates to resample to;
+/// - 19 periods (from 282 s) are too few to check the harmonics beyond the set: the notes say
+///   so rather than name any;
 /// - the same record with its times printed as float32 (`data.time_tolerance` raised) gives the
 ///   same estimate as with exact times: the step is taken as `T / 100`, which the float32 times
 ///   approach to a few parts in 1e8. Tolerance 1e-9 of `max |G_0|`: the two runs differ only in
@@ -4251,6 +4253,17 @@ fn a_given_period_is_checked_against_the_samples_and_the_data() {
              omega_max = 40.0\nalpha = 1.0\n"
         )
     };
+    // 19 periods from 282 s: too few for the check of the harmonics beyond the set, which
+    // says so instead of naming harmonics from standard errors of few degrees of freedom.
+    let short = config("sim/timeseries.csv", "1.0", "").replace("start = 30.0", "start = 282.0");
+    let (out, o) = estimate_with(tmp.path(), &short);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let notes = summary(&out)["checks"]["notes"].to_string();
+    assert!(
+        notes.contains("with only 19 periods (fewer than 20) the harmonics outside")
+            && !notes.contains("the response carries harmonics"),
+        "{notes}"
+    );
     let (_, o) = estimate_with(tmp.path(), &config("sim/timeseries.csv", "1.01", ""));
     assert!(!o.status.success());
     let e = stderr(&o);

@@ -368,7 +368,18 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
         ));
     }
     notes.append(&mut unchecked);
-    for (o, list) in outer.iter().enumerate() {
+    // With few periods the standard errors the check weighs against rest on few residual
+    // degrees of freedom: its claims would be noise (a 5-period record named G_-4 and G_4 over
+    // the whole band where they are 1e-5 of G_0).
+    let checkable = periods >= MIN_PERIODS;
+    if !checkable && outer.iter().any(|l| !l.is_empty()) {
+        notes.push(format!(
+            "with only {periods} periods (fewer than {MIN_PERIODS}) the harmonics outside \
+             estimation.harmonics cannot be checked: their standard errors rest on too few \
+             degrees of freedom (summary.json keeps the numbers)"
+        ));
+    }
+    for (o, list) in outer.iter().enumerate().filter(|_| checkable) {
         let carried: Vec<&OuterHarmonic> = list
             .iter()
             .filter(|h| h.significant_share > OUTER_SIGNIFICANT_SHARE)
