@@ -3401,7 +3401,9 @@ fn data_format_keys_and_their_messages() {
         ),
         (
             "units = { t = \"s\", y = \"m\" }",
-            "8:9: data.units: \"y\" is not a column this config reads (\"f\", \"x\", \"t\")",
+            "8:9: data.units: \"y\" is not a column this config reads (\"f\", \"x\", \"t\"): \
+             if it was renamed in data.input, data.output(s) or data.time, rename it here too, \
+             else remove it",
         ),
         (
             "columns = [\"t\", \"t\"]",

@@ -147,7 +147,9 @@ pub fn resolve_format(
                         Some(&u.span()),
                         "data.units",
                         format!(
-                            "\"{column}\" is not a column this config reads ({})",
+                            "\"{column}\" is not a column this config reads ({}): if it was renamed in \
+                             data.input, data.output(s) or data.time, rename it here too, else \
+                             remove it",
                             quote_list(used)
                         ),
                     ));
