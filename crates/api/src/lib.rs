@@ -91,6 +91,107 @@
 //! assert!(median < 0.02 && worst < 0.2, "G_0 error: median {median:e}, worst {worst:e}");
 //! # Ok::<(), htfid_api::Error>(())
 //! ```
+//!
+//! # A model of your own, written in Rust
+//!
+//! A Rust model takes the whole path by implementing four traits: its charts, vector field and
+//! guards ([`HybridSystem`]), how the input enters and what is measured ([`InputOutput`]), its
+//! named parameters ([`Parametric`]), and its limit cycle ([`Rhythmic`]: usually
+//! [`find_limit_cycle`] on the system with its input off). The input is not an argument of the
+//! vector field: the system holds it ([`Rhythmic::with_input`]) and reads it at `t`.
+//!
+//! Here a forced oscillator `x'' = -k x - c x' + cos(wp t) + u` whose damping is `c_up` while it
+//! moves up and `c_down` while it moves down: two charts, switched where `x' = 0`. As for the
+//! hopper, the damping switches where it exerts no force, so a constant input moves the orbit by
+//! `u / k` and `G_0(j0) = 1 / k` exactly; the two dampings couple frequencies (`G_1 != 0`):
+//!
+//! ```
+//! use htfid_api::{
+//!     find_limit_cycle, Crossing, ExperimentError, HybridSystem, Htf, Input, InputOutput,
+//!     IntegratorOptions, LimitCycle, Parametric, Rhythmic, ShootingOptions,
+//! };
+//!
+//! #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+//! enum Moving { Up, Down }
+//!
+//! #[derive(Clone)]
+//! struct TwoDampers { k: f64, c_up: f64, c_down: f64, wp: f64, input: Option<Input> }
+//!
+//! impl HybridSystem for TwoDampers {
+//!     type Mode = Moving;
+//!     fn dim(&self) -> usize { 2 }
+//!     fn vector_field(&self, mode: Moving, t: f64, x: &[f64], dx: &mut [f64]) {
+//!         let c = if mode == Moving::Up { self.c_up } else { self.c_down };
+//!         let u = self.input.as_ref().map_or(0.0, |u| u(t));
+//!         dx[0] = x[1];
+//!         dx[1] = -self.k * x[0] - c * x[1] + (self.wp * t).cos() + u;
+//!     }
+//!     // One guard per chart, x' = 0, crossed downwards while moving up and upwards while
+//!     // moving down; crossing it changes the chart and resets nothing.
+//!     fn num_guards(&self, _: Moving) -> usize { 1 }
+//!     fn guard(&self, _: Moving, _: usize, _t: f64, x: &[f64]) -> f64 { x[1] }
+//!     fn guard_direction(&self, mode: Moving, _: usize) -> Crossing {
+//!         if mode == Moving::Up { Crossing::Falling } else { Crossing::Rising }
+//!     }
+//!     fn transition(&self, mode: Moving, _: usize, _t: f64, _x: &mut [f64]) -> Moving {
+//!         if mode == Moving::Up { Moving::Down } else { Moving::Up }
+//!     }
+//! }
+//!
+//! impl InputOutput for TwoDampers {
+//!     fn input_gain(&self, _: Moving, _t: f64, _x: &[f64], b: &mut [f64]) {
+//!         b.copy_from_slice(&[0.0, 1.0]);
+//!     }
+//!     fn output_gain(&self, _: Moving, _t: f64, _x: &[f64], c: &mut [f64]) {
+//!         c.copy_from_slice(&[1.0, 0.0]); // the position is measured
+//!     }
+//!     // A(t) is constant in each chart: the HTFs in closed form.
+//!     fn is_piecewise_constant(&self) -> bool { true }
+//! }
+//!
+//! impl Parametric for TwoDampers {
+//!     fn parameter(&self, name: &str) -> Option<(f64, (f64, f64))> {
+//!         match name {
+//!             "k" => Some((self.k, (1e-9, f64::INFINITY))),
+//!             _ => None,
+//!         }
+//!     }
+//!     fn unforced_with(&self, changes: &[(&str, f64)]) -> Result<Self, String> {
+//!         let mut s = self.with_input(None);
+//!         for &(name, v) in changes {
+//!             match name {
+//!                 "k" => s.k = v,
+//!                 _ => return Err(format!("no parameter {name}")),
+//!             }
+//!         }
+//!         Ok(s)
+//!     }
+//!     fn forcing_period(&self) -> Option<f64> { Some(std::f64::consts::TAU / self.wp) }
+//! }
+//!
+//! impl Rhythmic for TwoDampers {
+//!     fn limit_cycle(
+//!         &self,
+//!         shooting: &ShootingOptions,
+//!         integrator: &IntegratorOptions,
+//!     ) -> Result<LimitCycle<Moving>, ExperimentError> {
+//!         let period = std::f64::consts::TAU / self.wp;
+//!         // Start anywhere near the orbit: settling and Newton shooting do the rest.
+//!         let start = [0.0, 0.1];
+//!         Ok(find_limit_cycle(&self.with_input(None), Moving::Up, 0.0, &start, period, shooting,
+//!             integrator)?)
+//!     }
+//!     fn with_input(&self, input: Option<Input>) -> Self { TwoDampers { input, ..self.clone() } }
+//!     fn outputs(&self, _: Moving, _t: f64, x: &[f64], _u: f64, y: &mut [f64]) { y[0] = x[0]; }
+//! }
+//!
+//! let system = TwoDampers { k: 10.0, c_up: 1.0, c_down: 0.2, wp: 2.0, input: None };
+//! let htf = Htf::of(&system)?;
+//! let dc = htf.g(0, 0.0)?;
+//! assert!((dc.re - 0.1).abs() < 1e-8 && dc.im.abs() < 1e-8, "G_0(j0) = {dc}");
+//! assert!(htf.g(1, 3.0)?.norm() > 1e-3);
+//! # Ok::<(), htfid_api::Error>(())
+//! ```
 
 use htfid_estimate::{deviation_record, siddiqi, split_periodic};
 use htfid_theory::HarmonicTransferFunction;
