@@ -193,7 +193,7 @@
 //! # Ok::<(), htfid_api::Error>(())
 //! ```
 
-use htfid_estimate::{deviation_record, siddiqi, split_periodic};
+use htfid_estimate::{deviation_record, locked_step, siddiqi, split_periodic};
 use htfid_theory::HarmonicTransferFunction;
 
 pub use htfid_estimate::{Alpha, HtfEstimate, HtfRow};
@@ -477,20 +477,19 @@ pub fn estimate(
             ),
         });
     }
-    let per = period / dt;
-    let whole = per.round();
-    if whole < 1.0 || (per - whole).abs() * u.len() as f64 / per > 0.01 {
+    let Some(step) = locked_step(period, dt, u.len()) else {
         return Err(Error::Argument {
             name: "period",
             reason: format!(
-                "{period} s is {per:.4} samples of {dt} s, not a whole number: resample the \
+                "{period} s is {:.4} samples of {dt} s, not a whole number: resample the \
                  record so that a period holds a whole number of samples (the period average \
-                 and the estimator need N dt = P T)"
+                 and the estimator need N dt = P T)",
+                period / dt
             ),
         });
-    }
-    let dt = period / whole;
-    let per_period = whole as usize;
+    };
+    let dt = step;
+    let per_period = (period / step).round() as usize;
     let n = (u.len() / per_period) * per_period;
     let u = split_periodic(&u[..n], dt, t0, period, options.orbit_harmonics)?;
     let y = split_periodic(&y[..n], dt, t0, period, 2 * options.orbit_harmonics)?;

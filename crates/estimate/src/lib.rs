@@ -118,7 +118,10 @@ pub use lm::{
     levenberg_marquardt_with_jacobian, FdScheme, LmFit, LmOptions, LmStop, EXTEND_FROM, EXTEND_MAX,
 };
 pub use multi::{multi_experiment, Leakage, MultiOptions, Regularisation};
-pub use periodic::{estimate_period, split_periodic, PeriodEstimate, PeriodicSplit};
+pub use periodic::{
+    estimate_period, locked_step, split_periodic, PeriodEstimate, PeriodicSplit,
+    LOCKED_DRIFT_SAMPLES,
+};
 pub use record::{deviation_record, dft};
 pub use siddiqi::{outer_harmonics, siddiqi, OuterHarmonic, SiddiqiDesign};
 pub use size::estimator_bytes;

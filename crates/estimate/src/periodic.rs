@@ -10,6 +10,23 @@ use rustfft::FftPlanner;
 use crate::smooth::golden_min;
 use crate::{Error, Result};
 
+/// Largest drift, in samples over the whole record, of a period against a whole number of
+/// samples that is still read as the sampling locked to the period: timestamps printed with
+/// few digits (float32) give a step off by a few parts in 1e8, which drifts by a few 1e-5
+/// samples over 300 periods; a pumping clock not locked to the sampling drifts by samples.
+pub const LOCKED_DRIFT_SAMPLES: f64 = 0.01;
+
+/// The sample step with which `period` holds a whole number `M` of samples, for a record of
+/// `samples` samples `dt` apart: `period / M` where `period / dt` misses `M` by a drift of at
+/// most [`LOCKED_DRIFT_SAMPLES`] over the record, `None` otherwise (the sampling is not locked
+/// to the period: resample). [`split_periodic`] and the estimators need `N dt = P T` exactly.
+pub fn locked_step(period: f64, dt: f64, samples: usize) -> Option<f64> {
+    let per = period / dt;
+    let whole = per.round();
+    let drift = (per - whole).abs() * samples as f64 / per;
+    (whole >= 1.0 && drift <= LOCKED_DRIFT_SAMPLES).then(|| period / whole)
+}
+
 /// A record split into its `T`-periodic part and the rest.
 #[derive(Debug, Clone)]
 pub struct PeriodicSplit {

@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use htfid_data::TimeSeries;
 use htfid_estimate::{
-    deviation_record, estimate_period, outer_harmonics, siddiqi, split_periodic, Alpha,
-    HtfEstimate, OuterHarmonic,
+    deviation_record, estimate_period, locked_step, outer_harmonics, siddiqi, split_periodic,
+    Alpha, HtfEstimate, OuterHarmonic,
 };
 use htfid_plot::Style;
 use num_complex::Complex64;
@@ -38,22 +38,14 @@ const BAND_FALSE_ALARM: f64 = 0.05;
 /// names them.
 const UNEXCITED_SHARE: f64 = 0.05;
 
-/// Largest drift, in samples over the whole record, of a given period against a whole number
-/// of samples that is still read as the sampling locked to the period: timestamps printed with
-/// few digits (float32) give a step off by a few parts in 1e8, which drifts by a few 1e-5
-/// samples over 300 periods; a pumping clock not locked to the sampling drifts by samples.
-const LOCKED_DRIFT_SAMPLES: f64 = 0.01;
-
-/// The sample step with which `period` holds a whole number of samples: the record's step
-/// `dt`, or `period / M` where `period` is `M` steps to within [`LOCKED_DRIFT_SAMPLES`] over
-/// the `samples` used. The period average and Siddiqi's estimator need `N dt = P T` exactly.
+/// The sample step with which the given `period` holds a whole number of samples
+/// (`htfid_estimate::locked_step`), or an error naming `period.value` with two sample rates to
+/// resample the record to.
 fn whole_samples(settings: &EstimateSettings, period: f64, dt: f64, samples: usize) -> Result<f64> {
-    let per = period / dt;
-    let whole = per.round();
-    let periods = samples as f64 / per;
-    if whole >= 1.0 && (per - whole).abs() * periods <= LOCKED_DRIFT_SAMPLES {
-        return Ok(period / whole);
+    if let Some(step) = locked_step(period, dt, samples) {
+        return Ok(step);
     }
+    let per = period / dt;
     // Six significant digits, without trailing zeros.
     let short = |x: f64| {
         let scale = 10f64.powi(5 - x.abs().log10().floor() as i32);
@@ -89,23 +81,25 @@ const CLEAR_ORBIT_SHARE: f64 = 0.5;
 const GIVEN_PERIOD_SHARE: f64 = 0.9;
 
 /// Refuses a given period that the data contradict: where the first output's own period
-/// (`htfid_estimate::estimate_period`, with a clear orbit) parts from `period` by more than
-/// [`GIVEN_PERIOD_DRIFT`] periods over the record, and the period average at `period` (over
-/// the `n` samples from `t_start` the estimator reads) carries less than
-/// [`GIVEN_PERIOD_SHARE`] of the variance the orbit carries at its own period, every harmonic
-/// would be read at the wrong frequency and the estimate would be confident nonsense. (On a
-/// short record the own period may come out a multiple of the true one; the true one then
-/// explains as much, and passes.)
+/// (`htfid_estimate::estimate_period` on `output`, with a clear orbit) parts from `period` by
+/// more than [`GIVEN_PERIOD_DRIFT`] periods over the record, and the period average at
+/// `period` carries less than [`GIVEN_PERIOD_SHARE`] of the variance the orbit carries at its
+/// own period, every harmonic would be read at the wrong frequency and the estimate would be
+/// confident nonsense. `deviation` is the first `deviation.len()` samples of `output` with
+/// their period average at `period` removed (the split the estimator reads). (On a short
+/// record the own period may come out a multiple of the true one; the true one then explains
+/// as much, and passes.)
 fn check_given_period(
     settings: &EstimateSettings,
     period: f64,
     output: &[f64],
+    deviation: &[f64],
     dt: f64,
-    (n, t_start): (usize, f64),
 ) -> Result<()> {
     let Ok(own) = estimate_period(output, dt) else {
         return Ok(());
     };
+    let n = deviation.len();
     let periods = n as f64 * dt / period;
     let drift = (period - own.period).abs() / own.period * periods;
     if own.periodic_share < CLEAR_ORBIT_SHARE || drift <= GIVEN_PERIOD_DRIFT {
@@ -114,10 +108,7 @@ fn check_given_period(
     let y = &output[..n];
     let mean = y.iter().sum::<f64>() / n as f64;
     let total: f64 = y.iter().map(|v| (v - mean).powi(2)).sum();
-    let Ok(split) = split_periodic(y, dt, t_start, period, 1) else {
-        return Ok(());
-    };
-    let left: f64 = split.deviation.iter().map(|v| v * v).sum();
+    let left: f64 = deviation.iter().map(|v| v * v).sum();
     let given = if total > 0.0 { 1.0 - left / total } else { 1.0 };
     if given >= GIVEN_PERIOD_SHARE * own.periodic_share {
         return Ok(());
@@ -246,9 +237,6 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     }
     let n = periods * per_period;
     let t_start = first.time()[i0];
-    if estimated.is_none() {
-        check_given_period(&settings, period, &first.output()[i0..], dt, (n, t_start))?;
-    }
     check_band(&settings, dt, period, n, hint)?;
 
     let u_split = split_periodic(&first.input()[i0..i0 + n], dt, t_start, period, 5)
@@ -260,6 +248,9 @@ pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bo
     for (o, s) in series.iter().enumerate() {
         let y_split = split_periodic(&s.output()[i0..i0 + n], dt, t_start, period, 10)
             .with_context(|| format!("output {}: period average", outputs[o]))?;
+        if o == 0 && estimated.is_none() {
+            check_given_period(&settings, period, &s.output()[i0..], &y_split.deviation, dt)?;
+        }
         let record = deviation_record(
             u_split.deviation.clone(),
             y_split.deviation.clone(),
