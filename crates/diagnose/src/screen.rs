@@ -250,9 +250,13 @@ impl<'c, 'a> Screening<'c, 'a> {
                 };
             }
         }
-        let mut scored: Vec<(f64, ModelPoint, i8)> = grid
-            .into_par_iter()
-            .filter_map(|(p, side)| self.ctx.fit_cost(&p).map(|c| (c, p, side)))
+        let points: Vec<ModelPoint> = grid.iter().map(|(p, _)| *p).collect();
+        let mut scored: Vec<(f64, ModelPoint, i8)> = self
+            .ctx
+            .fit_costs(&points)
+            .into_iter()
+            .zip(grid)
+            .filter_map(|(c, (p, side))| c.map(|c| (c, p, side)))
             .collect();
         scored.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut starts: Vec<ModelPoint> = Vec::new();

@@ -246,6 +246,23 @@ impl<'a> Located<'a> {
         }
     }
 
+    /// The commanded force at `t` (the delay applied), reading `force` once for the two
+    /// stages of a Runge-Kutta step at the same time.
+    #[inline(always)]
+    fn commanded(&self, force: &Force, t: f64) -> f64 {
+        let h = self.hopper;
+        let td = t - h.effects().delay;
+        let (t_last, u_last) = self.last.get();
+        let u = if td.to_bits() == t_last.to_bits() {
+            u_last
+        } else {
+            let u = force.eval(td);
+            self.last.set((td, u));
+            u
+        };
+        h.commanded_force_with(td, u)
+    }
+
     fn base(&self, mode: HopperMode) -> usize {
         match mode {
             HopperMode::Damped => self.base[0],
@@ -292,17 +309,7 @@ impl HybridSystem for Located<'_> {
         match self.force {
             // `Hopper::vector_field` without a lag state, reading the force directly.
             Some(force) => {
-                let h = self.hopper;
-                let td = t - h.effects().delay;
-                let (t_last, u_last) = self.last.get();
-                let u = if td.to_bits() == t_last.to_bits() {
-                    u_last
-                } else {
-                    let u = force.eval(td);
-                    self.last.set((td, u));
-                    u
-                };
-                let f = h.commanded_force_with(td, u);
+                let f = self.commanded(force, t);
                 // Written as one pair: the integrator reads the derivative back whole.
                 let d = [x[1], self.field.acceleration(mode, x[0], x[1], f)];
                 dxdt[..2].copy_from_slice(&d);
@@ -435,6 +442,310 @@ impl Field {
             _ => 0.0,
         };
         ((force - self.weight - self.mu * sign) - (damping + (spring + contact))) * self.inv_m
+    }
+}
+
+impl Field {
+    /// The acceleration, its derivatives by position and velocity, and its derivative by
+    /// every [`Param`] (indexed by `Param as usize`): the same force law as
+    /// [`Field::acceleration`], differentiated by hand term by term.
+    ///
+    /// `inside` says on which side of a contact's edge the derivatives are taken: at the
+    /// edge itself (the start or end of a step split there) the position cannot tell.
+    #[inline(always)]
+    fn derivatives(
+        &self,
+        mode: HopperMode,
+        inside: bool,
+        pos: f64,
+        vel: f64,
+        force: f64,
+    ) -> (f64, f64, f64, [f64; PARAMS]) {
+        let damped = mode == HopperMode::Damped;
+        let dx = pos - self.x0;
+        let stiffness = self.k + 3.0 * self.k3 * dx * dx;
+        let spring = (self.k + self.k3 * (dx * dx)) * dx;
+        let c_lin = if damped { self.c_damped } else { self.c_free };
+        let damping = (c_lin + self.c2 * vel.abs()) * vel;
+        let sign = if self.sign_from_chart {
+            if damped {
+                1.0
+            } else {
+                -1.0
+            }
+        } else {
+            vel.signum()
+        };
+        let (contact, k_contact, into) = match self.stop {
+            Some((x_stop, k_stop)) if inside => (k_stop * (pos - x_stop), k_stop, pos - x_stop),
+            _ => (0.0, 0.0, 0.0),
+        };
+        // Every force but the weight: `a = net / m - g`, so `da/dm = -net / m^2`.
+        let net = (force - self.mu * sign) - (damping + (spring + contact));
+        let a = (net - self.weight) * self.inv_m;
+        let a_x = -(stiffness + k_contact) * self.inv_m;
+        let a_v = -(c_lin + 2.0 * self.c2 * vel.abs()) * self.inv_m;
+        let (on, off) = if damped { (-vel, 0.0) } else { (0.0, -vel) };
+        let forces = [
+            -net * self.inv_m, // M
+            -dx,               // K
+            on,                // C
+            off,               // CF
+            stiffness,         // X0
+            1.0,               // InputOffset
+            -dx * dx * dx,     // K3
+            -vel * vel.abs(),  // C2
+            k_contact,         // XStop
+            -into,             // KStop
+            0.0,               // Position
+            0.0,               // Velocity
+        ];
+        (a, a_x, a_v, forces.map(|f| f * self.inv_m))
+    }
+}
+
+/// The number of [`Param`]s.
+const PARAMS: usize = 12;
+
+/// A number the position's derivative is integrated for ([`simulate_sensitivities`]): a
+/// parameter of the force law, or the starting position or velocity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum Param {
+    M,
+    K,
+    C,
+    CF,
+    X0,
+    InputOffset,
+    K3,
+    C2,
+    XStop,
+    KStop,
+    Position,
+    Velocity,
+}
+
+/// Most columns of [`simulate_sensitivities`].
+pub(crate) const MAX_SENSITIVITIES: usize = 15;
+
+/// The chart of [`Sensitive`]: the hopper's, and whether the mass is inside a contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Chart {
+    hopper: HopperMode,
+    inside: bool,
+}
+
+/// The located model with the sensitivities of its state to `M` numbers appended (`N = 2 + 2
+/// M` entries): `[x, v, dx/dp_1..M, dv/dp_1..M]`, following `d(dx/dp)/dt = dv/dp` and
+/// `d(dv/dp)/dt = a_x dx/dp + a_v dv/dp + da/dp`.
+///
+/// Built only for a model whose force is continuous across every guard it crosses (no
+/// Coulomb friction, no damper threshold: the damper's force `c x'` vanishes at its switch
+/// `x' = 0`, and the contact's force at its edge). The crossing time then moves the
+/// sensitivities by the jump in the field times that move, which is zero: every saltation
+/// matrix is the identity, the resets pass the sensitivities unchanged, and no motion slides
+/// along a switch (both sides' fields are equal there).
+///
+/// The force's derivatives do jump at a contact's edge, and a step split there starts and
+/// ends on it, where the position cannot say which side a stage belongs to: taken from the
+/// wrong side for one stage, the contact's stiffness enters a step's sensitivities with
+/// weight `h / 6` at every crossing, an error of first order in the step (measured: 5e-4 of
+/// the derivatives at 16 sub-steps per sample). The side is therefore part of the chart,
+/// switched at the contact's guard.
+struct Sensitive<'a, const M: usize> {
+    located: Located<'a>,
+    force: &'a Force,
+    /// Which derivative of [`Field::derivatives`] each column reads.
+    params: [usize; M],
+}
+
+impl<const M: usize> Sensitive<'_, M> {
+    /// Whether guard `index` of `mode` is the contact's edge.
+    fn is_contact(&self, mode: HopperMode, index: usize) -> bool {
+        self.located.contact.is_some() && index == self.located.base(mode)
+    }
+}
+
+impl<const M: usize> HybridSystem for Sensitive<'_, M> {
+    type Mode = Chart;
+
+    fn dim(&self) -> usize {
+        2 * (1 + M)
+    }
+
+    #[inline(always)]
+    fn vector_field(&self, mode: Chart, t: f64, x: &[f64], dxdt: &mut [f64]) {
+        let f = self.located.commanded(self.force, t);
+        let (a, a_x, a_v, a_p) =
+            self.located
+                .field
+                .derivatives(mode.hopper, mode.inside, x[0], x[1], f);
+        let sx: &[f64; M] = x[2..2 + M].try_into().expect("M columns");
+        let sv: &[f64; M] = x[2 + M..2 + 2 * M].try_into().expect("M columns");
+        let mut d = [0.0; M];
+        for j in 0..M {
+            d[j] = a_x * sx[j] + a_v * sv[j] + a_p[self.params[j]];
+        }
+        dxdt[0] = x[1];
+        dxdt[1] = a;
+        dxdt[2..2 + M].copy_from_slice(sv);
+        dxdt[2 + M..2 + 2 * M].copy_from_slice(&d);
+    }
+
+    fn num_guards(&self, mode: Chart) -> usize {
+        self.located.num_guards(mode.hopper)
+    }
+
+    fn guard(&self, mode: Chart, index: usize, t: f64, x: &[f64]) -> f64 {
+        self.located.guard(mode.hopper, index, t, &x[..2])
+    }
+
+    fn guard_direction(&self, mode: Chart, index: usize) -> Crossing {
+        self.located.guard_direction(mode.hopper, index)
+    }
+
+    fn transition(&self, mode: Chart, index: usize, t: f64, x: &mut [f64]) -> Chart {
+        if self.is_contact(mode.hopper, index) {
+            return Chart {
+                inside: !mode.inside,
+                ..mode
+            };
+        }
+        Chart {
+            hopper: self.located.transition(mode.hopper, index, t, &mut x[..2]),
+            ..mode
+        }
+    }
+}
+
+/// Whether [`simulate_sensitivities`] holds for this model: its force continuous across every
+/// guard (no Coulomb friction, no damper threshold), no lag state, no extra force.
+pub(crate) fn sensitivities_hold(hopper: &Hopper) -> bool {
+    let e = hopper.effects();
+    e.mu == 0.0 && e.v_th == 0.0 && !e.has_lag()
+}
+
+/// [`simulate_positions`] on fixed steps, with the positions' derivatives by `params`
+/// integrated beside them (forward sensitivities through the same Runge-Kutta steps and
+/// located crossings): `columns[j * n + i]` is the derivative of position `i` by `params[j]`,
+/// `n = positions.len()`. For a model where [`sensitivities_hold`]; at most
+/// [`MAX_SENSITIVITIES`] columns.
+#[allow(clippy::too_many_arguments)] // reason: the model, its input, the grid and the outputs
+pub(crate) fn simulate_sensitivities(
+    hopper: &Hopper,
+    force: &Force,
+    t0: f64,
+    xv0: [f64; 2],
+    dt: f64,
+    substeps: usize,
+    params: &[Param],
+    positions: &mut [f64],
+    columns: &mut [f64],
+) -> Result<(), SimFailure> {
+    let (n, m) = (positions.len(), params.len());
+    if !sensitivities_hold(hopper) || columns.len() != n * m {
+        return Err(SimFailure {
+            time: t0,
+            reason: "forward sensitivities do not hold for this model".to_string(),
+        });
+    }
+    let run = Sensitivities {
+        hopper,
+        force,
+        t0,
+        xv0,
+        dt,
+        substeps,
+        params,
+    };
+    // One copy per column count, each with its state in arrays of exactly its length.
+    macro_rules! columns {
+        ($(($m:literal, $n:literal))*) => {
+            match m {
+                $($m => run.run::<$m, $n>(positions, columns),)*
+                _ => Err(SimFailure {
+                    time: t0,
+                    reason: format!("{m} sensitivities asked for, at most {MAX_SENSITIVITIES}"),
+                }),
+            }
+        };
+    }
+    columns!(
+        (1, 4)(2, 6)(3, 8)(4, 10)(5, 12)(6, 14)(7, 16)(8, 18)(9, 20)(10, 22)(11, 24)(12, 26)(
+            13, 28
+        )(14, 30)(15, 32)
+    )
+}
+
+/// The arguments of [`simulate_sensitivities`].
+struct Sensitivities<'a> {
+    hopper: &'a Hopper,
+    force: &'a Force,
+    t0: f64,
+    xv0: [f64; 2],
+    dt: f64,
+    substeps: usize,
+    params: &'a [Param],
+}
+
+impl Sensitivities<'_> {
+    /// With `M` columns and `N = 2 + 2 M` entries of state.
+    fn run<const M: usize, const N: usize>(
+        &self,
+        positions: &mut [f64],
+        columns: &mut [f64],
+    ) -> Result<(), SimFailure> {
+        self.run_any::<M, N>(positions, columns)
+    }
+
+    #[inline(always)]
+    fn run_any<const M: usize, const N: usize>(
+        &self,
+        positions: &mut [f64],
+        columns: &mut [f64],
+    ) -> Result<(), SimFailure> {
+        let n = positions.len();
+        let sys = Sensitive::<M> {
+            located: Located::new(self.hopper, None, Some(self.force)),
+            force: self.force,
+            params: std::array::from_fn(|j| self.params[j] as usize),
+        };
+        let mut x0 = [0.0; N];
+        x0[..2].copy_from_slice(&self.xv0);
+        for (j, p) in self.params.iter().enumerate() {
+            match p {
+                Param::Position => x0[2 + j] = 1.0,
+                Param::Velocity => x0[2 + M + j] = 1.0,
+                _ => {}
+            }
+        }
+        let chart = Chart {
+            hopper: self.hopper.mode_of(self.xv0[1]),
+            inside: sys
+                .located
+                .contact
+                .is_some_and(|x_stop| self.xv0[0] < x_stop),
+        };
+        htfid_hybrid::simulate_fixed_step_states::<_, N>(
+            &sys,
+            chart,
+            self.t0,
+            &x0,
+            self.dt,
+            self.substeps,
+            n,
+            |i, x| {
+                positions[i] = x[0];
+                for j in 0..M {
+                    columns[j * n + i] = x[2 + j];
+                }
+            },
+        )
+        .map_err(|e| SimFailure {
+            time: self.t0,
+            reason: e.to_string(),
+        })
     }
 }
 

@@ -50,22 +50,55 @@ pub fn simulate_fixed_step<S: HybridSystem + ?Sized>(
             found: x0.len(),
         });
     }
+    let samples = out.len();
+    let write = |i: usize, x: &[f64]| out[i] = x[component];
     // One copy per dimension: the state lives in arrays of exactly its length, so the
     // stage loops unroll and nothing beyond the state is copied or zeroed.
     match n {
-        1 => run::<S, 1>(sys, mode0, t0, x0, dt, substeps, component, out),
-        2 => run::<S, 2>(sys, mode0, t0, x0, dt, substeps, component, out),
-        3 => run::<S, 3>(sys, mode0, t0, x0, dt, substeps, component, out),
-        4 => run::<S, 4>(sys, mode0, t0, x0, dt, substeps, component, out),
-        5 => run::<S, 5>(sys, mode0, t0, x0, dt, substeps, component, out),
-        6 => run::<S, 6>(sys, mode0, t0, x0, dt, substeps, component, out),
-        7 => run::<S, 7>(sys, mode0, t0, x0, dt, substeps, component, out),
-        _ => run::<S, MAX_DIM>(sys, mode0, t0, x0, dt, substeps, component, out),
+        1 => run::<S, 1>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        2 => run::<S, 2>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        3 => run::<S, 3>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        4 => run::<S, 4>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        5 => run::<S, 5>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        6 => run::<S, 6>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        7 => run::<S, 7>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        _ => run::<S, MAX_DIM>(sys, mode0, t0, x0, dt, substeps, samples, write),
     }
+}
+
+/// [`simulate_fixed_step`] for a system of dimension `N` (given at compile time, so that a
+/// larger state, one with sensitivities appended say, still lives in arrays of exactly its
+/// length), handing the whole state at every sample to `write(i, x)` (sample
+/// `i = 0..samples`). The same steps, crossings and sliding as [`simulate_fixed_step`]; only
+/// what is written differs.
+///
+/// # Errors
+/// As [`simulate_fixed_step`]; a system whose dimension is not `N`, or a start of another
+/// length, is a [`HybridError::DimensionMismatch`].
+#[allow(clippy::too_many_arguments)] // reason: the system, its start, the grid and the writer
+#[inline]
+pub fn simulate_fixed_step_states<S: HybridSystem + ?Sized, const N: usize>(
+    sys: &S,
+    mode0: S::Mode,
+    t0: f64,
+    x0: &[f64],
+    dt: f64,
+    substeps: usize,
+    samples: usize,
+    write: impl FnMut(usize, &[f64]),
+) -> Result<(), HybridError> {
+    if sys.dim() != N || x0.len() != N {
+        return Err(HybridError::DimensionMismatch {
+            expected: N,
+            found: if sys.dim() == N { x0.len() } else { sys.dim() },
+        });
+    }
+    run::<S, N>(sys, mode0, t0, x0, dt, substeps, samples, write)
 }
 
 /// [`simulate_fixed_step`] for a system of dimension `N`.
 #[allow(clippy::too_many_arguments)] // reason: the arguments of `simulate_fixed_step`
+#[inline]
 fn run<S: HybridSystem + ?Sized, const N: usize>(
     sys: &S,
     mode0: S::Mode,
@@ -73,8 +106,8 @@ fn run<S: HybridSystem + ?Sized, const N: usize>(
     x0: &[f64],
     dt: f64,
     substeps: usize,
-    component: usize,
-    out: &mut [f64],
+    samples: usize,
+    mut write: impl FnMut(usize, &[f64]),
 ) -> Result<(), HybridError> {
     let mut st = Stepper::<S, N> {
         sys,
@@ -85,14 +118,14 @@ fn run<S: HybridSystem + ?Sized, const N: usize>(
     };
     st.x.copy_from_slice(x0);
     sys.vector_field(mode0, t0, &st.x, &mut st.f);
-    let Some((first, rest)) = out.split_first_mut() else {
+    if samples == 0 {
         return Ok(());
-    };
-    *first = st.x[component];
+    }
+    write(0, &st.x);
     let substeps = substeps.max(1);
     let h = dt / substeps as f64;
     let mut j = 0usize;
-    for slot in rest {
+    for i in 1..samples {
         for _ in 0..substeps {
             // Times from the step count, so they do not drift over a long record.
             let ta = t0 + j as f64 * h;
@@ -100,7 +133,7 @@ fn run<S: HybridSystem + ?Sized, const N: usize>(
             let tb = t0 + j as f64 * h;
             st.advance(ta, tb)?;
         }
-        *slot = st.x[component];
+        write(i, &st.x);
     }
     Ok(())
 }

@@ -232,7 +232,8 @@ mod trajectory;
 
 pub use error::HybridError;
 pub use fixed::{
-    simulate_fixed_step, simulate_fixed_step_batch, FixedStepLane, FIXED_STEP_MAX_DIM,
+    simulate_fixed_step, simulate_fixed_step_batch, simulate_fixed_step_states, FixedStepLane,
+    FIXED_STEP_MAX_DIM,
 };
 pub use integrator::{simulate, Integrator, StopReason};
 pub use options::{Method, Options};
