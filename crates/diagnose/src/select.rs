@@ -888,8 +888,26 @@ impl Selector<'_, '_, '_, '_> {
                 continue;
             };
             self.evaluations += reduced.evaluations;
+            // The refit without the effect can drift into a basin where the other effects
+            // make up for it (a cubic spring bent far past its value to stand in for a
+            // delay), from which the look-alike's fit does not climb out: the look-alike is
+            // also fitted from the current model with the effect merely removed, and the
+            // better of the two fits kept.
+            let mut removed = reduced.clone();
+            removed.point = self.current.point;
+            for &s in &own {
+                removed.point.set(s, self.absent.get(s));
+            }
             for r in tried {
-                let o = run_candidate(self.ctx, self.screening, &reduced, &reduced.slots, r);
+                let o = [&reduced, &removed]
+                    .par_iter()
+                    .map(|base| run_candidate(self.ctx, self.screening, base, &reduced.slots, r))
+                    .reduce_with(|a, b| match (&a.fit, &b.fit) {
+                        (Some(x), Some(y)) if y.rss < x.rss => b,
+                        (None, Some(_)) => b,
+                        _ => a,
+                    })
+                    .expect("two fits");
                 let Some(f) = o.fit.as_ref() else {
                     continue;
                 };

@@ -423,26 +423,45 @@ impl Field {
 
     #[inline]
     fn acceleration(&self, mode: HopperMode, pos: f64, vel: f64, force: f64) -> f64 {
-        let damped = mode == HopperMode::Damped;
-        let dx = pos - self.x0;
-        let spring = (self.k + self.k3 * (dx * dx)) * dx;
-        let c_lin = if damped { self.c_damped } else { self.c_free };
-        let damping = (c_lin + self.c2 * vel.abs()) * vel;
-        let sign = if self.sign_from_chart {
-            if damped {
-                1.0
-            } else {
-                -1.0
-            }
-        } else {
-            vel.signum()
-        };
+        let t = self.terms(mode, pos, vel);
         let contact = match self.stop {
             Some((x_stop, k_stop)) if pos < x_stop => k_stop * (pos - x_stop),
             _ => 0.0,
         };
-        ((force - self.weight - self.mu * sign) - (damping + (spring + contact))) * self.inv_m
+        ((force - self.weight - self.mu * t.sign) - (t.damping + (t.spring + contact))) * self.inv_m
     }
+
+    /// The spring's and the dampers' forces at a state, and the friction's sign, as
+    /// [`Field::acceleration`] and [`Field::derivatives`] both sum them.
+    #[inline(always)]
+    fn terms(&self, mode: HopperMode, pos: f64, vel: f64) -> Terms {
+        let damped = mode == HopperMode::Damped;
+        let dx = pos - self.x0;
+        let c_lin = if damped { self.c_damped } else { self.c_free };
+        let sign = match (self.sign_from_chart, damped) {
+            (true, true) => 1.0,
+            (true, false) => -1.0,
+            (false, _) => vel.signum(),
+        };
+        Terms {
+            damped,
+            dx,
+            spring: (self.k + self.k3 * (dx * dx)) * dx,
+            c_lin,
+            damping: (c_lin + self.c2 * vel.abs()) * vel,
+            sign,
+        }
+    }
+}
+
+/// What [`Field::terms`] gives.
+struct Terms {
+    damped: bool,
+    dx: f64,
+    spring: f64,
+    c_lin: f64,
+    damping: f64,
+    sign: f64,
 }
 
 impl Field {
@@ -461,21 +480,15 @@ impl Field {
         vel: f64,
         force: f64,
     ) -> (f64, f64, f64, [f64; PARAMS]) {
-        let damped = mode == HopperMode::Damped;
-        let dx = pos - self.x0;
+        let Terms {
+            damped,
+            dx,
+            spring,
+            c_lin,
+            damping,
+            sign,
+        } = self.terms(mode, pos, vel);
         let stiffness = self.k + 3.0 * self.k3 * dx * dx;
-        let spring = (self.k + self.k3 * (dx * dx)) * dx;
-        let c_lin = if damped { self.c_damped } else { self.c_free };
-        let damping = (c_lin + self.c2 * vel.abs()) * vel;
-        let sign = if self.sign_from_chart {
-            if damped {
-                1.0
-            } else {
-                -1.0
-            }
-        } else {
-            vel.signum()
-        };
         let (contact, k_contact, into) = match self.stop {
             Some((x_stop, k_stop)) if inside => (k_stop * (pos - x_stop), k_stop, pos - x_stop),
             _ => (0.0, 0.0, 0.0),

@@ -55,14 +55,16 @@ pub fn simulate_fixed_step<S: HybridSystem + ?Sized>(
     // One copy per dimension: the state lives in arrays of exactly its length, so the
     // stage loops unroll and nothing beyond the state is copied or zeroed.
     match n {
-        1 => run::<S, 1>(sys, mode0, t0, x0, dt, substeps, samples, write),
-        2 => run::<S, 2>(sys, mode0, t0, x0, dt, substeps, samples, write),
-        3 => run::<S, 3>(sys, mode0, t0, x0, dt, substeps, samples, write),
-        4 => run::<S, 4>(sys, mode0, t0, x0, dt, substeps, samples, write),
-        5 => run::<S, 5>(sys, mode0, t0, x0, dt, substeps, samples, write),
-        6 => run::<S, 6>(sys, mode0, t0, x0, dt, substeps, samples, write),
-        7 => run::<S, 7>(sys, mode0, t0, x0, dt, substeps, samples, write),
-        _ => run::<S, MAX_DIM>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        1 => simulate_fixed_step_states::<S, 1>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        2 => simulate_fixed_step_states::<S, 2>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        3 => simulate_fixed_step_states::<S, 3>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        4 => simulate_fixed_step_states::<S, 4>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        5 => simulate_fixed_step_states::<S, 5>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        6 => simulate_fixed_step_states::<S, 6>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        7 => simulate_fixed_step_states::<S, 7>(sys, mode0, t0, x0, dt, substeps, samples, write),
+        _ => simulate_fixed_step_states::<S, MAX_DIM>(
+            sys, mode0, t0, x0, dt, substeps, samples, write,
+        ),
     }
 }
 
@@ -93,22 +95,7 @@ pub fn simulate_fixed_step_states<S: HybridSystem + ?Sized, const N: usize>(
             found: if sys.dim() == N { x0.len() } else { sys.dim() },
         });
     }
-    run::<S, N>(sys, mode0, t0, x0, dt, substeps, samples, write)
-}
-
-/// [`simulate_fixed_step`] for a system of dimension `N`.
-#[allow(clippy::too_many_arguments)] // reason: the arguments of `simulate_fixed_step`
-#[inline]
-fn run<S: HybridSystem + ?Sized, const N: usize>(
-    sys: &S,
-    mode0: S::Mode,
-    t0: f64,
-    x0: &[f64],
-    dt: f64,
-    substeps: usize,
-    samples: usize,
-    mut write: impl FnMut(usize, &[f64]),
-) -> Result<(), HybridError> {
+    let mut write = write;
     let mut st = Stepper::<S, N> {
         sys,
         mode: mode0,
@@ -209,9 +196,10 @@ pub fn simulate_fixed_step_batch<S: HybridSystem + ?Sized>(
 
 /// [`simulate_fixed_step_batch`] for lanes of dimension `N`, all with the same sample count.
 ///
-/// Kept apart from [`run`] on purpose: one loop serving both (a single simulation as a batch
-/// of one lane) left the single simulation as fast but made the lockstep 50 % slower per lane
-/// (`cargo bench -p htfid-hybrid --bench fixed`: 11.7 ms against 7.7 ms for four lanes).
+/// Kept apart from the single simulation ([`simulate_fixed_step_states`]) on purpose: one loop
+/// serving both (a single simulation as a batch of one lane) left the single simulation as
+/// fast but made the lockstep 50 % slower per lane (`cargo bench -p htfid-hybrid --bench
+/// fixed`: 11.7 ms against 7.7 ms for four lanes).
 fn run_batch<S: HybridSystem + ?Sized, const N: usize>(
     lanes: &mut [FixedStepLane<'_, S>],
     t0: f64,
@@ -249,7 +237,7 @@ fn run_batch<S: HybridSystem + ?Sized, const N: usize>(
     let mut j = 0usize;
     for i in 1..len {
         for _ in 0..substeps {
-            // Times from the step count, as in `run`.
+            // Times from the step count, as in `simulate_fixed_step_states`.
             let ta = t0 + j as f64 * h;
             j += 1;
             let tb = t0 + j as f64 * h;

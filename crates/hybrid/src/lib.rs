@@ -7,7 +7,9 @@
 //! and returns a [`Trajectory`]: the states on a requested grid (from the dense output), every
 //! [`Event`], and work counters ([`Stats`]). [`simulate_fixed_step`] is the fixed-step
 //! alternative (RK4 on a uniform sample grid with located events), for fits whose cost must vary
-//! smoothly with the parameters. [`Integrator`] is the stepping API underneath: each
+//! smoothly with the parameters; [`simulate_fixed_step_states`] takes the same steps and hands
+//! over the whole state at every sample (a state with its sensitivities appended, say).
+//! [`Integrator`] is the stepping API underneath: each
 //! call to [`Integrator::step_until`] takes at most one step and says why it stopped
 //! ([`StopReason`]). [`Options`] holds tolerances and event settings; errors are
 //! [`HybridError`]. A guard that a system declares a switching surface

@@ -1,7 +1,10 @@
 //! The fixed-step integrator against the adaptive one (a second method): on a forced
 //! oscillator with a switching damper, the error falls like h^4 as the steps are refined.
 
-use htfid_hybrid::{simulate, simulate_fixed_step, Crossing, HybridSystem, Options};
+use htfid_hybrid::{
+    simulate, simulate_fixed_step, simulate_fixed_step_states, Crossing, HybridError, HybridSystem,
+    Options,
+};
 
 /// x'' = -k x - c s x' + cos(w t), s = 1 while x' > 0.
 struct Switching;
@@ -73,4 +76,33 @@ fn fixed_step_converges_at_fourth_order_to_the_adaptive_solution() {
 fn a_wrong_state_length_is_an_error() {
     let mut out = vec![0.0; 3];
     assert!(simulate_fixed_step(&Switching, false, 0.0, &[0.1], 0.1, 1, 0, &mut out).is_err());
+}
+
+/// The whole-state writer takes the same steps as the one-component one: both components of
+/// every sample equal, bit for bit, what `simulate_fixed_step` writes for each (through more
+/// than ten damper switches); a dimension other than the system's is refused.
+#[test]
+fn the_whole_state_is_written_as_each_component_is() {
+    let (dt, n, x0) = (0.05, 201, [0.1, -0.2]);
+    let mut states = vec![[f64::NAN; 2]; n];
+    simulate_fixed_step_states::<_, 2>(&Switching, false, 0.0, &x0, dt, 3, n, |i, x| {
+        states[i].copy_from_slice(x);
+    })
+    .unwrap();
+    for component in 0..2 {
+        let mut out = vec![0.0; n];
+        simulate_fixed_step(&Switching, false, 0.0, &x0, dt, 3, component, &mut out).unwrap();
+        for (i, v) in out.iter().enumerate() {
+            assert_eq!(v.to_bits(), states[i][component].to_bits(), "sample {i}");
+        }
+    }
+    let wrong =
+        simulate_fixed_step_states::<_, 3>(&Switching, false, 0.0, &x0, dt, 3, n, |_, _| {});
+    assert!(matches!(
+        wrong,
+        Err(HybridError::DimensionMismatch {
+            expected: 3,
+            found: 2
+        })
+    ));
 }
