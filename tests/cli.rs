@@ -1714,6 +1714,20 @@ fn a_flipped_sign_is_a_model_mismatch_not_an_effect() {
     }
 }
 
+/// The paper's experiment simulated by `htfid simulate configs/paper.toml` into `DIR/sim`
+/// (`timeseries.csv` there), for the estimate tests to read.
+fn paper_record(dir: &Path) -> PathBuf {
+    let sim = dir.join("sim");
+    htfid_ok(&[
+        "simulate",
+        "configs/paper.toml",
+        "--out",
+        sim.to_str().unwrap(),
+        "--quiet",
+    ]);
+    sim
+}
+
 /// Writes `toml` as `DIR/estimate.toml` and runs `htfid estimate` on it into `DIR/est`.
 fn estimate_with(dir: &Path, toml: &str) -> (PathBuf, Output) {
     let config = dir.join("estimate.toml");
@@ -1799,13 +1813,7 @@ fn estimate_names_where_a_harmonic_reads_unexcited_input_frequencies() {
 #[test]
 fn estimate_from_data_alone_matches_the_theory() {
     let tmp = tempfile::tempdir().unwrap();
-    let sim = tmp.path().join("sim");
-    htfid_ok(&[
-        "simulate",
-        "configs/paper.toml",
-        "--out",
-        sim.to_str().unwrap(),
-    ]);
+    paper_record(tmp.path());
     let (out, o) = estimate_with(
         tmp.path(),
         "[data]\nfile = \"sim/timeseries.csv\"\ntime = \"t\"\ninput = \"f\"\noutputs = [\"x\", \"xd\"]\n\
@@ -4240,14 +4248,7 @@ fn a_guard_that_never_fires_on_the_orbit_is_pointed_out() {
 #[test]
 fn a_given_period_is_checked_against_the_samples_and_the_data() {
     let tmp = tempfile::tempdir().unwrap();
-    let sim = tmp.path().join("sim");
-    htfid_ok(&[
-        "simulate",
-        "configs/paper.toml",
-        "--out",
-        sim.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let sim = paper_record(tmp.path());
     let config = |file: &str, value: &str, extra: &str| {
         format!(
             "[data]\nfile = \"{file}\"\ntime = \"t\"\ninput = \"f\"\noutputs = [\"x\"]\n\

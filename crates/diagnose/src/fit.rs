@@ -14,8 +14,9 @@ use rayon::prelude::*;
 use crate::effect::Slot;
 use crate::select::likelihood_ratio;
 use crate::sim::{
-    simulate_positions_batch, simulate_positions_with, simulate_sensitivities, Extent, ExtraForce,
-    Force, MeasuredForce, Param, SimFailure, SimLane, SimMethod, Stepping, MAX_SENSITIVITIES,
+    sensitivities_hold, simulate_positions_batch, simulate_positions_with, simulate_sensitivities,
+    Extent, ExtraForce, Force, MeasuredForce, Param, SimFailure, SimLane, SimMethod, Stepping,
+    MAX_SENSITIVITIES,
 };
 use crate::{Sensor, TimeSeries};
 
@@ -305,19 +306,12 @@ impl Context<'_> {
     /// Sum of squared fit residuals with initial states from the data; `None` when the model
     /// cannot be simulated.
     pub(crate) fn fit_cost(&self, p: &ModelPoint) -> Option<f64> {
-        let hopper = self.hopper(p).ok()?;
-        let stepping = self.stepping(p);
-        let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
-        let mut r = vec![0.0; self.n_fit()];
-        self.residuals(&hopper, &self.fit, &init, &stepping, &mut r)
-            .ok()?;
-        let c: f64 = r.iter().map(|v| v * v).sum();
-        c.is_finite().then_some(c)
+        self.fit_costs(std::slice::from_ref(p)).pop().flatten()
     }
 
-    /// [`Context::fit_cost`] of every point, the same numbers bit for bit: points that need
-    /// the same integration step are simulated in lockstep, a few at a time
-    /// ([`Context::residuals_batch`]), and the batches in parallel.
+    /// [`Context::fit_cost`] of every point: points that need the same integration step are
+    /// simulated in lockstep, a few at a time ([`Context::residuals_batch`], the same numbers
+    /// bit for bit as one at a time), and the batches in parallel.
     pub(crate) fn fit_costs(&self, points: &[ModelPoint]) -> Vec<Option<f64>> {
         /// Lanes per batch: beyond four the lockstep gains little, and smaller batches
         /// keep both cores busy.
@@ -702,9 +696,8 @@ impl Context<'_> {
         let Stepping::Fixed { .. } = stepping else {
             return None;
         };
-        let e = &start.effects;
         let changes_law = |s: &Slot| matches!(s, Slot::Mu | Slot::Tau | Slot::VTh);
-        if e.mu != 0.0 || e.tau != 0.0 || e.v_th != 0.0 || layout.slots.iter().any(changes_law) {
+        if !sensitivities_hold(&start.effects) || layout.slots.iter().any(changes_law) {
             return None;
         }
         let mut columns: Vec<Column> = layout

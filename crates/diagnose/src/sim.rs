@@ -632,10 +632,9 @@ impl<const M: usize> HybridSystem for Sensitive<'_, M> {
     }
 }
 
-/// Whether [`simulate_sensitivities`] holds for this model: its force continuous across every
-/// guard (no Coulomb friction, no damper threshold), no lag state, no extra force.
-pub(crate) fn sensitivities_hold(hopper: &Hopper) -> bool {
-    let e = hopper.effects();
+/// Whether [`simulate_sensitivities`] holds for a model with these effects: its force
+/// continuous across every guard (no Coulomb friction, no damper threshold) and no lag state.
+pub(crate) fn sensitivities_hold(e: &Effects) -> bool {
     e.mu == 0.0 && e.v_th == 0.0 && !e.has_lag()
 }
 
@@ -657,7 +656,7 @@ pub(crate) fn simulate_sensitivities(
     columns: &mut [f64],
 ) -> Result<(), SimFailure> {
     let (n, m) = (positions.len(), params.len());
-    if !sensitivities_hold(hopper) || columns.len() != n * m {
+    if !sensitivities_hold(hopper.effects()) || columns.len() != n * m {
         return Err(SimFailure {
             time: t0,
             reason: "forward sensitivities do not hold for this model".to_string(),
@@ -705,15 +704,6 @@ struct Sensitivities<'a> {
 impl Sensitivities<'_> {
     /// With `M` columns and `N = 2 + 2 M` entries of state.
     fn run<const M: usize, const N: usize>(
-        &self,
-        positions: &mut [f64],
-        columns: &mut [f64],
-    ) -> Result<(), SimFailure> {
-        self.run_any::<M, N>(positions, columns)
-    }
-
-    #[inline(always)]
-    fn run_any<const M: usize, const N: usize>(
         &self,
         positions: &mut [f64],
         columns: &mut [f64],
