@@ -201,6 +201,17 @@ impl Context<'_> {
         )
     }
 
+    /// The resolution a fit's Jacobian at `p` is simulated at ([`Stepping::for_jacobian`]).
+    pub(crate) fn jacobian_stepping(&self, p: &ModelPoint) -> Stepping {
+        Stepping::for_jacobian(
+            self.method,
+            &p.params,
+            &p.effects,
+            &self.extent,
+            self.record.dt(),
+        )
+    }
+
     /// Number of scored samples of the fit segments.
     pub(crate) fn n_fit(&self) -> usize {
         self.fit.iter().map(|s| s.scored().len()).sum()
@@ -313,10 +324,49 @@ impl Context<'_> {
     /// simulated in lockstep, a few at a time ([`Context::residuals_batch`], the same numbers
     /// bit for bit as one at a time), and the batches in parallel.
     pub(crate) fn fit_costs(&self, points: &[ModelPoint]) -> Vec<Option<f64>> {
+        let steppings = points.iter().map(|p| self.stepping(p)).collect();
+        self.costs_on(points, &self.fit, steppings)
+    }
+
+    /// The costs a grid of starting points is ranked by: [`Context::fit_costs`] over the
+    /// leading `samples` scored samples of the fit segments, simulated at the Jacobian's
+    /// coarser steps ([`Context::jacobian_stepping`]). A grid only picks where fits start;
+    /// the fits run over the whole fit segments at the full step.
+    pub(crate) fn ranking_costs(&self, points: &[ModelPoint], samples: usize) -> Vec<Option<f64>> {
+        let steppings = points.iter().map(|p| self.jacobian_stepping(p)).collect();
+        self.costs_on(points, &self.leading(samples), steppings)
+    }
+
+    /// The fit segments cut to their leading `samples` scored samples in all (the whole of
+    /// them where they hold fewer).
+    fn leading(&self, samples: usize) -> Vec<Segment> {
+        let mut left = samples;
+        let mut out = Vec::new();
+        for seg in &self.fit {
+            if left == 0 {
+                break;
+            }
+            let n = seg.scored().len().min(left);
+            left -= n;
+            out.push(Segment {
+                range: seg.range.start..seg.range.start + seg.skip + n,
+                ..seg.clone()
+            });
+        }
+        out
+    }
+
+    /// [`Context::fit_costs`] over the segments `segs` (the fit segments or a part of them),
+    /// each point simulated at its own stepping.
+    fn costs_on(
+        &self,
+        points: &[ModelPoint],
+        segs: &[Segment],
+        steppings: Vec<Stepping>,
+    ) -> Vec<Option<f64>> {
         /// Lanes per batch: beyond four the lockstep gains little, and smaller batches
         /// keep both cores busy.
         const LANES: usize = 4;
-        let steppings: Vec<Stepping> = points.iter().map(|p| self.stepping(p)).collect();
         let mut groups: Vec<Vec<usize>> = Vec::new();
         for (i, st) in steppings.iter().enumerate() {
             match groups
@@ -329,8 +379,8 @@ impl Context<'_> {
         }
         // The finest steps first, so that the longest batches do not start last.
         groups.sort_by_key(|g| std::cmp::Reverse(substeps(&steppings[g[0]])));
-        let init: Vec<[f64; 2]> = self.fit.iter().map(|s| s.init).collect();
-        let n = self.n_fit();
+        let init: Vec<[f64; 2]> = segs.iter().map(|s| s.init).collect();
+        let n: usize = segs.iter().map(|s| s.scored().len()).sum();
         let costs: Vec<Vec<(usize, Option<f64>)>> = groups
             .par_iter()
             .map(|g| {
@@ -340,8 +390,7 @@ impl Context<'_> {
                 let inits: Vec<&[[f64; 2]]> = g.iter().map(|_| init.as_slice()).collect();
                 let mut rs = vec![vec![0.0; n]; g.len()];
                 let mut outs: Vec<&mut [f64]> = rs.iter_mut().map(Vec::as_mut_slice).collect();
-                let done =
-                    self.residuals_batch(&driven, &self.fit, &inits, &steppings[g[0]], &mut outs);
+                let done = self.residuals_batch(&driven, segs, &inits, &steppings[g[0]], &mut outs);
                 g.iter()
                     .zip(done)
                     .zip(&rs)
@@ -579,7 +628,9 @@ impl Context<'_> {
                         start,
                         &layout,
                         plan,
-                        stepping,
+                        // The sensitivities' coarser steps at this point; the residuals and
+                        // differences keep the fit's.
+                        &self.jacobian_stepping(&layout.point(start, u)),
                         &opts,
                         u,
                         r,
@@ -727,8 +778,8 @@ impl Context<'_> {
     }
 
     /// The Jacobian (`n x np`, column-major) of the fit residuals at `u`, where they are `r`,
-    /// its columns formed as `plan` says: one simulation with sensitivities per segment,
-    /// passed through the sensor as the positions are (its low-pass and gain are linear), and
+    /// its columns formed as `plan` says: one simulation with sensitivities per segment at
+    /// `stepping` (the fits pass [`Context::jacobian_stepping`]'s coarser one), passed through the sensor as the positions are (its low-pass and gain are linear), and
     /// forward differences (the batch of [`Context::residuals_batch`]) for the rest, with the
     /// step rule of the fits' difference Jacobians.
     #[allow(clippy::too_many_arguments)] // reason: the fit's layout, plan and options
@@ -1048,6 +1099,167 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
 
+    /// The residuals' function of [`jacobian_case`] at a stepping.
+    type CaseResiduals<'a> =
+        dyn Fn(&Stepping, &[&[f64]], &mut [&mut [f64]]) -> Vec<Result<(), String>> + 'a;
+
+    /// A record that crosses the damper switch and the contact many times, `dt` apart, with
+    /// a model holding every effect the sensitivities carry, two fit segments, a sensor's
+    /// offset, gain and low-pass, and a delay: `body` gets the context, the model, the fit's
+    /// layout, its parameters `u` and their typical sizes, and the residuals' function at a
+    /// stepping.
+    fn jacobian_case(
+        dt: f64,
+        damper: DamperLaw,
+        body: impl FnOnce(&Context<'_>, &ModelPoint, &Layout, &[f64], &[f64], &CaseResiduals<'_>),
+    ) {
+        use crate::interp::Interpolation;
+        use htfid_model::HardStop;
+        let n = 1500;
+        let ts: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let fs: Vec<f64> = ts
+            .iter()
+            .map(|t| 3.0 * (1.3 * t).sin() + 1.5 * (4.1 * t + 0.3).sin() + 0.7 * (9.0 * t).cos())
+            .collect();
+        let xs: Vec<f64> = ts.iter().map(|t| 0.2 * (1.3 * t - 0.4).sin()).collect();
+        let record = TimeSeries::new(ts, fs.clone(), xs, "test").unwrap();
+        let segment = |range: Range<usize>| Segment {
+            init: [0.05, -0.1],
+            skip: 20,
+            range,
+        };
+        let ctx = Context {
+            record: &record,
+            input: MeasuredForce::new(0.0, dt, &fs, Interpolation::CubicSpline),
+            damper,
+            method: SimMethod::FixedStep { max_rate_step: 0.2 },
+            extent: Extent {
+                x_min: -0.3,
+                x_max: 0.3,
+                v_max: 1.0,
+            },
+            scales: Scales {
+                x_std: 0.15,
+                v_std: 0.3,
+                f_std: 2.0,
+            },
+            fit: vec![segment(0..700), segment(700..1500)],
+            validation: Vec::new(),
+            fit_initial_state: true,
+            max_iterations: 10,
+            fit_tolerance: 0.01,
+            forcing_period: None,
+            mass_range: (1e-3, 1e3),
+        };
+        let start = ModelPoint {
+            params: HopperParams {
+                m: 1.2,
+                k: 20.0,
+                c: 0.8,
+                g: 9.81,
+                x0: 0.4,
+                forcing_amplitude: 0.0,
+                period: 1.0,
+            },
+            effects: Effects {
+                k3: 30.0,
+                c_f: 0.3,
+                c2: 0.5,
+                input_offset: 0.2,
+                delay: 0.013,
+                hard_stop: Some(HardStop {
+                    x_stop: 0.02,
+                    k_stop: 60.0,
+                }),
+                ..Effects::default()
+            },
+            sensor: Sensor {
+                tau_s: 0.02,
+                b: 0.01,
+                g: 1.1,
+            },
+        };
+        let slots = vec![
+            Slot::M,
+            Slot::K,
+            Slot::C,
+            Slot::CF,
+            Slot::X0,
+            Slot::InputOffset,
+            Slot::K3,
+            Slot::C2,
+            Slot::XStop,
+            Slot::KStop,
+            Slot::SensorB,
+            Slot::SensorG,
+            Slot::Delay,
+        ];
+        let layout = Layout {
+            log: slots.iter().map(|s| s.log_scaled()).collect(),
+            slots,
+            n_init: 2,
+        };
+        let mut u: Vec<f64> = layout
+            .slots
+            .iter()
+            .zip(&layout.log)
+            .map(|(&s, &log)| if log { start.get(s).ln() } else { start.get(s) })
+            .collect();
+        u.extend([0.01, -0.02, 0.0, 0.03]);
+        let typical: Vec<f64> = layout
+            .slots
+            .iter()
+            .zip(&layout.log)
+            .map(|(&s, &log)| if log { 1.0 } else { ctx.typical(s, &start) })
+            .chain([0.01, 0.01, 0.01, 0.01])
+            .collect();
+        let residuals = |stepping: &Stepping, points: &[&[f64]], outs: &mut [&mut [f64]]| {
+            points
+                .iter()
+                .zip(outs.iter_mut())
+                .map(|(u, out)| {
+                    let model = ctx.hopper(&layout.point(&start, u))?;
+                    let init = layout.init(&ctx.fit, u);
+                    ctx.residuals(&model, &ctx.fit, &init, stepping, out)
+                        .map_err(|e| e.reason)
+                })
+                .collect::<Vec<Result<(), String>>>()
+        };
+        body(&ctx, &start, &layout, &u, &typical, &residuals);
+    }
+
+    /// The Jacobian of [`jacobian_case`] at `stepping`, its residuals' differences at
+    /// `difference_stepping` (column-major), with its plan.
+    fn case_jacobian(
+        ctx: &Context<'_>,
+        start: &ModelPoint,
+        layout: &Layout,
+        u: &[f64],
+        typical: &[f64],
+        residuals: &CaseResiduals<'_>,
+        stepping: &Stepping,
+        difference_stepping: &Stepping,
+    ) -> (Vec<Column>, Vec<f64>) {
+        let plan = ctx
+            .columns(start, layout, stepping)
+            .expect("sensitivities hold");
+        let m = ctx.n_fit();
+        let at = |points: &[&[f64]], outs: &mut [&mut [f64]]| {
+            residuals(difference_stepping, points, outs)
+        };
+        let mut r = vec![0.0; m];
+        at(&[u], &mut [&mut r])[0].clone().unwrap();
+        let opts = LmOptions {
+            fd_step: Some(1e-7),
+            scales: Some(typical.to_vec()),
+            ..LmOptions::default()
+        };
+        let mut jac = vec![0.0; m * u.len()];
+        ctx.jacobian(start, layout, &plan, stepping, &opts, u, &r, &mut jac, &at)
+            .unwrap();
+        (plan, jac)
+    }
+
     /// The Jacobian from forward sensitivities against central differences of the residuals
     /// (the plain simulation, a second method), column by column, for every parameter the
     /// sensitivities carry, both segments' initial states, the sensor's offset, gain and
@@ -1066,176 +1278,107 @@ mod tests {
     /// (`c_f` acts only while the damper is off: its column is zero with it always on.)
     #[test]
     fn forward_sensitivities_give_the_jacobian_of_the_simulated_residuals() {
-        use crate::interp::Interpolation;
-        use htfid_model::HardStop;
-        let dt = 0.01;
-        let n = 1500;
-        let ts: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-        let fs: Vec<f64> = ts
-            .iter()
-            .map(|t| 3.0 * (1.3 * t).sin() + 1.5 * (4.1 * t + 0.3).sin() + 0.7 * (9.0 * t).cos())
-            .collect();
-        let xs: Vec<f64> = ts.iter().map(|t| 0.2 * (1.3 * t - 0.4).sin()).collect();
-        let record = TimeSeries::new(ts, fs.clone(), xs, "test").unwrap();
         for damper in [DamperLaw::Switching, DamperLaw::AlwaysOn] {
-            let segment = |range: Range<usize>| Segment {
-                init: [0.05, -0.1],
-                skip: 20,
-                range,
-            };
-            let ctx = Context {
-                record: &record,
-                input: MeasuredForce::new(0.0, dt, &fs, Interpolation::CubicSpline),
-                damper,
-                method: SimMethod::FixedStep { max_rate_step: 0.2 },
-                extent: Extent {
-                    x_min: -0.3,
-                    x_max: 0.3,
-                    v_max: 1.0,
-                },
-                scales: Scales {
-                    x_std: 0.15,
-                    v_std: 0.3,
-                    f_std: 2.0,
-                },
-                fit: vec![segment(0..700), segment(700..1500)],
-                validation: Vec::new(),
-                fit_initial_state: true,
-                max_iterations: 10,
-                fit_tolerance: 0.01,
-                forcing_period: None,
-                mass_range: (1e-3, 1e3),
-            };
-            let start = ModelPoint {
-                params: HopperParams {
-                    m: 1.2,
-                    k: 20.0,
-                    c: 0.8,
-                    g: 9.81,
-                    x0: 0.4,
-                    forcing_amplitude: 0.0,
-                    period: 1.0,
-                },
-                effects: Effects {
-                    k3: 30.0,
-                    c_f: 0.3,
-                    c2: 0.5,
-                    input_offset: 0.2,
-                    delay: 0.013,
-                    hard_stop: Some(HardStop {
-                        x_stop: 0.02,
-                        k_stop: 60.0,
-                    }),
-                    ..Effects::default()
-                },
-                sensor: Sensor {
-                    tau_s: 0.02,
-                    b: 0.01,
-                    g: 1.1,
-                },
-            };
-            let slots = vec![
-                Slot::M,
-                Slot::K,
-                Slot::C,
-                Slot::CF,
-                Slot::X0,
-                Slot::InputOffset,
-                Slot::K3,
-                Slot::C2,
-                Slot::XStop,
-                Slot::KStop,
-                Slot::SensorB,
-                Slot::SensorG,
-                Slot::Delay,
-            ];
-            let layout = Layout {
-                log: slots.iter().map(|s| s.log_scaled()).collect(),
-                slots,
-                n_init: 2,
-            };
-            let stepping = Stepping::Fixed { substeps: 16 };
-            let plan = ctx
-                .columns(&start, &layout, &stepping)
-                .expect("sensitivities hold");
-            assert_eq!(
-                plan.last(),
-                Some(&Column::Initial {
-                    segment: 1,
-                    param: Param::Velocity
-                })
-            );
-            let mut u: Vec<f64> = layout
-                .slots
-                .iter()
-                .zip(&layout.log)
-                .map(|(&s, &log)| if log { start.get(s).ln() } else { start.get(s) })
-                .collect();
-            u.extend([0.01, -0.02, 0.0, 0.03]);
-            let typical: Vec<f64> = layout
-                .slots
-                .iter()
-                .zip(&layout.log)
-                .map(|(&s, &log)| if log { 1.0 } else { ctx.typical(s, &start) })
-                .chain([0.01, 0.01, 0.01, 0.01])
-                .collect();
-            let m = ctx.n_fit();
-            let residuals = |points: &[&[f64]], outs: &mut [&mut [f64]]| {
-                points
-                    .iter()
-                    .zip(outs.iter_mut())
-                    .map(|(u, out)| {
-                        let model = ctx.hopper(&layout.point(&start, u))?;
-                        let init = layout.init(&ctx.fit, u);
-                        ctx.residuals(&model, &ctx.fit, &init, &stepping, out)
-                            .map_err(|e| e.reason)
+            jacobian_case(0.01, damper, |ctx, start, layout, u, typical, residuals| {
+                let stepping = Stepping::Fixed { substeps: 16 };
+                let (plan, jac) = case_jacobian(
+                    ctx, start, layout, u, typical, residuals, &stepping, &stepping,
+                );
+                assert_eq!(
+                    plan.last(),
+                    Some(&Column::Initial {
+                        segment: 1,
+                        param: Param::Velocity
                     })
-                    .collect::<Vec<Result<(), String>>>()
-            };
-            let mut r = vec![0.0; m];
-            residuals(&[&u], &mut [&mut r])[0].clone().unwrap();
-            let opts = LmOptions {
-                fd_step: Some(1e-7),
-                scales: Some(typical.clone()),
-                ..LmOptions::default()
-            };
-            let mut jac = vec![0.0; m * u.len()];
-            ctx.jacobian(
-                &start, &layout, &plan, &stepping, &opts, &u, &r, &mut jac, &residuals,
-            )
-            .unwrap();
-            for j in 0..u.len() {
-                let h = 1e-5 * u[j].abs().max(typical[j]);
-                let (mut up, mut down) = (u.clone(), u.clone());
-                up[j] += h;
-                down[j] -= h;
-                let (mut ru, mut rd) = (vec![0.0; m], vec![0.0; m]);
-                for result in residuals(&[&up, &down], &mut [&mut ru, &mut rd]) {
-                    result.unwrap();
+                );
+                let m = ctx.n_fit();
+                for j in 0..u.len() {
+                    let h = 1e-5 * u[j].abs().max(typical[j]);
+                    let (mut up, mut down) = (u.to_vec(), u.to_vec());
+                    up[j] += h;
+                    down[j] -= h;
+                    let (mut ru, mut rd) = (vec![0.0; m], vec![0.0; m]);
+                    for result in residuals(&stepping, &[&up, &down], &mut [&mut ru, &mut rd]) {
+                        result.unwrap();
+                    }
+                    let column = &jac[j * m..(j + 1) * m];
+                    let scale = column.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+                    let worst = column
+                        .iter()
+                        .zip(ru.iter().zip(&rd))
+                        .map(|(e, (a, b))| (e - (a - b) / (2.0 * h)).abs())
+                        .fold(0.0_f64, f64::max);
+                    assert!(
+                        scale > 0.0 || plan[j] == Column::Model(Param::CF),
+                        "{damper:?} column {j} ({:?}) is zero",
+                        plan[j]
+                    );
+                    let tolerance = if plan[j] == Column::Difference {
+                        1e-5
+                    } else {
+                        1e-6
+                    };
+                    assert!(
+                        worst <= tolerance * scale,
+                        "{damper:?} column {j} ({:?}): off by {worst:.3e} of {scale:.3e}",
+                        plan[j]
+                    );
                 }
-                let column = &jac[j * m..(j + 1) * m];
-                let scale = column.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-                let worst = column
-                    .iter()
-                    .zip(ru.iter().zip(&rd))
-                    .map(|(e, (a, b))| (e - (a - b) / (2.0 * h)).abs())
-                    .fold(0.0_f64, f64::max);
-                assert!(
-                    scale > 0.0 || plan[j] == Column::Model(Param::CF),
-                    "{damper:?} column {j} ({:?}) is zero",
-                    plan[j]
-                );
-                let tolerance = if plan[j] == Column::Difference {
-                    1e-5
-                } else {
-                    1e-6
+            });
+        }
+    }
+
+    /// The fits' Jacobian, simulated at the coarser steps of [`Context::jacobian_stepping`],
+    /// against the same Jacobian at eight times the fit's own sub-steps, on a record sampled
+    /// so coarsely that the oscillation sets the step (`omega dt` near 0.8).
+    ///
+    /// Tolerance: `TOL` of the column's largest entry. At `omega h <= 0.4` RK4's phase error
+    /// is about `(omega h)^4 / 120 = 2e-4` per radian, and the motion remembers its past for
+    /// `omega / decay`, here about 16 radians (`omega` near 11 rad/s, the dampers' decay near
+    /// 0.7 per second): a few parts in a thousand. An unstable or wrongly switched coarse
+    /// simulation is off by the column's whole size.
+    #[test]
+    fn the_jacobians_coarser_steps_stay_within_rk4s_error_of_fine_ones() {
+        const TOL: f64 = 1e-2;
+        for damper in [DamperLaw::Switching, DamperLaw::AlwaysOn] {
+            jacobian_case(0.07, damper, |ctx, start, layout, u, typical, residuals| {
+                let fit = ctx.stepping(start);
+                let coarse = ctx.jacobian_stepping(start);
+                let (Stepping::Fixed { substeps: s_fit }, Stepping::Fixed { substeps: s_jac }) =
+                    (&fit, &coarse)
+                else {
+                    panic!("fixed steps expected");
                 };
-                assert!(
-                    worst <= tolerance * scale,
-                    "{damper:?} column {j} ({:?}): off by {worst:.3e} of {scale:.3e}",
-                    plan[j]
-                );
-            }
+                assert!(s_jac < s_fit, "{s_jac} sub-steps against the fit's {s_fit}");
+                let fine = Stepping::Fixed {
+                    substeps: 8 * s_fit,
+                };
+                let (plan, jac) =
+                    case_jacobian(ctx, start, layout, u, typical, residuals, &coarse, &fit);
+                let (_, reference) =
+                    case_jacobian(ctx, start, layout, u, typical, residuals, &fine, &fit);
+                let m = ctx.n_fit();
+                let mut worst_all = 0.0_f64;
+                for (j, c) in plan.iter().enumerate() {
+                    let column = &jac[j * m..(j + 1) * m];
+                    let truth = &reference[j * m..(j + 1) * m];
+                    let scale = truth.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+                    if scale == 0.0 {
+                        continue;
+                    }
+                    let worst = column
+                        .iter()
+                        .zip(truth)
+                        .map(|(a, b)| (a - b).abs())
+                        .fold(0.0_f64, f64::max);
+                    worst_all = worst_all.max(worst / scale);
+                    assert!(
+                        worst <= TOL * scale,
+                        "{damper:?} column {j} ({c:?}): off by {worst:.3e} of {scale:.3e}"
+                    );
+                }
+                eprintln!("{damper:?}: {s_jac} against {s_fit} sub-steps, worst {worst_all:.2e}");
+            });
         }
     }
 

@@ -152,7 +152,9 @@ impl<'c, 'a> Screening<'c, 'a> {
     ///   start fits.
     /// - A lag or delay: beside the regression's first-order estimate, a grid across decades
     ///   (0.3 to 1000 sample intervals, up to a tenth of the record) is scored by output error;
-    ///   the best start fits, and so does the best one at least a factor 3 away from it.
+    ///   the best start fits, and so does the best one at least a factor 3 away from it. Where
+    ///   the model without the lag scores better than every one of them, the fit starts from
+    ///   that model alone (its data may still pull the lag off zero).
     /// - Any other effect starts from the regression ([`Screening::start`]); where that start
     ///   fits the record worse than `base` itself (the effect absent), from `base` as well.
     pub(crate) fn starts(
@@ -217,6 +219,11 @@ impl<'c, 'a> Screening<'c, 'a> {
             Effect::ActuatorLag | Effect::InputDelay | Effect::SensorLag => {
                 let slot = lag_slot(effect);
                 grid.push((self.start(base, free, effect), 0));
+                // The model without it (marked 1): where nothing on the grid fits better, the
+                // fit starts there alone.
+                let mut absent = *base;
+                absent.set(slot, 0.0);
+                grid.push((absent, 1));
                 // Lags and delays across decades, up to a tenth of the record.
                 let dt = self.ctx.record.dt();
                 let longest = 0.1 * dt * self.ctx.record.len() as f64;
@@ -253,7 +260,7 @@ impl<'c, 'a> Screening<'c, 'a> {
         let points: Vec<ModelPoint> = grid.iter().map(|(p, _)| *p).collect();
         let mut scored: Vec<(f64, ModelPoint, i8)> = self
             .ctx
-            .fit_costs(&points)
+            .ranking_costs(&points, self.grid_samples(base))
             .into_iter()
             .zip(grid)
             .filter_map(|(c, (p, side))| c.map(|c| (c, p, side)))
@@ -275,14 +282,16 @@ impl<'c, 'a> Screening<'c, 'a> {
                 // The best start, and the best one at least a factor 3 away from it (another
                 // basin), if any.
                 let slot = lag_slot(effect);
-                if let Some(&(_, best, _)) = scored.first() {
+                if let Some(&(_, best, side)) = scored.first() {
                     starts.push(best);
                     let b = best.get(slot);
                     if let Some(&(_, other, _)) = scored.iter().find(|s| {
                         let v = s.1.get(slot);
-                        v > 3.0 * b || 3.0 * v < b
+                        s.2 == 0 && (v > 3.0 * b || 3.0 * v < b)
                     }) {
-                        starts.push(other);
+                        if side == 0 {
+                            starts.push(other);
+                        }
                     }
                 }
             }
@@ -373,6 +382,27 @@ impl<'c, 'a> Screening<'c, 'a> {
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))?;
         Some(polished.1)
+    }
+
+    /// Scored samples a grid of starting points is ranked on: the leading [`GRID_PERIODS`]
+    /// periods of the fit ranges (the longer of `base`'s natural period and the forcing
+    /// period), at least [`GRID_MIN_SAMPLES`]. The grid only picks where fits start, which
+    /// then run over the whole fit ranges.
+    fn grid_samples(&self, base: &ModelPoint) -> usize {
+        let dt = self.ctx.record.dt();
+        let (m, k) = (base.params.m, base.params.k);
+        let natural = if k > 0.0 && m > 0.0 {
+            std::f64::consts::TAU * (m / k).sqrt()
+        } else {
+            0.0
+        };
+        let period = natural.max(self.ctx.forcing_period.unwrap_or(0.0));
+        let n = GRID_PERIODS * period / dt;
+        if n.is_finite() && n > 0.0 {
+            (n as usize).max(GRID_MIN_SAMPLES)
+        } else {
+            usize::MAX
+        }
     }
 
     /// Samples in a window of two natural periods of `base` (of the forcing period, or 100
@@ -532,6 +562,12 @@ impl<'c, 'a> Screening<'c, 'a> {
 }
 
 /// The parameter of a lag or delay effect.
+/// Periods of the record a grid of starting points is ranked on ([`Screening::grid_samples`]).
+const GRID_PERIODS: f64 = 3000.0;
+
+/// The fewest scored samples a grid of starting points is ranked on.
+const GRID_MIN_SAMPLES: usize = 4096;
+
 fn lag_slot(effect: Effect) -> Slot {
     match effect {
         Effect::ActuatorLag => Slot::Tau,
