@@ -624,19 +624,15 @@ impl Context<'_> {
                         .unwrap_or_else(|| Err("no residuals".to_string()))
                 },
                 |u: &[f64], r: &[f64], jac: &mut [f64]| {
-                    self.jacobian(
-                        start,
-                        &layout,
-                        plan,
-                        // The sensitivities' coarser steps at this point; the residuals and
-                        // differences keep the fit's.
-                        &self.jacobian_stepping(&layout.point(start, u)),
-                        &opts,
-                        u,
-                        r,
-                        jac,
-                        &residual_fn,
-                    )
+                    // The sensitivities' coarser steps at this point; the residuals and
+                    // differences keep the fit's, and so do the sensitivities where the
+                    // coarser simulation fails (a fitted initial state far outside the data,
+                    // whose burn-in the rates of `Stepping::for_jacobian` do not foresee).
+                    let coarse = self.jacobian_stepping(&layout.point(start, u));
+                    let mut at = |st: &Stepping| {
+                        self.jacobian(start, &layout, plan, st, &opts, u, r, jac, &residual_fn)
+                    };
+                    at(&coarse).or_else(|_| at(stepping))
                 },
                 &u0,
                 n,
@@ -779,7 +775,8 @@ impl Context<'_> {
 
     /// The Jacobian (`n x np`, column-major) of the fit residuals at `u`, where they are `r`,
     /// its columns formed as `plan` says: one simulation with sensitivities per segment at
-    /// `stepping` (the fits pass [`Context::jacobian_stepping`]'s coarser one), passed through the sensor as the positions are (its low-pass and gain are linear), and
+    /// `stepping` (the fits pass [`Context::jacobian_stepping`]'s coarser one), passed
+    /// through the sensor as the positions are (its low-pass and gain are linear), and
     /// forward differences (the batch of [`Context::residuals_batch`]) for the rest, with the
     /// step rule of the fits' difference Jacobians.
     #[allow(clippy::too_many_arguments)] // reason: the fit's layout, plan and options

@@ -152,9 +152,7 @@ impl<'c, 'a> Screening<'c, 'a> {
     ///   start fits.
     /// - A lag or delay: beside the regression's first-order estimate, a grid across decades
     ///   (0.3 to 1000 sample intervals, up to a tenth of the record) is scored by output error;
-    ///   the best start fits, and so does the best one at least a factor 3 away from it. Where
-    ///   the model without the lag scores better than every one of them, the fit starts from
-    ///   that model alone (its data may still pull the lag off zero).
+    ///   the best start fits, and so does the best one at least a factor 3 away from it.
     /// - Any other effect starts from the regression ([`Screening::start`]); where that start
     ///   fits the record worse than `base` itself (the effect absent), from `base` as well.
     pub(crate) fn starts(
@@ -219,11 +217,6 @@ impl<'c, 'a> Screening<'c, 'a> {
             Effect::ActuatorLag | Effect::InputDelay | Effect::SensorLag => {
                 let slot = lag_slot(effect);
                 grid.push((self.start(base, free, effect), 0));
-                // The model without it (marked 1): where nothing on the grid fits better, the
-                // fit starts there alone.
-                let mut absent = *base;
-                absent.set(slot, 0.0);
-                grid.push((absent, 1));
                 // Lags and delays across decades, up to a tenth of the record.
                 let dt = self.ctx.record.dt();
                 let longest = 0.1 * dt * self.ctx.record.len() as f64;
@@ -282,16 +275,14 @@ impl<'c, 'a> Screening<'c, 'a> {
                 // The best start, and the best one at least a factor 3 away from it (another
                 // basin), if any.
                 let slot = lag_slot(effect);
-                if let Some(&(_, best, side)) = scored.first() {
+                if let Some(&(_, best, _)) = scored.first() {
                     starts.push(best);
                     let b = best.get(slot);
                     if let Some(&(_, other, _)) = scored.iter().find(|s| {
                         let v = s.1.get(slot);
-                        s.2 == 0 && (v > 3.0 * b || 3.0 * v < b)
+                        v > 3.0 * b || 3.0 * v < b
                     }) {
-                        if side == 0 {
-                            starts.push(other);
-                        }
+                        starts.push(other);
                     }
                 }
             }
@@ -561,13 +552,13 @@ impl<'c, 'a> Screening<'c, 'a> {
     }
 }
 
-/// The parameter of a lag or delay effect.
 /// Periods of the record a grid of starting points is ranked on ([`Screening::grid_samples`]).
 const GRID_PERIODS: f64 = 3000.0;
 
 /// The fewest scored samples a grid of starting points is ranked on.
 const GRID_MIN_SAMPLES: usize = 4096;
 
+/// The parameter of a lag or delay effect.
 fn lag_slot(effect: Effect) -> Slot {
     match effect {
         Effect::ActuatorLag => Slot::Tau,
