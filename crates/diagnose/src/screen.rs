@@ -553,7 +553,7 @@ impl<'c, 'a> Screening<'c, 'a> {
 }
 
 /// Periods of the record a grid of starting points is ranked on ([`Screening::grid_samples`]).
-const GRID_PERIODS: f64 = 3000.0;
+const GRID_PERIODS: f64 = 2000.0;
 
 /// The fewest scored samples a grid of starting points is ranked on.
 const GRID_MIN_SAMPLES: usize = 4096;
