@@ -16,7 +16,7 @@ use crate::select::likelihood_ratio;
 use crate::sim::{
     sensitivities_hold, simulate_positions_batch, simulate_positions_with, simulate_sensitivities,
     Extent, ExtraForce, Force, MeasuredForce, Param, SimFailure, SimLane, SimMethod, Stepping,
-    MAX_SENSITIVITIES,
+    JACOBIAN_COARSENING, MAX_SENSITIVITIES,
 };
 use crate::{Sensor, TimeSeries};
 
@@ -201,14 +201,18 @@ impl Context<'_> {
         )
     }
 
-    /// The resolution a fit's Jacobian at `p` is simulated at ([`Stepping::for_jacobian`]).
+    /// The resolution a fit's Jacobian at `p` is simulated at: an oscillation resolved
+    /// [`JACOBIAN_COARSENING`] times more coarsely than [`Context::stepping`] does, a decay as
+    /// finely (its bound, `decay h <= 10 max_rate_step = 2`, already lies near RK4's
+    /// stability limit of 2.8 on the real axis).
     pub(crate) fn jacobian_stepping(&self, p: &ModelPoint) -> Stepping {
-        Stepping::for_jacobian(
+        Stepping::resolve_coarsened(
             self.method,
             &p.params,
             &p.effects,
             &self.extent,
             self.record.dt(),
+            JACOBIAN_COARSENING,
         )
     }
 
@@ -627,7 +631,7 @@ impl Context<'_> {
                     // The sensitivities' coarser steps at this point; the residuals and
                     // differences keep the fit's, and so do the sensitivities where the
                     // coarser simulation fails (a fitted initial state far outside the data,
-                    // whose burn-in the rates of `Stepping::for_jacobian` do not foresee).
+                    // whose burn-in the rates of `jacobian_stepping` do not foresee).
                     let coarse = self.jacobian_stepping(&layout.point(start, u));
                     let mut at = |st: &Stepping| {
                         self.jacobian(start, &layout, plan, st, &opts, u, r, jac, &residual_fn)

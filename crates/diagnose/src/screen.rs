@@ -380,15 +380,9 @@ impl<'c, 'a> Screening<'c, 'a> {
     /// period), at least [`GRID_MIN_SAMPLES`]. The grid only picks where fits start, which
     /// then run over the whole fit ranges.
     fn grid_samples(&self, base: &ModelPoint) -> usize {
-        let dt = self.ctx.record.dt();
-        let (m, k) = (base.params.m, base.params.k);
-        let natural = if k > 0.0 && m > 0.0 {
-            std::f64::consts::TAU * (m / k).sqrt()
-        } else {
-            0.0
-        };
+        let natural = natural_period(base).unwrap_or(0.0);
         let period = natural.max(self.ctx.forcing_period.unwrap_or(0.0));
-        let n = GRID_PERIODS * period / dt;
+        let n = GRID_PERIODS * period / self.ctx.record.dt();
         if n.is_finite() && n > 0.0 {
             (n as usize).max(GRID_MIN_SAMPLES)
         } else {
@@ -400,12 +394,8 @@ impl<'c, 'a> Screening<'c, 'a> {
     /// samples, where it has no natural period), between 10 and 2000.
     fn window_len(&self, base: &ModelPoint) -> usize {
         let dt = self.ctx.record.dt();
-        let (m, k) = (base.params.m, base.params.k);
-        let period = if k > 0.0 && m > 0.0 {
-            std::f64::consts::TAU * (m / k).sqrt()
-        } else {
-            self.ctx.forcing_period.unwrap_or(100.0 * dt)
-        };
+        let period =
+            natural_period(base).unwrap_or_else(|| self.ctx.forcing_period.unwrap_or(100.0 * dt));
         ((2.0 * period / dt).round() as usize).clamp(10, 2000)
     }
 
@@ -550,6 +540,12 @@ impl<'c, 'a> Screening<'c, 'a> {
         }
         p
     }
+}
+
+/// The natural period `2 pi sqrt(m / k)` of `p`'s linear spring, where it has one.
+fn natural_period(p: &ModelPoint) -> Option<f64> {
+    let (m, k) = (p.params.m, p.params.k);
+    (k > 0.0 && m > 0.0).then(|| std::f64::consts::TAU * (m / k).sqrt())
 }
 
 /// Periods of the record a grid of starting points is ranked on ([`Screening::grid_samples`]).

@@ -13,13 +13,13 @@ use crate::interp::{Interpolation, LaggedSignal, SampledSignal};
 const MAX_SUBSTEPS: usize = 256;
 
 /// How much more coarsely a fit's forward sensitivities resolve an oscillation than its
-/// residuals do ([`Stepping::for_jacobian`]): `omega h <= 2 max_rate_step`, 0.4 by default,
+/// residuals do (`Context::jacobian_stepping`): `omega h <= 2 max_rate_step`, 0.4 by default,
 /// well inside RK4's stability bound (2.8). The Jacobian only steers the iteration and
 /// scales the standard errors; the residuals, hence the optimum, its cost and every test,
 /// keep the full step. The columns then differ from the full step's by RK4's error at the
 /// coarser step, about `(omega h)^4 / 120 = 2e-4` per radian of the motion's memory (a test
 /// bounds it), and a Jacobian costs half the simulation.
-const JACOBIAN_COARSENING: f64 = 2.0;
+pub(crate) const JACOBIAN_COARSENING: f64 = 2.0;
 
 /// How a model is simulated on the record.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -88,21 +88,9 @@ impl Stepping {
         Self::resolve_coarsened(method, p, e, extent, dt, 1.0)
     }
 
-    /// The resolution a fit's Jacobian is simulated at: an oscillation resolved
-    /// [`JACOBIAN_COARSENING`] times more coarsely than [`Stepping::resolve`] does, a decay
-    /// as finely (its bound, `decay h <= 10 max_rate_step = 2`, already lies near RK4's
-    /// stability limit of 2.8 on the real axis).
-    pub(crate) fn for_jacobian(
-        method: SimMethod,
-        p: &HopperParams,
-        e: &Effects,
-        extent: &Extent,
-        dt: f64,
-    ) -> Stepping {
-        Self::resolve_coarsened(method, p, e, extent, dt, JACOBIAN_COARSENING)
-    }
-
-    fn resolve_coarsened(
+    /// [`Stepping::resolve`] with an oscillation resolved `coarsening` times more coarsely
+    /// and a decay as finely.
+    pub(crate) fn resolve_coarsened(
         method: SimMethod,
         p: &HopperParams,
         e: &Effects,
@@ -708,33 +696,14 @@ pub(crate) fn simulate_sensitivities(
         let half = m / 2;
         let (first, second) = columns.split_at_mut(n * half);
         let mut again = vec![0.0; n];
+        let run = |params: &[Param], positions: &mut [f64], columns: &mut [f64]| {
+            simulate_sensitivities(
+                hopper, force, t0, xv0, dt, substeps, params, positions, columns,
+            )
+        };
         let (a, b) = rayon::join(
-            || {
-                simulate_sensitivities(
-                    hopper,
-                    force,
-                    t0,
-                    xv0,
-                    dt,
-                    substeps,
-                    &params[..half],
-                    positions,
-                    first,
-                )
-            },
-            || {
-                simulate_sensitivities(
-                    hopper,
-                    force,
-                    t0,
-                    xv0,
-                    dt,
-                    substeps,
-                    &params[half..],
-                    &mut again,
-                    second,
-                )
-            },
+            || run(&params[..half], positions, first),
+            || run(&params[half..], &mut again, second),
         );
         return a.and(b);
     }
