@@ -87,7 +87,7 @@ pub fn simulate_fixed_step_states<S: HybridSystem + ?Sized, const N: usize>(
     dt: f64,
     substeps: usize,
     samples: usize,
-    write: impl FnMut(usize, &[f64]),
+    mut write: impl FnMut(usize, &[f64]),
 ) -> Result<(), HybridError> {
     if sys.dim() != N || x0.len() != N {
         return Err(HybridError::DimensionMismatch {
@@ -95,7 +95,6 @@ pub fn simulate_fixed_step_states<S: HybridSystem + ?Sized, const N: usize>(
             found: if sys.dim() == N { x0.len() } else { sys.dim() },
         });
     }
-    let mut write = write;
     let mut st = Stepper::<S, N> {
         sys,
         mode: mode0,
