@@ -1,7 +1,8 @@
 //! Timing of the diagnosis on the paper's protocol: a 300 s record at 100 Hz (30 s settling,
 //! then nine 30 s chirps 0 to 7 Hz of amplitude 0.004 N with phases spread over the period),
 //! with a hidden cubic spring, and again with a cubic spring and quadratic drag, each diagnosed
-//! over the whole library; plus single simulations, and the silverbox record when present. Run with `cargo bench -p htfid-diagnose`.
+//! over the whole library; plus single simulations, and the silverbox record when present. Run
+//! with `cargo bench -p htfid-diagnose`.
 
 // Fit and validation stretches are lists of sample-index ranges; a list of one is not a
 // mistaken attempt to list the indices.
