@@ -1290,6 +1290,19 @@ mod tests {
         out
     }
 
+    /// The largest magnitude in `v`.
+    fn largest(v: &[f64]) -> f64 {
+        v.iter().fold(0.0_f64, |a, x| a.max(x.abs()))
+    }
+
+    /// The largest magnitude of `a - b`, entry by entry.
+    fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0_f64, f64::max)
+    }
+
     /// The Jacobian from forward sensitivities against central differences of the residuals
     /// (the plain simulation, a second method), column by column, for every parameter the
     /// sensitivities carry, both segments' initial states, the sensor's offset, gain and
@@ -1325,12 +1338,8 @@ mod tests {
                 let truth = central_differences(residuals, &stepping, u, typical, m);
                 for j in 0..u.len() {
                     let column = &jac[j * m..(j + 1) * m];
-                    let scale = column.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-                    let worst = column
-                        .iter()
-                        .zip(&truth[j * m..(j + 1) * m])
-                        .map(|(e, d)| (e - d).abs())
-                        .fold(0.0_f64, f64::max);
+                    let scale = largest(column);
+                    let worst = largest_difference(column, &truth[j * m..(j + 1) * m]);
                     assert!(
                         scale > 0.0 || plan[j] == Column::Model(Param::CF),
                         "{damper:?} column {j} ({:?}) is zero",
@@ -1385,15 +1394,11 @@ mod tests {
                 for (j, c) in plan.iter().enumerate() {
                     let column = &jac[j * m..(j + 1) * m];
                     let truth = &reference[j * m..(j + 1) * m];
-                    let scale = truth.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+                    let scale = largest(truth);
                     if scale == 0.0 {
                         continue;
                     }
-                    let worst = column
-                        .iter()
-                        .zip(truth)
-                        .map(|(a, b)| (a - b).abs())
-                        .fold(0.0_f64, f64::max);
+                    let worst = largest_difference(column, truth);
                     worst_all = worst_all.max(worst / scale);
                     assert!(
                         worst <= TOL * scale,
