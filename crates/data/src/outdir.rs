@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Mutex, MutexGuard};
 
 use crate::error::DataError;
-use crate::write::{write_json_atomic, write_timeseries_csv, CsvWriter};
+use crate::write::{sync_files, write_timeseries_csv, write_unsynced, CsvWriter};
 
 mod lock;
 mod manifest;
@@ -88,6 +88,8 @@ pub struct OutputDir {
     overwrite: bool,
     created_dir: bool,
     staged: Vec<PathBuf>,
+    /// Staged text files not yet synced to disk: [`commit`](Self::commit) syncs them together.
+    unsynced: Vec<PathBuf>,
     committed: bool,
     /// Kept when a failed commit could not restore everything, for the next run to finish.
     keep_for_recovery: bool,
@@ -171,6 +173,7 @@ impl OutputDir {
             overwrite,
             created_dir,
             staged: Vec::new(),
+            unsynced: Vec::new(),
             committed: false,
             keep_for_recovery: false,
             previous,
@@ -258,7 +261,9 @@ impl OutputDir {
     /// Stages a text file (JSON, TOML, a report).
     pub fn write_text(&mut self, name: &str, text: &str) -> Result<(), DataError> {
         let path = self.path_for(name)?;
-        write_json_atomic(path, text)
+        write_unsynced(&path, text)?;
+        self.unsynced.push(path);
+        Ok(())
     }
 
     /// The outputs registered so far, relative to the directory.
@@ -300,7 +305,13 @@ impl OutputDir {
             entries.push(Entry::of_file(relative, &staged).map_err(|e| write_err(&staged, e))?);
         }
         let manifest = Manifest::new(entries);
-        write_json_atomic(self.staging.join(MANIFEST_NAME), &manifest.to_json())?;
+        let manifest_path = self.staging.join(MANIFEST_NAME);
+        write_unsynced(&manifest_path, &manifest.to_json())?;
+        // Nothing leaves the staging directory before it is on disk, so a crash cannot leave
+        // a moved but empty file. The texts and the manifest are synced together.
+        self.unsynced.push(manifest_path);
+        sync_files(&self.unsynced)?;
+        self.unsynced.clear();
 
         // What leaves the directory: files replaced by this run, the earlier run's results it
         // does not write again (its own only, unless overwriting), and the old manifest.

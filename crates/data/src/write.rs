@@ -17,7 +17,20 @@ pub(crate) struct AtomicFile {
     target: PathBuf,
     temp: PathBuf,
     file: Option<BufWriter<File>>,
+    /// Bytes handed to the writer so far.
+    written: u64,
+    /// Bytes whose write-back to the disk has been started (see [`WRITEBACK_CHUNK`]).
+    started: u64,
 }
+
+/// Buffer of each file's writer.
+const BUFFER_BYTES: usize = 64 * 1024;
+
+/// Every this many bytes a file's write-back to the disk is started in the background
+/// (Linux's `sync_file_range` with `SYNC_FILE_RANGE_WRITE`), so that the sync on
+/// [`AtomicFile::commit`] waits only for the last chunk instead of the whole file: a 2.7 MB
+/// time series otherwise waits milliseconds for its sync after its last byte.
+const WRITEBACK_CHUNK: u64 = 512 * 1024;
 
 impl AtomicFile {
     pub(crate) fn create(target: &Path) -> Result<Self, DataError> {
@@ -50,7 +63,9 @@ impl AtomicFile {
                     return Ok(Self {
                         target: target.to_path_buf(),
                         temp,
-                        file: Some(BufWriter::new(file)),
+                        file: Some(BufWriter::with_capacity(BUFFER_BYTES, file)),
+                        written: 0,
+                        started: 0,
                     })
                 }
                 // A stale file of an earlier process with the same id: take the next number.
@@ -66,7 +81,15 @@ impl AtomicFile {
 
     pub(crate) fn write_all(&mut self, bytes: &[u8]) -> Result<(), DataError> {
         let result = match self.file.as_mut() {
-            Some(f) => f.write_all(bytes),
+            Some(f) => f.write_all(bytes).and_then(|()| {
+                self.written += bytes.len() as u64;
+                if self.written - self.started >= WRITEBACK_CHUNK {
+                    f.flush()?;
+                    start_writeback(f.get_ref(), self.started, self.written - self.started);
+                    self.started = self.written;
+                }
+                Ok(())
+            }),
             None => Err(io::Error::other("file already finished")),
         };
         result.map_err(|source| DataError::Write {
@@ -76,14 +99,26 @@ impl AtomicFile {
     }
 
     /// Flushes, syncs to disk (so a crash cannot leave a renamed but empty file) and renames.
-    pub(crate) fn commit(mut self) -> Result<(), DataError> {
+    pub(crate) fn commit(self) -> Result<(), DataError> {
+        self.finish(true)
+    }
+
+    /// Flushes and renames without the sync: for a file in the staging directory whose sync
+    /// [`sync_files`] does later, before anything moves it out of staging.
+    pub(crate) fn commit_unsynced(self) -> Result<(), DataError> {
+        self.finish(false)
+    }
+
+    fn finish(mut self, sync: bool) -> Result<(), DataError> {
         let result = (|| {
             let file = self
                 .file
                 .take()
                 .ok_or_else(|| io::Error::other("file already finished"))?;
             let file = file.into_inner().map_err(|e| e.into_error())?;
-            file.sync_all()?;
+            if sync {
+                file.sync_all()?;
+            }
             drop(file);
             fs::rename(&self.temp, &self.target)
         })();
@@ -95,6 +130,25 @@ impl AtomicFile {
         Ok(())
     }
 }
+
+/// Starts writing `len` bytes of `file` from `offset` back to the disk without waiting for
+/// them. Linux starts the write-back of a range's dirty pages when told they will not be
+/// needed (`posix_fadvise` with `POSIX_FADV_DONTNEED`; pages under write-back stay cached).
+/// Only a hint: the sync on commit is what makes the data durable, so a failure here is
+/// ignored (the sync reports any real error).
+#[cfg(target_os = "linux")]
+fn start_writeback(file: &File, offset: u64, len: u64) {
+    let _ = rustix::fs::fadvise(
+        file,
+        offset,
+        std::num::NonZeroU64::new(len),
+        rustix::fs::Advice::DontNeed,
+    );
+}
+
+/// Elsewhere the sync on commit writes the whole file.
+#[cfg(not(target_os = "linux"))]
+fn start_writeback(_file: &File, _offset: u64, _len: u64) {}
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
@@ -276,6 +330,41 @@ pub fn write_json_atomic(path: impl AsRef<Path>, json: &str) -> Result<(), DataE
     file.commit()
 }
 
+/// Writes `text` to `path` through a temporary file and a rename, without syncing it: the
+/// caller syncs it with [`sync_files`] before relying on it.
+pub(crate) fn write_unsynced(path: &Path, text: &str) -> Result<(), DataError> {
+    let mut file = AtomicFile::create(path)?;
+    file.write_all(text.as_bytes())?;
+    file.commit_unsynced()
+}
+
+/// Syncs every file of `paths` to disk, all at once: each sync waits for the disk's
+/// acknowledgement (about a millisecond here even for a small file), and waits started
+/// together overlap instead of adding up.
+pub(crate) fn sync_files(paths: &[PathBuf]) -> Result<(), DataError> {
+    let sync = |path: &PathBuf| {
+        File::open(path)
+            .and_then(|f| f.sync_all())
+            .map_err(|source| DataError::Write {
+                path: path.clone(),
+                source,
+            })
+    };
+    match paths {
+        [] => Ok(()),
+        [one] => sync(one),
+        [first, rest @ ..] => std::thread::scope(|scope| {
+            let others: Vec<_> = rest.iter().map(|p| scope.spawn(move || sync(p))).collect();
+            let mut result = sync(first);
+            for handle in others {
+                let r = handle.join().expect("a file sync does not panic");
+                result = result.and(r);
+            }
+            result
+        }),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -387,5 +476,33 @@ mod tests {
             s.push('|');
         }
         assert_eq!(s, "t|\"a,b\"|\"say \"\"x\"\"\"|\"# n\"|plain name|");
+    }
+
+    /// A file several write-back chunks long (the background write-back is started between
+    /// them) reads back byte for byte as written, every number to the same bits.
+    #[test]
+    fn a_file_longer_than_many_write_back_chunks_reads_back_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("long.csv");
+        let mut writer = CsvWriter::create(&path, &["t", "x"]).unwrap();
+        let rows = 100_000;
+        let value = |i: usize| ((i as f64) * 0.731).sin() / 3.0;
+        let mut expected = String::from("t,x\n");
+        for i in 0..rows {
+            let row = [i as f64 * 0.01, value(i)];
+            writer.write_row(&row).unwrap();
+            push_f64(&mut expected, row[0]);
+            expected.push(',');
+            push_f64(&mut expected, row[1]);
+            expected.push('\n');
+        }
+        writer.finish().unwrap();
+        assert!(expected.len() as u64 > 4 * WRITEBACK_CHUNK);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text == expected, "the file differs from what was written");
+        for (i, line) in text.lines().skip(1).enumerate() {
+            let x: f64 = line.split(',').nth(1).unwrap().parse().unwrap();
+            assert_eq!(x.to_bits(), value(i).to_bits(), "row {i}");
+        }
     }
 }
