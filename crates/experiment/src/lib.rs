@@ -76,6 +76,14 @@ pub enum ExperimentError {
     /// The limit cycle of a model changed by a fit.
     #[error("the fitted model has no limit cycle: {0}")]
     FittedModel(String),
+    /// The input's values handed to [`drive_sampled`] do not match its grid.
+    #[error("{found} input values for a grid of {expected} times")]
+    InputSamples {
+        /// Times of the grid.
+        expected: usize,
+        /// Input values given.
+        found: usize,
+    },
     /// The re-run of the experiment lacks an estimate the fit used.
     #[error("the re-run of the experiment has no estimate of G_{n} at {omega} rad/s (output {output}) that the fit used")]
     MissingEstimate {
@@ -170,7 +178,32 @@ pub fn drive<S: Rhythmic>(
     times: &[f64],
     opts: &Options,
 ) -> Result<Driven<S::Mode>, ExperimentError> {
-    let driven = system.with_input(input.clone());
+    let samples = || {
+        times
+            .iter()
+            .map(|&t| input.as_ref().map_or(0.0, |u| u(t)))
+            .collect()
+    };
+    drive_sampled(system, cycle, input.clone(), times, opts, samples)
+}
+
+/// [`drive`] with the input's values at `times` given by the caller, who often has them
+/// already (an experiment's input is known before it is run). `samples` is called once the
+/// trajectory is known, so they may be computed meanwhile on another thread; they must equal
+/// `input` at `times`, one value per time, which the outputs read.
+///
+/// # Errors
+/// As [`drive`]; [`ExperimentError::InputSamples`] when `samples` gives a value per time
+/// of another count.
+pub fn drive_sampled<S: Rhythmic>(
+    system: &S,
+    cycle: &LimitCycle<S::Mode>,
+    input: Option<Input>,
+    times: &[f64],
+    opts: &Options,
+    samples: impl FnOnce() -> Vec<f64>,
+) -> Result<Driven<S::Mode>, ExperimentError> {
+    let driven = system.with_input(input);
     let t_end = times.last().copied().unwrap_or(cycle.t0).max(cycle.t0);
     let trajectory = simulate(
         &driven,
@@ -181,27 +214,28 @@ pub fn drive<S: Rhythmic>(
         times,
         opts,
     )?;
-    let outputs = sample_outputs(&driven, &trajectory, |t| {
-        input.as_ref().map_or(0.0, |u| u(t))
-    });
+    let u = samples();
+    if u.len() != trajectory.times.len() {
+        return Err(ExperimentError::InputSamples {
+            expected: trajectory.times.len(),
+            found: u.len(),
+        });
+    }
+    let outputs = sample_outputs(&driven, &trajectory, &u);
     Ok(Driven {
         trajectory,
         outputs,
     })
 }
 
-/// Every output along a trajectory, with the input `u(t)` at its grid times.
-fn sample_outputs<S: Rhythmic>(
-    system: &S,
-    traj: &Trajectory<S::Mode>,
-    u: impl Fn(f64) -> f64,
-) -> Vec<Vec<f64>> {
+/// Every output along a trajectory, with the input's value `u[i]` at grid time `i`.
+fn sample_outputs<S: Rhythmic>(system: &S, traj: &Trajectory<S::Mode>, u: &[f64]) -> Vec<Vec<f64>> {
     let p = system.num_outputs();
     let n = traj.times.len();
     let mut outputs = vec![vec![0.0; n]; p];
     let mut y = vec![0.0; p];
     for (i, &t) in traj.times.iter().enumerate() {
-        system.outputs(traj.modes[i], t, traj.state(i), u(t), &mut y);
+        system.outputs(traj.modes[i], t, traj.state(i), u[i], &mut y);
         for (column, v) in outputs.iter_mut().zip(&y) {
             column[i] = *v;
         }

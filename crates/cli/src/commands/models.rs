@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use htfid_data::TimeSeries;
 use htfid_estimate::{HtfEstimate, Method};
-use htfid_experiment::{add_noise, distortion_bootstrap, drive, Driven};
+use htfid_experiment::{add_noise, distortion_bootstrap, drive_sampled, Driven};
 use htfid_hybrid::{simulate, EventKind, HybridSystem};
 use htfid_identify::{fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_lang::{Mode, Model};
@@ -178,12 +178,14 @@ fn simulate_record(
         mut outputs,
     } = stages
         .run("simulate", || {
-            drive(
+            // The outputs read the input's values already sampled.
+            drive_sampled(
                 model,
                 cycle,
                 excitation.input_fn(),
                 &grid,
                 &settings.integrator,
+                || u.clone(),
             )
         })
         .map_err(|e| {
@@ -524,7 +526,9 @@ pub fn run_model(
                 // The estimators' work on the input alone (`htfid_estimate::Design`); should it
                 // fail, the chains prepare them again from the simulated input and say why.
                 let designs = local
-                    .run("prepare estimators", || prepare_all(settings))
+                    .run("prepare estimators", || {
+                        prepare_all(settings, experiment_input(settings)?)
+                    })
                     .ok();
                 // Each output's HTF at the rows an estimate will have, where the input fixes
                 // them, for its errors.

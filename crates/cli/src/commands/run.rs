@@ -17,8 +17,8 @@ use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::simulate::{
-    base_summary, experiment_input, fill_limit_cycle, hopper_and_orbit, simulate_on, Simulated,
-    LIMIT_CYCLE_HEADER,
+    base_summary, experiment_grid, experiment_input, fill_limit_cycle, hopper_and_orbit,
+    sample_input, simulate_on, simulate_with_columns, InputColumns, Simulated, LIMIT_CYCLE_HEADER,
 };
 use crate::commands::theory::{self, fill_theory_csv, ltp_json, THEORY_HEADER};
 use crate::output::{json_text, open, resolve_dir};
@@ -74,11 +74,20 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     let theory_csv = outdir.csv("theory.csv", THEORY_HEADER)?;
     let cycle_csv = outdir.csv("limit_cycle.csv", LIMIT_CYCLE_HEADER)?;
     let sampled = hopper.clone();
+    let (excitation, grid) = experiment_grid(&settings)?;
     let (sim, side) = std::thread::scope(|scope| -> Result<_> {
         let (settings, theory, sampled) = (&settings, &theory, &sampled);
+        let (columns_tx, columns_rx) = std::sync::mpsc::channel();
         let side = scope.spawn(
             move || -> Result<(Stages, Option<Vec<Prepared>>, Truths<'_>)> {
                 let mut local = Stages::silent();
+                // The input is known before the output: its columns of the record are made
+                // here, while the simulation runs, and the estimators are prepared from it.
+                let input = experiment_input(settings);
+                if let Ok((_, grid, u)) = &input {
+                    // The simulation makes them itself should this thread fail.
+                    let _ = columns_tx.send(InputColumns::new(sampled, grid, u.clone()));
+                }
                 let grid = local.run("exact HTF", || {
                     theory
                         .exact
@@ -92,7 +101,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 // the output (`htfid_estimate::Design`). Should it fail, the chains prepare
                 // them again from the simulated input and say what is wrong.
                 let designs = local
-                    .run("prepare estimators", || prepare_all(settings))
+                    .run("prepare estimators", || prepare_all(settings, input?))
                     .ok();
                 // The exact HTF at the rows an estimate will have, where the input fixes
                 // them, for its errors.
@@ -102,7 +111,18 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 Ok((local, designs, truths))
             },
         );
-        let sim = simulate_on(settings, hopper, orbit, &mut stages);
+        let columns = |hopper: &Hopper, excitation: &Built, grid: &[f64]| {
+            columns_rx
+                .recv()
+                .unwrap_or_else(|_| InputColumns::new(hopper, grid, sample_input(excitation, grid)))
+        };
+        let sim = simulate_with_columns(
+            settings,
+            (hopper, orbit),
+            (excitation, grid),
+            columns,
+            &mut stages,
+        );
         let side = side.join().expect("the theory writer does not panic");
         Ok((sim?, side?))
     })?;
@@ -378,8 +398,10 @@ impl Prepared {
 
 /// Every configured estimator prepared from the configured experiment's input, computed as
 /// the simulation computes it ([`experiment_input`]).
-pub(crate) fn prepare_all(settings: &Settings) -> Result<Vec<Prepared>> {
-    let (excitation, grid, u) = experiment_input(settings)?;
+pub(crate) fn prepare_all(
+    settings: &Settings,
+    (excitation, grid, u): (Built, Vec<f64>, Vec<f64>),
+) -> Result<Vec<Prepared>> {
     settings
         .estimation
         .estimators

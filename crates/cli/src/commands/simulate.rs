@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use htfid_data::OutputDir;
-use htfid_experiment::{add_noise, drive, Driven};
+use htfid_experiment::{add_noise, drive_sampled, Driven};
 use htfid_hybrid::{SlidingInterval, Stats};
 use htfid_model::{Hopper, HopperMode, HopperOrbit};
 use htfid_orbit::ShootingOptions;
@@ -90,13 +90,42 @@ pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<S
 /// The configured excitation, the record's sample times and the input at them: what an
 /// experiment knows before it runs.
 pub fn experiment_input(settings: &Settings) -> Result<(Built, Vec<f64>, Vec<f64>)> {
+    let (excitation, grid) = experiment_grid(settings)?;
+    let u = sample_input(&excitation, &grid);
+    Ok((excitation, grid, u))
+}
+
+/// The configured excitation and the record's sample times, without the input's values.
+pub fn experiment_grid(settings: &Settings) -> Result<(Built, Vec<f64>)> {
     let excitation = signals::build(settings)?;
     let (_, grid) = settings.record_grid(excitation.end);
-    let u = match &excitation.signal {
-        Some(s) => s.sample(&grid),
+    Ok((excitation, grid))
+}
+
+/// The excitation's input at the sample times `grid`.
+pub fn sample_input(excitation: &Built, grid: &[f64]) -> Vec<f64> {
+    match &excitation.signal {
+        Some(s) => s.sample(grid),
         None => vec![0.0; grid.len()],
-    };
-    Ok((excitation, grid, u))
+    }
+}
+
+/// The input `u` and the commanded force `f = forcing + u` at the sample times `grid`: the
+/// columns of the record that the simulation does not produce.
+pub struct InputColumns {
+    pub u: Vec<f64>,
+    pub f: Vec<f64>,
+}
+
+impl InputColumns {
+    pub fn new(hopper: &Hopper, grid: &[f64], u: Vec<f64>) -> Self {
+        let f = grid
+            .iter()
+            .zip(&u)
+            .map(|(&t, &u)| hopper.forcing(t) + u)
+            .collect();
+        Self { u, f }
+    }
 }
 
 /// The configured experiment on `hopper`, from `t = 0` on its limit cycle `orbit`.
@@ -106,26 +135,50 @@ pub fn simulate_on(
     orbit: HopperOrbit,
     stages: &mut Stages,
 ) -> Result<Simulated> {
-    let (excitation, grid, u) = experiment_input(settings)?;
+    let (excitation, grid) = experiment_grid(settings)?;
+    let columns = |hopper: &Hopper, excitation: &Built, grid: &[f64]| {
+        InputColumns::new(hopper, grid, sample_input(excitation, grid))
+    };
+    simulate_with_columns(
+        settings,
+        (hopper, orbit),
+        (excitation, grid),
+        columns,
+        stages,
+    )
+}
+
+/// [`simulate_on`] with the input's columns from `columns`, called once the trajectory is
+/// known: a caller may have them computed on another thread meanwhile.
+pub fn simulate_with_columns(
+    settings: &Settings,
+    (hopper, orbit): (Hopper, HopperOrbit),
+    (excitation, grid): (Built, Vec<f64>),
+    columns: impl FnOnce(&Hopper, &Built, &[f64]) -> InputColumns,
+    stages: &mut Stages,
+) -> Result<Simulated> {
     let n = grid.len();
+    let mut input = None;
     let driven = stages
         .run("simulate", || {
-            drive(
+            drive_sampled(
                 &hopper,
                 &orbit.cycle,
                 excitation.input_fn(),
                 &grid,
                 &settings.integrator,
+                || {
+                    let c = columns(&hopper, &excitation, &grid);
+                    let u = c.u.clone();
+                    input = Some(c);
+                    u
+                },
             )
         })
         .map_err(|e| {
             crate::limits::experiment_failed(settings, crate::limits::Simulated::Experiment, e)
         })?;
-    let f: Vec<f64> = grid
-        .iter()
-        .zip(&u)
-        .map(|(&t, &u)| hopper.forcing(t) + u)
-        .collect();
+    let InputColumns { u, f } = input.context("the simulation read the input's columns")?;
     let Driven {
         trajectory: traj,
         mut outputs,
