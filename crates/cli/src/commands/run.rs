@@ -79,7 +79,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         let (settings, theory, sampled) = (&settings, &theory, &sampled);
         let (columns_tx, columns_rx) = std::sync::mpsc::channel();
         let side = scope.spawn(
-            move || -> Result<(Stages, Option<Vec<Prepared>>, Truths<'_>)> {
+            move || -> Result<(Stages, Option<Vec<Prepared>>, Truths<'_>, Option<Value>)> {
                 let mut local = Stages::silent();
                 // The input is known before the output: its columns of the record are made
                 // here, while the simulation runs, and the estimators are prepared from it.
@@ -108,7 +108,9 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 let truths = local.run("exact HTF at the estimates", || {
                     truths_at(&[&theory.exact], designs.as_deref())
                 });
-                Ok((local, designs, truths))
+                // What the copies cannot separate, for the summary.
+                let aliased = local.run("aliasing", || aliasing(settings, &theory.exact))?;
+                Ok((local, designs, truths, aliased))
             },
         );
         let columns = |hopper: &Hopper, excitation: &Built, grid: &[f64]| {
@@ -126,7 +128,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         let side = side.join().expect("the theory writer does not panic");
         Ok((sim?, side?))
     })?;
-    let (side, designs, truths) = side;
+    let (side, designs, truths, aliased) = side;
     stages.absorb(side);
     let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
 
@@ -217,7 +219,7 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         "estimators": settings.estimation.estimators.iter().map(|e| e.name()).collect::<Vec<_>>(),
         "noise_output_std": settings.noise.map_or(0.0, |n| n.output_std),
     });
-    if let Some(a) = aliasing(&settings, &theory.exact)? {
+    if let Some(a) = aliased {
         summary["aliasing"] = a;
     }
     if let Some(d) = &sim.excitation.design {
