@@ -208,7 +208,7 @@ impl PaperChirp {
 impl Signal for PaperChirp {
     fn value(&self, t: f64) -> f64 {
         if (0.0..Self::DURATION).contains(&t) {
-            0.004 * (14.0 * PI * t * t / 30.0).sin()
+            0.004 * htfid_trig::sin(14.0 * PI * t * t / 30.0)
         } else {
             0.0
         }

@@ -116,7 +116,7 @@ impl Hopper {
         if a == 0.0 {
             return 0.0;
         }
-        a * (self.params.pump_frequency() * t).cos()
+        a * htfid_trig::cos(self.params.pump_frequency() * t)
     }
 
     /// The commanded force `f(t) = A cos(2 pi t/T) + u(t) + offset`, before delay and lag.
