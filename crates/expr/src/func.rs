@@ -154,8 +154,8 @@ impl Func {
     #[inline]
     pub(crate) fn apply(self, a: f64, b: f64, c: f64) -> f64 {
         match self {
-            Func::Sin => a.sin(),
-            Func::Cos => a.cos(),
+            Func::Sin => htfid_trig::sin(a),
+            Func::Cos => htfid_trig::cos(a),
             Func::Tan => a.tan(),
             Func::Asin => a.asin(),
             Func::Acos => a.acos(),
