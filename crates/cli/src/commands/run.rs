@@ -78,41 +78,44 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     let (sim, side) = std::thread::scope(|scope| -> Result<_> {
         let (settings, theory, sampled) = (&settings, &theory, &sampled);
         let (columns_tx, columns_rx) = std::sync::mpsc::channel();
-        let side = scope.spawn(
-            move || -> Result<(Stages, Option<Vec<Prepared>>, Truths<'_>, Option<Value>)> {
-                let mut local = Stages::silent();
-                // The input is known before the output: its columns of the record are made
-                // here, while the simulation runs, and the estimators are prepared from it.
-                let input = experiment_input(settings);
-                if let Ok((_, grid, u)) = &input {
-                    // The simulation makes them itself should this thread fail.
-                    let _ = columns_tx.send(InputColumns::new(sampled, grid, u.clone()));
-                }
-                let grid = local.run("exact HTF", || {
-                    theory
-                        .exact
-                        .grid(&settings.theory.harmonics, &settings.theory.omegas)
-                });
-                local.run("write theory", || -> Result<()> {
-                    fill_theory_csv(theory_csv, &grid)?;
-                    fill_limit_cycle(cycle_csv, settings, sampled, &theory.orbit)
-                })?;
-                // The estimators' work on the input alone, too: the input is known before
-                // the output (`htfid_estimate::Design`). Should it fail, the chains prepare
-                // them again from the simulated input and say what is wrong.
-                let designs = local
-                    .run("prepare estimators", || prepare_all(settings, input?))
-                    .ok();
-                // The exact HTF at the rows an estimate will have, where the input fixes
-                // them, for its errors.
-                let truths = local.run("exact HTF at the estimates", || {
-                    truths_at(&[&theory.exact], designs.as_deref())
-                });
-                // What the copies cannot separate, for the summary.
-                let aliased = local.run("aliasing", || aliasing(settings, &theory.exact))?;
-                Ok((local, designs, truths, aliased))
-            },
-        );
+        let side = scope.spawn(move || -> Result<Beside<'_>> {
+            let mut local = Stages::silent();
+            // The input is known before the output: its columns of the record are made
+            // here, while the simulation runs, and the estimators are prepared from it.
+            let input = experiment_input(settings);
+            if let Ok((_, grid, u)) = &input {
+                // The simulation makes them itself should this thread fail.
+                let _ = columns_tx.send(InputColumns::new(sampled, grid, u.clone()));
+            }
+            let grid = local.run("exact HTF", || {
+                theory
+                    .exact
+                    .grid(&settings.theory.harmonics, &settings.theory.omegas)
+            });
+            local.run("write theory", || -> Result<()> {
+                fill_theory_csv(theory_csv, &grid)?;
+                fill_limit_cycle(cycle_csv, settings, sampled, &theory.orbit)
+            })?;
+            // The estimators' work on the input alone, too: the input is known before
+            // the output (`htfid_estimate::Design`). Should it fail, the chains prepare
+            // them again from the simulated input and say what is wrong.
+            let designs = local
+                .run("prepare estimators", || prepare_all(settings, input?))
+                .ok();
+            // The exact HTF at the rows an estimate will have, where the input fixes
+            // them, for its errors.
+            let truths = local.run("exact HTF at the estimates", || {
+                truths_at(&[&theory.exact], designs.as_deref())
+            });
+            // What the copies cannot separate, for the summary.
+            let aliased = local.run("aliasing", || aliasing(settings, &theory.exact))?;
+            Ok(Beside {
+                stages: local,
+                designs,
+                truths,
+                aliased,
+            })
+        });
         let columns = |hopper: &Hopper, excitation: &Built, grid: &[f64]| {
             columns_rx
                 .recv()
@@ -128,7 +131,12 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         let side = side.join().expect("the theory writer does not panic");
         Ok((sim?, side?))
     })?;
-    let (side, designs, truths, aliased) = side;
+    let Beside {
+        stages: side,
+        designs,
+        truths,
+        aliased,
+    } = side;
     stages.absorb(side);
     let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
 
@@ -253,6 +261,17 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     let unit = |name: &str| crate::results::hopper_unit(name).map(str::to_string);
     crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
     Ok(())
+}
+
+/// What the second core computes while the experiment is simulated.
+struct Beside<'a> {
+    stages: Stages,
+    /// The estimators prepared from the input.
+    designs: Option<Vec<Prepared>>,
+    /// The exact HTF at the rows the estimates will have.
+    truths: Truths<'a>,
+    /// The aliasing table of `summary.json`.
+    aliased: Option<Value>,
 }
 
 /// The deviation of the measured position from the limit cycle at every sample (what the
