@@ -308,7 +308,8 @@ impl OutputDir {
         let manifest_path = self.staging.join(MANIFEST_NAME);
         write_unsynced(&manifest_path, &manifest.to_json())?;
         // Nothing leaves the staging directory before it is on disk, so a crash cannot leave
-        // a moved but empty file. The texts and the manifest are synced together.
+        // a moved but empty file: CSV files are synced as they are finished, figures as they
+        // are saved (`htfid-plot`), the texts and the manifest here, together.
         self.unsynced.push(manifest_path);
         sync_files(&self.unsynced)?;
         self.unsynced.clear();

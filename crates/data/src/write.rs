@@ -27,7 +27,7 @@ pub(crate) struct AtomicFile {
 const BUFFER_BYTES: usize = 64 * 1024;
 
 /// Every this many bytes a file's write-back to the disk is started in the background
-/// (Linux's `sync_file_range` with `SYNC_FILE_RANGE_WRITE`), so that the sync on
+/// (see [`start_writeback`]), so that the sync on
 /// [`AtomicFile::commit`] waits only for the last chunk instead of the whole file: a 2.7 MB
 /// time series otherwise waits milliseconds for its sync after its last byte.
 const WRITEBACK_CHUNK: u64 = 512 * 1024;
@@ -342,8 +342,11 @@ pub(crate) fn write_unsynced(path: &Path, text: &str) -> Result<(), DataError> {
 /// acknowledgement (about a millisecond here even for a small file), and waits started
 /// together overlap instead of adding up.
 pub(crate) fn sync_files(paths: &[PathBuf]) -> Result<(), DataError> {
+    // Opened for writing: Windows syncs only a handle that may write.
     let sync = |path: &PathBuf| {
-        File::open(path)
+        OpenOptions::new()
+            .write(true)
+            .open(path)
             .and_then(|f| f.sync_all())
             .map_err(|source| DataError::Write {
                 path: path.clone(),

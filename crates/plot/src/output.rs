@@ -13,8 +13,8 @@ use crate::render::{draw_figure, prepare, PlotPanel};
 ///
 /// `path` has no extension; one already present is kept (`fig.v2` gives `fig.v2.svg`). Missing
 /// parent directories are created. Both images are rendered to hidden temporary files in the
-/// target directory and renamed into place only when both succeeded, so a failure never leaves
-/// a partial image under the final name.
+/// target directory, synced to disk and renamed into place only when both succeeded, so a
+/// failure (or a crash) never leaves a partial image under the final name.
 ///
 /// # Errors
 /// [`PlotError::EmptyFigure`], [`PlotError::NoColumns`], [`PlotError::InvalidSize`],
@@ -68,11 +68,18 @@ fn temp_path(path: &Path, ext: &str) -> PathBuf {
     }
 }
 
+/// Syncs the finished image to disk, so that a crash cannot leave it renamed but empty, and
+/// moves it into place.
 fn rename(from: &Path, to: &Path) -> Result<(), PlotError> {
-    std::fs::rename(from, to).map_err(|source| PlotError::Io {
-        path: to.to_path_buf(),
-        source,
-    })
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(from)
+        .and_then(|f| f.sync_all())
+        .and_then(|()| std::fs::rename(from, to))
+        .map_err(|source| PlotError::Io {
+            path: to.to_path_buf(),
+            source,
+        })
 }
 
 fn render_error(path: &Path) -> impl Fn(String) -> PlotError + '_ {

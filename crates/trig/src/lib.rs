@@ -10,12 +10,14 @@
 //! bit, whichever a caller uses.
 //!
 //! # Accuracy
-//! Within one unit in the last place of the C library's `sin` and `cos` (which are within
-//! half a unit of the exact values almost everywhere): measured over a million arguments in
-//! each of `[-1, 1]`, `[-10, 10]`, `[-2000, 2000]`, `[-1e5, 1e5]` and `[-1e6, 1e6]`
-//! (`tests/accuracy.rs`), the absolute error is at most `2^-53`, the relative one at most one
-//! unit where `|value| > 1e-3`. About 30 % of the values differ from the C library's in
-//! the last bit.
+//! - Against the exact values (mpmath at 160 bits, 40 000 arguments in each of `[-1, 1]`,
+//!   `[-2000, 2000]` and `[-1e6, 1e6]`, `tests/oracle/trig_exact.py`): at most 1.05 units in
+//!   the last place of the exact value on `[-1, 1]` and 1.42 beyond, at most `1.2e-16`
+//!   absolute. The C library's functions, measured the same way: 0.51 units.
+//! - Against the C library's `sin` and `cos` (a million arguments in each of `[-1, 1]`,
+//!   `[-10, 10]`, `[-2000, 2000]`, `[-1e5, 1e5]` and `[-1e6, 1e6]`, `tests/accuracy.rs`): at
+//!   most one unit in the last place where `|value| > 1e-3`, at most `2^-53` absolute. About
+//!   30 % of the values differ from the C library's in the last bit.
 //!
 //! # Method
 //! The argument is reduced by the nearest multiple `k` of `pi/2`, written as the sum of three
@@ -112,24 +114,41 @@ fn in_range(x: f64) -> bool {
     x.abs() <= REDUCED_UP_TO
 }
 
+/// One of the pair, `pick`, for `x`: the reduction here, the C library's `libm` beyond it.
+#[inline(always)]
+fn one(x: f64, pick: impl Fn((f64, f64)) -> f64, libm: impl Fn(f64) -> f64) -> f64 {
+    if in_range(x) {
+        pick(reduced(x))
+    } else {
+        libm(x)
+    }
+}
+
+/// [`one`] over a slice: every argument through the branch-free reduction (so the loop
+/// vectorises), then the few beyond its range again through the C library.
+#[inline(always)]
+fn many(x: &[f64], out: &mut [f64], pick: impl Fn((f64, f64)) -> f64, libm: impl Fn(f64) -> f64) {
+    let out = &mut out[..x.len()];
+    for (o, &v) in out.iter_mut().zip(x) {
+        *o = pick(reduced(v));
+    }
+    for (o, &v) in out.iter_mut().zip(x) {
+        if !in_range(v) {
+            *o = libm(v);
+        }
+    }
+}
+
 /// `sin x`, the same bits as [`sin_many`] gives for `x`.
 #[inline]
 pub fn sin(x: f64) -> f64 {
-    if in_range(x) {
-        reduced(x).0
-    } else {
-        x.sin()
-    }
+    one(x, |(s, _)| s, f64::sin)
 }
 
 /// `cos x`, the same bits as [`cos_many`] gives for `x`.
 #[inline]
 pub fn cos(x: f64) -> f64 {
-    if in_range(x) {
-        reduced(x).1
-    } else {
-        x.cos()
-    }
+    one(x, |(_, c)| c, f64::cos)
 }
 
 /// `out[i] = sin(x[i])` for every `i < x.len()`.
@@ -137,15 +156,7 @@ pub fn cos(x: f64) -> f64 {
 /// # Panics
 /// If `out` is shorter than `x`.
 pub fn sin_many(x: &[f64], out: &mut [f64]) {
-    let out = &mut out[..x.len()];
-    for (o, &v) in out.iter_mut().zip(x) {
-        *o = reduced(v).0;
-    }
-    for (o, &v) in out.iter_mut().zip(x) {
-        if !in_range(v) {
-            *o = v.sin();
-        }
-    }
+    many(x, out, |(s, _)| s, f64::sin);
 }
 
 /// `out[i] = cos(x[i])` for every `i < x.len()`.
@@ -153,13 +164,5 @@ pub fn sin_many(x: &[f64], out: &mut [f64]) {
 /// # Panics
 /// If `out` is shorter than `x`.
 pub fn cos_many(x: &[f64], out: &mut [f64]) {
-    let out = &mut out[..x.len()];
-    for (o, &v) in out.iter_mut().zip(x) {
-        *o = reduced(v).1;
-    }
-    for (o, &v) in out.iter_mut().zip(x) {
-        if !in_range(v) {
-            *o = v.cos();
-        }
-    }
+    many(x, out, |(_, c)| c, f64::cos);
 }
