@@ -5,7 +5,9 @@
 //! [`htfid_lang::Model`] and the built-in [`htfid_model::Hopper`], or a Rust user's own. On it:
 //!
 //! - [`drive`]: the model driven by an input from its orbit, every output sampled on a grid
-//!   (the trajectory kept for states, modes, switches and sliding);
+//!   (the trajectory kept for states, modes, switches and sliding); [`drive_sampled`] the
+//!   same with the input's values at the grid given (an experiment's input is known before it
+//!   runs, and may be sampled on another thread meanwhile);
 //! - [`add_noise`]: seeded white measurement noise on the sampled outputs;
 //! - [`orbit_deviation`]: what the estimators see, each output minus its value on the
 //!   unexcited orbit (one period tiled when the grid repeats every period);
