@@ -1,40 +1,57 @@
-//! `drive_sampled` against `drive`: given the input's values at the grid, the same run bit for
-//! bit; given a wrong count of them, an error that says so.
+//! `drive_sampled`: the outputs read the input's values the caller gives, one per grid time, and
+//! the run is otherwise `drive`'s; a wrong count of values is an error that says so.
+//!
+//! The model is the shipped hopper file with a second output that reads the input itself
+//! (`force = u`), so the values an output was given can be seen in the record.
 
 use std::sync::Arc;
 
 use htfid_experiment::{drive, drive_sampled, ExperimentError, Input, Rhythmic};
 use htfid_hybrid::Options;
-use htfid_model::{Hopper, HopperParams};
-use htfid_orbit::ShootingOptions;
+use htfid_lang::Model;
+use htfid_orbit::{LimitCycle, ShootingOptions};
 
-fn setup() -> (
-    Hopper,
-    htfid_orbit::LimitCycle<htfid_model::HopperMode>,
-    Vec<f64>,
-    Input,
-) {
-    let hopper = Hopper::new(HopperParams::paper()).unwrap();
+fn setup() -> (Model, LimitCycle<htfid_lang::Mode>, Vec<f64>, Input) {
+    let text = include_str!("../../../models/hopper.toml").replace(
+        r#"x = { expr = "x", unit = "m" }"#,
+        "x = { expr = \"x\", unit = \"m\" }\nforce = { expr = \"u\", unit = \"N\" }",
+    );
+    let model = Model::parse(&text).unwrap();
+    assert_eq!(model.outputs().len(), 2, "the input output was added");
     let cycle =
-        Rhythmic::limit_cycle(&hopper, &ShootingOptions::default(), &Options::default()).unwrap();
+        Rhythmic::limit_cycle(&model, &ShootingOptions::default(), &Options::default()).unwrap();
     let times: Vec<f64> = (0..400).map(|i| 0.01 * f64::from(i)).collect();
     let input: Input = Arc::new(|t: f64| 0.01 * (7.0 * t * t).sin());
-    (hopper, cycle, times, input)
+    (model, cycle, times, input)
 }
 
 #[test]
-fn given_samples_give_the_same_run_bit_for_bit() {
-    let (hopper, cycle, times, input) = setup();
+fn the_outputs_read_the_values_given_and_the_run_is_drives() {
+    let (model, cycle, times, input) = setup();
     let opts = Options::default();
-    let plain = drive(&hopper, &cycle, Some(input.clone()), &times, &opts).unwrap();
-    let samples: Vec<f64> = times.iter().map(|&t| input(t)).collect();
-    let given = drive_sampled(&hopper, &cycle, Some(input), &times, &opts, || samples).unwrap();
-    assert_eq!(plain.trajectory.times, given.trajectory.times);
-    for (a, b) in plain.outputs.iter().zip(&given.outputs) {
-        assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
-    }
-    // The input moved the mass: the comparison is not of two orbits.
-    let unforced = drive(&hopper, &cycle, None, &times, &opts).unwrap();
+    let plain = drive(&model, &cycle, Some(input.clone()), &times, &opts).unwrap();
+    // Values the input function never takes: twice its own.
+    let given: Vec<f64> = times.iter().map(|&t| 2.0 * input(t)).collect();
+    let expected = given.clone();
+    let run = drive_sampled(&model, &cycle, Some(input.clone()), &times, &opts, || given).unwrap();
+    // The output that reads the input holds exactly the values given...
+    assert!(run.outputs[1]
+        .iter()
+        .zip(&expected)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    // ...and `drive` the input's own values at the grid.
+    assert!(plain.outputs[1]
+        .iter()
+        .zip(&times)
+        .all(|(a, &t)| a.to_bits() == input(t).to_bits()));
+    // The trajectory is integrated through the input function either way: the same positions.
+    assert_eq!(plain.trajectory.times, run.trajectory.times);
+    assert!(plain.outputs[0]
+        .iter()
+        .zip(&run.outputs[0])
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    // The input moved the mass: the positions compared are not two copies of the orbit.
+    let unforced = drive(&model, &cycle, None, &times, &opts).unwrap();
     let moved = plain.outputs[0]
         .iter()
         .zip(&unforced.outputs[0])
@@ -44,9 +61,9 @@ fn given_samples_give_the_same_run_bit_for_bit() {
 
 #[test]
 fn a_wrong_count_of_samples_is_an_error() {
-    let (hopper, cycle, times, input) = setup();
+    let (model, cycle, times, input) = setup();
     let err = drive_sampled(
-        &hopper,
+        &model,
         &cycle,
         Some(input),
         &times,
