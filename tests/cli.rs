@@ -1191,6 +1191,70 @@ fn theory_truncate_converges_to_exact() {
     assert_eq!(s["htf"]["truncation"], 10);
 }
 
+/// `--truncate` takes any model whose linearisation is constant within each mode: the hopper
+/// written as a model file gives the built-in hopper's truncated HTF (the same harmonic state
+/// space from two implementations of its equations, so the same numbers to round-off: 1e-12
+/// of the largest `|G_n|`). A model whose linearisation varies along the orbit (the two-dof
+/// system) has no harmonic state space to truncate: a clear error, and nothing written.
+#[test]
+fn theory_truncates_model_files_with_piecewise_linearisations() {
+    let tmp = tempfile::tempdir().unwrap();
+    let read = |config: &str, name: &str| -> Vec<Vec<f64>> {
+        let out = tmp.path().join(name);
+        let o = htfid(&[
+            "theory",
+            config,
+            "--omega",
+            "3,9,13.5,20",
+            "--no-plots",
+            "--truncate",
+            "10",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        fs::read_to_string(out.join("theory.csv"))
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect()
+    };
+    let built_in = read("configs/paper.toml", "built-in");
+    let file = read("configs/paper-model.toml", "file");
+    assert_eq!(built_in.len(), file.len());
+    let max_g = built_in
+        .iter()
+        .map(|r| r[2].hypot(r[3]))
+        .fold(0.0, f64::max);
+    for (a, b) in built_in.iter().zip(&file) {
+        assert_eq!((a[0], a[1]), (b[0], b[1]));
+        let d = (a[2] - b[2]).hypot(a[3] - b[3]);
+        assert!(d <= 1e-12 * max_g, "{a:?} against {b:?}");
+    }
+    assert_eq!(
+        summary(&tmp.path().join("file"))["htf"]["method"],
+        "truncated"
+    );
+
+    let out = tmp.path().join("two-dof");
+    let o = htfid(&[
+        "theory",
+        "configs/two-dof.toml",
+        "--truncate",
+        "10",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("--truncate") && e.contains("not constant within each mode"),
+        "{e}"
+    );
+    assert!(!out.join("theory.csv").exists() && !out.join("summary.json").exists());
+}
+
 /// Reads a theory CSV (`omega,n,re,im`) into `(omega, n) -> G`.
 fn theory_rows(path: &Path) -> Vec<(f64, i32, f64, f64)> {
     let text = fs::read_to_string(path).unwrap();

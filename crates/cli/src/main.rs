@@ -29,6 +29,7 @@ mod report;
 mod results;
 mod settings;
 mod signals;
+mod subject;
 mod validation;
 
 #[derive(Debug, Parser)]

@@ -4,7 +4,6 @@ pub mod diagnose;
 pub mod diagnose_evidence;
 pub mod diagnose_model;
 pub mod estimate;
-pub mod models;
 pub mod run;
 pub mod simulate;
 pub mod theory;

@@ -1,5 +1,6 @@
-//! `htfid run CONFIG`: the whole pipeline: settle onto the limit cycle, excite, simulate,
-//! estimate the HTFs, fit the model parameters, and compare everything with the exact theory.
+//! `htfid run CONFIG`: the whole pipeline for any configured model ([`Subject`]): settle onto
+//! the limit cycle, excite, simulate, estimate the HTFs of every output, fit the model's
+//! parameters, and compare everything with the exact theory.
 
 use std::path::{Path, PathBuf};
 
@@ -9,23 +10,25 @@ use htfid_estimate::{
     UncertaintyBudget,
 };
 use htfid_excite::{alias_map, Polarity};
+use htfid_experiment::distortion_bootstrap;
 use htfid_identify::{budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec};
-use htfid_model::{Hopper, HopperOrbit};
+use htfid_orbit::LimitCycle;
 use htfid_plot::Style;
-use htfid_theory::{HarmonicTransferFunction, Tabulated};
+use htfid_theory::{HarmonicTransferFunction, HtfChannel, LinearisedHtf, Tabulated};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
 use crate::commands::simulate::{
-    base_summary, experiment_grid, experiment_input, fill_limit_cycle, hopper_and_orbit,
-    sample_input, simulate_on, simulate_with_columns, InputColumns, Simulated, LIMIT_CYCLE_HEADER,
+    base_summary, experiment_grid, experiment_input, fill_limit_cycle, limit_cycle_csv,
+    sample_input, simulate_on, simulate_with_columns, write_timeseries, InputColumns, Record,
 };
-use crate::commands::theory::{self, fill_theory_csv, ltp_json, THEORY_HEADER};
+use crate::commands::theory::{fill_theory_csv, suffix, THEORY_HEADER};
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
 use crate::settings::{AlphaSetting, Estimator, Excitation, Settings};
 use crate::signals::Built;
+use crate::subject::{limit_cycle, ltp_json, with_subject, Subject};
 
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> Result<()> {
     let settings = Settings::from_file(config)?;
@@ -37,78 +40,118 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         );
     }
     crate::limits::check_experiment(&settings, crate::limits::Stage::Run)?;
-    if let crate::settings::System::Model(model) = &settings.system {
-        return crate::commands::models::run_model(&settings, model, out, force, no_plots);
-    }
-    let dir = resolve_dir(out, &settings.name);
-    let est_names: Vec<String> = settings
-        .estimation
-        .estimators
-        .iter()
-        .map(|e| format!("estimate_{}.csv", e.name()))
-        .collect();
-    let mut names: Vec<&str> = vec![
+    with_subject!(&settings, |subject| run_on(
+        &settings, subject, out, force, no_plots
+    ))
+}
+
+/// Every file `run` writes for `outputs`.
+fn file_names(settings: &Settings, outputs: &[String], no_plots: bool) -> Vec<String> {
+    let mut names: Vec<String> = [
         "timeseries.csv",
         "limit_cycle.csv",
         "theory.csv",
         "summary.json",
         "report.md",
-    ];
-    names.extend(est_names.iter().map(String::as_str));
-    let plot_names = ["htf_g0", "htf_harmonics"];
-    let plot_files: Vec<String> = plot_names
-        .iter()
-        .flat_map(|p| [format!("{p}.svg"), format!("{p}.png")])
-        .collect();
-    if !no_plots {
-        names.extend(plot_files.iter().map(String::as_str));
+    ]
+    .map(String::from)
+    .to_vec();
+    if outputs.len() > 1 {
+        names.extend(outputs.iter().map(|o| format!("theory_{o}.csv")));
     }
-    let mut outdir = open(&dir, force, &names)?;
+    for est in &settings.estimation.estimators {
+        for o in 0..outputs.len() {
+            names.push(format!("estimate_{}{}.csv", est.name(), suffix(outputs, o)));
+        }
+    }
+    if !no_plots {
+        for stem in ["htf_g0", "htf_harmonics"] {
+            names.push(format!("{stem}.svg"));
+            names.push(format!("{stem}.png"));
+        }
+    }
+    names
+}
+
+fn run_on<S: Subject>(
+    settings: &Settings,
+    subject: &S,
+    out: Option<PathBuf>,
+    force: bool,
+    no_plots: bool,
+) -> Result<()> {
+    let outputs = subject.output_names();
+    let names = file_names(settings, &outputs, no_plots);
+    let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let dir = resolve_dir(out, &settings.name);
+    let mut outdir = open(&dir, force, &name_refs)?;
     let mut stages = Stages::new();
 
-    let (hopper, orbit) = hopper_and_orbit(&settings, &mut stages)?;
-    let theory = theory::from_orbit(&settings, hopper.clone(), orbit.clone(), &mut stages)?;
-    // The exact HTF's table and the sampled orbit need only the orbit, the estimators'
-    // preparation only the input: they are done on the second core while the experiment is
-    // simulated.
-    let theory_csv = outdir.csv("theory.csv", THEORY_HEADER)?;
-    let cycle_csv = outdir.csv("limit_cycle.csv", LIMIT_CYCLE_HEADER)?;
-    let sampled = hopper.clone();
-    let (excitation, grid) = experiment_grid(&settings)?;
-    let (sim, side) = std::thread::scope(|scope| -> Result<_> {
-        let (settings, theory, sampled) = (&settings, &theory, &sampled);
+    let cycle = limit_cycle(settings, subject, &mut stages)?;
+    let htf = stages
+        .run("linearise", || {
+            LinearisedHtf::new(subject, &cycle, &settings.integrator)
+        })
+        .context("linearisation about the orbit failed")?;
+    let channels = (0..outputs.len())
+        .map(|o| htf.channel(o))
+        .collect::<Result<Vec<_>, _>>()?;
+
+    // The HTF's tables and the sampled orbit need only the orbit, the estimators' preparation
+    // only the input: they are done on the second core while the experiment is simulated.
+    let mut theory_csvs = vec![outdir.csv("theory.csv", THEORY_HEADER)?];
+    if outputs.len() > 1 {
+        for o in &outputs {
+            theory_csvs.push(outdir.csv(&format!("theory_{o}.csv"), THEORY_HEADER)?);
+        }
+    }
+    let cycle_csv = limit_cycle_csv(&mut outdir, subject)?;
+    let (excitation, grid) = experiment_grid(settings)?;
+    let (rec, side) = std::thread::scope(|scope| -> Result<_> {
+        let (htf, cycle, channels) = (&htf, &cycle, &channels);
         let (columns_tx, columns_rx) = std::sync::mpsc::channel();
         let side = scope.spawn(move || -> Result<Beside<'_>> {
             let mut local = Stages::silent();
-            // The input is known before the output: its columns of the record are made
-            // here, while the simulation runs, and the estimators are prepared from it.
+            // The input is known before the output: its columns of the record are made here,
+            // while the simulation runs, and the estimators are prepared from it.
             let input = experiment_input(settings);
             if let Ok((_, grid, u)) = &input {
                 // The simulation makes them itself should this thread fail.
-                let _ = columns_tx.send(InputColumns::new(sampled, grid, u.clone()));
+                let _ = columns_tx.send(InputColumns::new(subject, grid, u.clone()));
             }
-            let grid = local.run("exact HTF", || {
-                theory
-                    .exact
-                    .grid(&settings.theory.harmonics, &settings.theory.omegas)
-            });
+            let grids = local
+                .run("HTF", || {
+                    htf.grids(&settings.theory.harmonics, &settings.theory.omegas)
+                })
+                .context("harmonic transfer functions")?;
             local.run("write theory", || -> Result<()> {
-                fill_theory_csv(theory_csv, &grid)?;
-                fill_limit_cycle(cycle_csv, settings, sampled, &theory.orbit)
+                // `theory.csv` is the first output's table; with several outputs each also
+                // has its own.
+                let mut csvs = theory_csvs.into_iter();
+                if let Some(first) = csvs.next() {
+                    fill_theory_csv(first, &grids[0])?;
+                }
+                for (csv, grid) in csvs.zip(&grids) {
+                    fill_theory_csv(csv, grid)?;
+                }
+                fill_limit_cycle(cycle_csv, settings, subject, cycle)
             })?;
-            // The estimators' work on the input alone, too: the input is known before
-            // the output (`htfid_estimate::Design`). Should it fail, the chains prepare
-            // them again from the simulated input and say what is wrong.
+            // The estimators' work on the input alone (`htfid_estimate::Design`); should it
+            // fail, the chains prepare them again from the simulated input and say why.
             let designs = local
                 .run("prepare estimators", || prepare_all(settings, input?))
                 .ok();
-            // The exact HTF at the rows an estimate will have, where the input fixes
+            // Each output's HTF at the rows an estimate will have, where the input fixes
             // them, for its errors.
-            let truths = local.run("exact HTF at the estimates", || {
-                truths_at(&[&theory.exact], designs.as_deref())
+            let truths = local.run("HTF at the estimates", || {
+                let htfs: Vec<&(dyn HarmonicTransferFunction + Sync)> = channels
+                    .iter()
+                    .map(|c| c as &(dyn HarmonicTransferFunction + Sync))
+                    .collect();
+                truths_at(&htfs, designs.as_deref())
             });
             // What the copies cannot separate, for the summary.
-            let aliased = local.run("aliasing", || aliasing(settings, &theory.exact))?;
+            let aliased = local.run("aliasing", || aliasing(settings, &channels[0]))?;
             Ok(Beside {
                 stages: local,
                 designs,
@@ -116,20 +159,21 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
                 aliased,
             })
         });
-        let columns = |hopper: &Hopper, excitation: &Built, grid: &[f64]| {
-            columns_rx
-                .recv()
-                .unwrap_or_else(|_| InputColumns::new(hopper, grid, sample_input(excitation, grid)))
+        let columns = |excitation: &Built, grid: &[f64]| {
+            columns_rx.recv().unwrap_or_else(|_| {
+                InputColumns::new(subject, grid, sample_input(excitation, grid))
+            })
         };
-        let sim = simulate_with_columns(
+        let rec = simulate_with_columns(
             settings,
-            (hopper, orbit),
+            subject,
+            cycle,
             (excitation, grid),
             columns,
             &mut stages,
         );
         let side = side.join().expect("the theory writer does not panic");
-        Ok((sim?, side?))
+        Ok((rec?, side?))
     })?;
     let Beside {
         stages: side,
@@ -138,86 +182,68 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
         aliased,
     } = side;
     stages.absorb(side);
-    let deviation = stages.run("orbit deviation", || orbit_deviation(&settings, &sim))?;
+    let deviation = stages.run("orbit deviation", || {
+        orbit_deviation(settings, subject, &cycle, &rec)
+    })?;
 
     // The time series is the largest file; it is written on the second core while the
-    // estimators and fits run, and each estimator's chain writes its own estimates.
+    // estimators and fits run, one thread per estimator.
     let ts_path = outdir.path_for("timeseries.csv")?;
     let est_csvs = settings
         .estimation
         .estimators
         .iter()
-        .map(|e| outdir.csv(&format!("estimate_{}.csv", e.name()), ESTIMATE_HEADER))
-        .collect::<Result<Vec<_>, _>>()?;
-    let sim_ref = &sim;
-    let (estimates, errors, fits, alpha) = std::thread::scope(|scope| -> Result<_> {
-        let writer =
-            scope.spawn(move || crate::commands::simulate::write_timeseries(&ts_path, sim_ref));
-        // Each estimator's chain (estimate, fit, uncertainty) is independent of the others':
-        // one thread each.
-        let mut designs = designs.map(Vec::into_iter);
-        let mut truths = truths.into_iter();
-        let chains: Vec<_> = settings
-            .estimation
-            .estimators
-            .iter()
-            .zip(est_csvs)
-            .map(|(&est, csv)| {
-                let (settings, sim, deviation, theory) = (&settings, sim_ref, &deviation, &theory);
-                let prepared = designs.as_mut().and_then(Iterator::next);
-                // One output: its truth.
-                let truth = truths.next().flatten().and_then(|t| t.into_iter().next());
-                scope.spawn(move || {
-                    let mut local = Stages::silent();
-                    let chain = estimator_chain(
-                        settings,
-                        sim,
-                        deviation,
-                        &theory.exact,
-                        (est, csv, prepared, truth),
-                        &mut local,
-                    );
-                    (local, chain)
+        .map(|est| {
+            (0..outputs.len())
+                .map(|o| {
+                    let name = format!("estimate_{}{}.csv", est.name(), suffix(&outputs, o));
+                    outdir.csv(&name, ESTIMATE_HEADER)
                 })
-            })
-            .collect();
-        let mut estimates: Vec<(Estimator, HtfEstimate)> = Vec::new();
-        let mut errors = serde_json::Map::new();
-        let mut fits = serde_json::Map::new();
-        let mut alpha = serde_json::Map::new();
-        for handle in chains {
-            let (local, chain) = handle.join().expect("an estimator chain does not panic");
-            stages.absorb(local);
-            let chain = chain?;
-            errors.insert(chain.est.name().into(), chain.errors);
-            fits.insert(chain.est.name().into(), chain.fit);
-            if let Some(a) = chain.estimate.alpha() {
-                alpha.insert(
-                    chain.est.name().into(),
-                    json!({"alpha": a, "alpha_effective": chain.estimate.alpha_effective()}),
-                );
-            }
-            estimates.push((chain.est, chain.estimate));
-        }
-
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let rec_ref = &rec;
+    let found = std::thread::scope(|scope| -> Result<_> {
+        let writer = scope.spawn(move || write_timeseries(&ts_path, subject, rec_ref));
+        let experiment = Experiment {
+            settings,
+            subject,
+            cycle: &cycle,
+            rec: rec_ref,
+        };
+        let found = experiment.estimate_and_fit(
+            &channels,
+            &deviation,
+            est_csvs,
+            (designs, truths),
+            &mut stages,
+        );
         writer.join().expect("the CSV writer does not panic")?;
-        Ok((estimates, errors, fits, alpha))
+        found
     })?;
-
+    let Found {
+        estimates,
+        errors,
+        fits,
+        alpha,
+    } = found;
+    let g_unit = subject.htf_unit();
     if !no_plots {
         stages.run("plots", || {
             run_plots(
                 &mut outdir,
-                &settings,
-                &theory.exact,
-                &estimates,
-                Some("m/N"),
+                settings,
+                &channels[0],
+                &estimates[0],
+                g_unit.as_deref(),
             )
         })?;
     }
-
-    let mut summary = base_summary(&settings, &sim);
-    summary["ltp"] = ltp_json(&theory);
+    let mut summary = base_summary(settings, subject, &cycle, &rec)?;
+    summary["ltp"] = ltp_json(subject, &htf, &cycle);
+    if subject.run_htf_block() {
+        summary["htf"] = json!({"method": subject.method_name(htf.method()), "outputs": outputs});
+    }
     summary["alpha"] = Value::Object(alpha);
     summary["fit"] = Value::Object(fits);
     summary["errors"] = Value::Object(errors);
@@ -230,22 +256,12 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
     if let Some(a) = aliased {
         summary["aliasing"] = a;
     }
-    if let Some(d) = &sim.excitation.design {
+    if let Some(d) = &rec.excitation.design {
         summary["design"] = serde_json::to_value(d.report())?;
     }
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
-    let configured = settings.hopper("run").ok().map(|(p, _, _)| p);
-    let info = |name: &str| crate::report::ParamInfo {
-        // The fit frees only k and c (settings check `estimation.fit`).
-        configured: configured.and_then(|p| match name {
-            "k" => Some(p.k),
-            "c" => Some(p.c),
-            "m" => Some(p.m),
-            _ => None,
-        }),
-        unit: crate::results::hopper_unit(name).map(str::to_string),
-    };
+    let info = |name: &str| subject.parameter_info(name);
     outdir.write_text(
         "report.md",
         &crate::report::run(
@@ -253,12 +269,12 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> 
             &settings.path,
             &settings.estimation.fit,
             &info,
-            Some("m/N"),
+            g_unit.as_deref(),
             !no_plots,
         ),
     )?;
     let written = outdir.commit()?;
-    let unit = |name: &str| crate::results::hopper_unit(name).map(str::to_string);
+    let unit = |name: &str| subject.parameter_unit(name);
     crate::results::run(&summary, &settings.estimation.fit, &unit, &dir, &written);
     Ok(())
 }
@@ -268,95 +284,247 @@ struct Beside<'a> {
     stages: Stages,
     /// The estimators prepared from the input.
     designs: Option<Vec<Prepared>>,
-    /// The exact HTF at the rows the estimates will have.
+    /// Each output's HTF at the rows the estimates will have.
     truths: Truths<'a>,
     /// The aliasing table of `summary.json`.
     aliased: Option<Value>,
 }
 
-/// The deviation of the measured position from the limit cycle at every sample (what the
-/// estimators see; `htfid_experiment::orbit_deviation`).
-fn orbit_deviation(settings: &Settings, sim: &Simulated) -> Result<Vec<f64>> {
-    let mut d = htfid_experiment::orbit_deviation(
-        &sim.hopper,
-        &sim.orbit.cycle,
-        &sim.t,
-        std::slice::from_ref(&sim.x),
+/// What the estimators see: each output minus its value on the unexcited orbit
+/// (`htfid_experiment::orbit_deviation`).
+fn orbit_deviation<S: Subject>(
+    settings: &Settings,
+    subject: &S,
+    cycle: &LimitCycle<S::Mode>,
+    rec: &Record<S>,
+) -> Result<Vec<Vec<f64>>> {
+    htfid_experiment::orbit_deviation(
+        subject,
+        cycle,
+        rec.record.time(),
+        rec.record.outputs(),
         &settings.integrator,
     )
-    .map_err(|e| crate::limits::experiment_failed(settings, crate::limits::Simulated::Orbit, e))?;
-    Ok(d.swap_remove(0))
+    .map_err(|e| crate::limits::experiment_failed(settings, crate::limits::Simulated::Orbit, e))
 }
 
-/// One estimator's results: its estimate, its errors against the exact HTF, and its
-/// parametric fit with the uncertainty budget.
+type Estimates = Vec<Vec<(Estimator, HtfEstimate)>>;
+type JsonMap = serde_json::Map<String, Value>;
+
+/// The estimates per output and estimator and the `summary.json` blocks made from them.
+struct Found {
+    estimates: Estimates,
+    errors: JsonMap,
+    fits: JsonMap,
+    alpha: JsonMap,
+}
+
+/// One simulated experiment on a model, from its orbit.
+struct Experiment<'a, S: Subject> {
+    settings: &'a Settings,
+    subject: &'a S,
+    cycle: &'a LimitCycle<S::Mode>,
+    rec: &'a Record<S>,
+}
+
+/// One estimator's results: its estimates of every output, their errors against the exact
+/// HTFs, and the parametric fit to all of them with its uncertainty budget.
 struct Chain {
-    est: Estimator,
-    estimate: HtfEstimate,
-    errors: serde_json::Value,
-    fit: serde_json::Value,
+    estimates: Vec<HtfEstimate>,
+    errors: Vec<Value>,
+    fit: Value,
 }
 
-/// Estimate, errors, fit and uncertainty of one estimator, timed in `stages`; the errors
-/// against the theory and the estimates' file (`csv`) are done on a thread of their own while
-/// the fit runs.
-fn estimator_chain(
-    settings: &Settings,
-    sim: &Simulated,
-    deviation: &[f64],
-    exact: &(dyn HarmonicTransferFunction + Sync),
-    (est, csv, prepared, truth): (
-        Estimator,
-        htfid_data::CsvWriter,
-        Option<Prepared>,
-        Option<Tabulated<'_>>,
-    ),
-    stages: &mut Stages,
-) -> Result<Chain> {
-    let e = stages
-        .run(&format!("estimate ({})", est.name()), || {
-            // Prepared from the experiment's input, computed as the simulation computes it;
-            // checked sample by sample, and prepared again should it ever differ.
-            match prepared.filter(|p| p.serves(&sim.u)) {
-                Some(p) => p.estimate(deviation),
-                None => estimate(settings, (&sim.t, &sim.u), &sim.excitation, deviation, est),
-            }
-        })
-        .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
-    let (errors, fit) = std::thread::scope(|scope| -> Result<_> {
-        let e = &e;
-        let side = scope.spawn(move || -> Result<(Stages, Value)> {
-            let mut local = Stages::silent();
-            let errors = local.run(&format!("errors ({})", est.name()), || match &truth {
-                Some(truth) => harmonic_errors(settings, truth, e),
-                None => harmonic_errors(settings, exact, e),
-            });
-            local.run(&format!("write estimate ({})", est.name()), || {
-                fill_estimate_csv(csv, e)
-            })?;
-            Ok((local, errors))
+impl<S: Subject> Experiment<'_, S> {
+    /// Estimates per output and estimator, their errors against the theory, and the fits
+    /// (one per estimator, to the estimates of every output together), each estimator's on
+    /// a thread of its own, which also writes its estimates into `csvs` (one per output).
+    fn estimate_and_fit(
+        &self,
+        channels: &[HtfChannel<'_, '_, S>],
+        deviation: &[Vec<f64>],
+        csvs: Vec<Vec<htfid_data::CsvWriter>>,
+        (designs, truths): (Option<Vec<Prepared>>, Truths<'_>),
+        stages: &mut Stages,
+    ) -> Result<Found> {
+        let settings = self.settings;
+        let outputs = self.subject.output_names();
+        let mut designs = designs.map(Vec::into_iter);
+        let mut truths = truths.into_iter();
+        let chains = std::thread::scope(|scope| {
+            let handles: Vec<_> = settings
+                .estimation
+                .estimators
+                .iter()
+                .zip(csvs)
+                .map(|(&est, csvs)| {
+                    let prepared = designs.as_mut().and_then(Iterator::next);
+                    let truth = truths.next().flatten();
+                    scope.spawn(move || {
+                        let mut local = Stages::silent();
+                        let found = self.chain(
+                            channels,
+                            deviation,
+                            (est, csvs, prepared, truth),
+                            &mut local,
+                        );
+                        (local, found)
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("an estimator chain does not panic"))
+                .collect::<Vec<_>>()
         });
-        let fit = stages
-            .run(&format!("fit ({})", est.name()), || {
-                fit_parameters(settings, sim, e)
-            })
-            .with_context(|| format!("parametric fit to the \"{}\" estimates failed", est.name()));
-        let (local, errors) = side.join().expect("the estimate writer does not panic")?;
-        stages.absorb(local);
-        Ok((errors, fit?))
-    })?;
-    let mut json = fit_json(settings, &fit);
-    json["uncertainty"] = stages.run(&format!("uncertainty ({})", est.name()), || {
-        budget_json(&fit, e.method(), || {
-            distortion_bootstrap(settings, est, sim, &fit)
+        let mut found = Found {
+            estimates: vec![Vec::new(); outputs.len()],
+            errors: JsonMap::new(),
+            fits: JsonMap::new(),
+            alpha: JsonMap::new(),
+        };
+        for ((local, chain), &est) in chains.into_iter().zip(&settings.estimation.estimators) {
+            stages.absorb(local);
+            let chain = chain?;
+            if let Some(a) = chain.estimates[0].alpha() {
+                found.alpha.insert(
+                    est.name().into(),
+                    json!({"alpha": a, "alpha_effective": chain.estimates[0].alpha_effective()}),
+                );
+            }
+            for (o, (e, err)) in chain.estimates.into_iter().zip(chain.errors).enumerate() {
+                found
+                    .errors
+                    .insert(format!("{}{}", est.name(), suffix(&outputs, o)), err);
+                found.estimates[o].push((est, e));
+            }
+            found.fits.insert(est.name().into(), chain.fit);
+        }
+        Ok(found)
+    }
+
+    /// Estimates, errors, fit and uncertainty of one estimator, timed in `stages`; the errors
+    /// against the theory and the estimates' files (`csvs`) are done on a thread of their own
+    /// while the fit runs.
+    fn chain(
+        &self,
+        channels: &[HtfChannel<'_, '_, S>],
+        deviation: &[Vec<f64>],
+        (est, csvs, prepared, truth): (
+            Estimator,
+            Vec<htfid_data::CsvWriter>,
+            Option<Prepared>,
+            Option<Vec<Tabulated<'_>>>,
+        ),
+        stages: &mut Stages,
+    ) -> Result<Chain> {
+        let (settings, rec) = (self.settings, self.rec);
+        let outputs = self.subject.output_names();
+        // Every output is estimated with the estimator prepared once from the input: during
+        // the simulation from the same input, checked sample by sample, or here.
+        let input = rec.record.input();
+        let prepared = match prepared.filter(|p| p.serves(input)) {
+            Some(p) => p,
+            None => stages
+                .run(&format!("prepare ({})", est.name()), || {
+                    design(settings, (rec.record.time(), input), &rec.excitation, est)
+                })
+                .with_context(|| format!("estimator \"{}\" failed", est.name()))?,
+        };
+        let mut estimates = Vec::new();
+        for (o, y) in deviation.iter().enumerate() {
+            let label = if outputs.len() > 1 {
+                format!("estimate ({}, {})", est.name(), outputs[o])
+            } else {
+                format!("estimate ({})", est.name())
+            };
+            let e = stages
+                .run(&label, || prepared.estimate(y))
+                .with_context(|| format!("estimator \"{}\" failed", est.name()))?;
+            estimates.push(e);
+        }
+        let (errors, fit) = std::thread::scope(|scope| -> Result<_> {
+            let estimates = &estimates;
+            let side = scope.spawn(move || -> Result<(Stages, Vec<Value>)> {
+                let mut local = Stages::silent();
+                let errors = local.run(&format!("errors ({})", est.name()), || {
+                    estimates
+                        .iter()
+                        .enumerate()
+                        .map(|(o, e)| match &truth {
+                            Some(truth) => harmonic_errors(settings, &truth[o], e),
+                            None => harmonic_errors(settings, &channels[o], e),
+                        })
+                        .collect()
+                });
+                local.run(&format!("write estimate ({})", est.name()), || {
+                    csvs.into_iter()
+                        .zip(estimates)
+                        .try_for_each(|(csv, e)| fill_estimate_csv(csv, e))
+                })?;
+                Ok((local, errors))
+            });
+            let of_outputs: Vec<(usize, &HtfEstimate)> = estimates.iter().enumerate().collect();
+            let fit = stages
+                .run(&format!("fit ({})", est.name()), || {
+                    Ok::<_, anyhow::Error>(fit_to_htf(
+                        self.subject,
+                        self.cycle,
+                        &of_outputs,
+                        &fit_spec(settings),
+                        &settings.integrator,
+                    )?)
+                })
+                .with_context(|| {
+                    format!("parametric fit to the \"{}\" estimates failed", est.name())
+                });
+            let (local, errors) = side.join().expect("the estimate writer does not panic")?;
+            stages.absorb(local);
+            Ok((errors, fit?))
+        })?;
+        let mut json = fit_json(settings, &fit);
+        json["uncertainty"] = stages.run(&format!("uncertainty ({})", est.name()), || {
+            budget_json(&fit, estimates[0].method(), || self.bootstrap(est, &fit))
+        });
+        Ok(Chain {
+            estimates,
+            errors,
+            fit: json,
         })
-    });
-    Ok(Chain {
-        est,
-        estimate: e,
-        errors,
-        fit: json,
-    })
+    }
+
+    /// The error the estimator and fit make without noise on the fitted model
+    /// (`htfid_experiment::distortion_bootstrap`): the experiment simulated again on it
+    /// without noise, estimated per output the same way. Returns the HTF error at every
+    /// fitted point and the parameter error.
+    fn bootstrap(&self, est: Estimator, fit: &HtfFit) -> Result<(Vec<Complex64>, Vec<f64>)> {
+        let mut again = self.settings.clone();
+        again.noise = None;
+        let b = distortion_bootstrap(
+            self.subject,
+            self.cycle,
+            fit,
+            &fit_spec(self.settings),
+            &again.integrator,
+            |fitted: &S, orbit: &LimitCycle<S::Mode>| -> Result<Vec<HtfEstimate>> {
+                let mut quiet = Stages::silent();
+                let rec = simulate_on(&again, fitted, orbit, &mut quiet)?;
+                orbit_deviation(&again, fitted, orbit, &rec)?
+                    .iter()
+                    .map(|y| {
+                        estimate(
+                            &again,
+                            (rec.record.time(), rec.record.input()),
+                            &rec.excitation,
+                            y,
+                            est,
+                        )
+                    })
+                    .collect()
+            },
+        )?;
+        Ok((b.htf_bias, b.parameter_bias))
+    }
 }
 
 /// Estimates the HTFs of output `y` driven by `u` (sampled at `t`) with `est`, reading the
@@ -573,37 +741,6 @@ pub(crate) fn budget_json(
     }
 }
 
-/// The error the estimator and fit make without noise on the fitted model
-/// (`htfid_experiment::distortion_bootstrap`): the experiment simulated again at the fitted
-/// parameters with the noise left out, estimated and fitted the same way. Returns the HTF
-/// error at every fitted point and the parameter error.
-fn distortion_bootstrap(
-    settings: &Settings,
-    est: Estimator,
-    sim: &Simulated,
-    fit: &HtfFit,
-) -> Result<(Vec<Complex64>, Vec<f64>)> {
-    let mut again = settings.clone();
-    again.noise = None;
-    let b = htfid_experiment::distortion_bootstrap(
-        &sim.hopper,
-        &sim.orbit.cycle,
-        fit,
-        &fit_spec(settings),
-        &again.integrator,
-        // The experiment as configured, on the fitted hopper from its orbit.
-        |fitted: &Hopper, orbit| -> Result<Vec<HtfEstimate>> {
-            let orbit = HopperOrbit::from_cycle(orbit.clone())?;
-            let mut quiet = Stages::silent();
-            let sim = simulate_on(&again, fitted.clone(), orbit, &mut quiet)?;
-            let deviation = orbit_deviation(&again, &sim)?;
-            let e = estimate(&again, (&sim.t, &sim.u), &sim.excitation, &deviation, est)?;
-            Ok(vec![e])
-        },
-    )?;
-    Ok((b.htf_bias, b.parameter_bias))
-}
-
 /// `fit.<estimator>.uncertainty` of `summary.json` (docs/outputs.md).
 pub(crate) fn uncertainty_json(
     names: &[String],
@@ -636,20 +773,6 @@ pub(crate) fn uncertainty_json(
         "clusters": b.clusters,
         "parameters": parameters,
     })
-}
-
-/// The configured parameters of the built-in hopper fitted to the estimates
-/// (`htfid_identify::fit_to_htf`), from its own limit cycle.
-fn fit_parameters(settings: &Settings, sim: &Simulated, e: &HtfEstimate) -> Result<HtfFit> {
-    let (nominal, damper, effects) = settings.hopper("run")?;
-    let hopper = Hopper::with_effects(nominal, damper, effects)?;
-    Ok(fit_to_htf(
-        &hopper,
-        &sim.orbit.cycle,
-        &[(0, e)],
-        &fit_spec(settings),
-        &settings.integrator,
-    )?)
 }
 
 /// The configured parametric fit: parameters, harmonics and band.

@@ -1,45 +1,55 @@
-//! `htfid simulate CONFIG`: the limit cycle and the excited time series.
+//! `htfid simulate CONFIG`: the limit cycle and the excited time series, for any configured
+//! model ([`Subject`]).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use htfid_data::OutputDir;
+use htfid_data::{CsvWriter, OutputDir, TimeSeries};
 use htfid_experiment::{add_noise, drive_sampled, Driven};
-use htfid_hybrid::{SlidingInterval, Stats};
-use htfid_model::{Hopper, HopperMode, HopperOrbit};
-use htfid_orbit::ShootingOptions;
-use serde_json::{json, Value};
+use htfid_hybrid::{simulate, SlidingInterval, Stats};
+use htfid_orbit::LimitCycle;
+use serde_json::{json, Map, Value};
 
 use crate::output::{json_text, open, resolve_dir};
 use crate::progress::Stages;
-use crate::settings::{Settings, System};
+use crate::settings::Settings;
 use crate::signals::{self, Built};
+use crate::subject::{limit_cycle, with_subject, Column, Subject};
 
 /// Samples of the orbit written to `limit_cycle.csv`.
 const ORBIT_SAMPLES: usize = 1000;
 
-/// Everything `simulate` computes; `run` continues from it.
-pub struct Simulated {
-    pub hopper: Hopper,
-    pub orbit: HopperOrbit,
+/// The configured experiment simulated from the orbit.
+pub struct Record<S: Subject> {
+    /// The input and every output as recorded (sensor and measurement noise applied).
+    pub record: TimeSeries,
+    /// The columns the model derives from the time and the input ([`Subject::input_columns`]).
+    pub derived: Vec<Vec<f64>>,
+    /// Per state.
+    pub states: Vec<Vec<f64>>,
+    /// The mode at every sample ([`Subject::mode_value`]).
+    pub modes: Vec<f64>,
     pub excitation: Built,
-    pub t: Vec<f64>,
-    pub f: Vec<f64>,
-    pub u: Vec<f64>,
-    pub x: Vec<f64>,
-    pub xd: Vec<f64>,
     pub stats: Stats,
     pub switches: usize,
-    /// Intervals during which the mass sticks (slides along the damper switch).
-    pub sliding: Vec<SlidingInterval<HopperMode>>,
+    /// Intervals during which the orbit slides along a switching surface.
+    pub sliding: Vec<SlidingInterval<S::Mode>>,
 }
 
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
     let settings = Settings::from_file(config)?;
     crate::limits::check_experiment(&settings, crate::limits::Stage::Simulate)?;
-    if let System::Model(model) = &settings.system {
-        return crate::commands::models::simulate_model(&settings, model, out, force);
-    }
+    with_subject!(&settings, |subject| simulate_command(
+        &settings, subject, out, force
+    ))
+}
+
+fn simulate_command<S: Subject>(
+    settings: &Settings,
+    subject: &S,
+    out: Option<PathBuf>,
+    force: bool,
+) -> Result<()> {
     let dir = resolve_dir(out, &settings.name);
     let mut outdir = open(
         &dir,
@@ -47,44 +57,20 @@ pub fn run(config: &Path, out: Option<PathBuf>, force: bool) -> Result<()> {
         &["timeseries.csv", "limit_cycle.csv", "summary.json"],
     )?;
     let mut stages = Stages::new();
-    let sim = simulate_experiment(&settings, &mut stages)?;
-    stages.run("write outputs", || {
-        write_simulation(&settings, &sim, &mut outdir)
+    let cycle = limit_cycle(settings, subject, &mut stages)?;
+    let rec = simulate_on(settings, subject, &cycle, &mut stages)?;
+    stages.run("write outputs", || -> Result<()> {
+        let path = outdir.path_for("timeseries.csv")?;
+        write_timeseries(&path, subject, &rec)?;
+        let csv = limit_cycle_csv(&mut outdir, subject)?;
+        fill_limit_cycle(csv, settings, subject, &cycle)
     })?;
-    let mut summary = base_summary(&settings, &sim);
+    let mut summary = base_summary(settings, subject, &cycle, &rec)?;
     summary["timings_ms"] = stages.to_json();
     outdir.write_text("summary.json", &json_text(&summary))?;
     let written = outdir.commit()?;
     crate::results::simulate(&summary, &dir, &written);
     Ok(())
-}
-
-/// The configured hopper and its limit cycle (settling plus Newton shooting).
-pub fn hopper_and_orbit(settings: &Settings, stages: &mut Stages) -> Result<(Hopper, HopperOrbit)> {
-    let (params, damper, effects) = settings.hopper("simulate")?;
-    let hopper = Hopper::with_effects(params, damper, effects)
-        .with_context(|| format!("{}: invalid model", settings.path.display()))?;
-    let shooting = ShootingOptions {
-        settle_periods: settings.settle_periods.max(30),
-        ..ShootingOptions::default()
-    };
-    let orbit = stages
-        .run("limit cycle", || {
-            hopper.limit_cycle(&shooting, &settings.integrator)
-        })
-        .with_context(|| {
-            format!(
-                "{}: model: no limit cycle for these parameters ([model] and [forcing])",
-                settings.path.display()
-            )
-        })?;
-    Ok((hopper, orbit))
-}
-
-/// Limit cycle, then the whole experiment from `t = 0` on the orbit.
-pub fn simulate_experiment(settings: &Settings, stages: &mut Stages) -> Result<Simulated> {
-    let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
-    simulate_on(settings, hopper, orbit, stages)
 }
 
 /// The configured excitation, the record's sample times and the input at them: what an
@@ -110,38 +96,35 @@ pub fn sample_input(excitation: &Built, grid: &[f64]) -> Vec<f64> {
     }
 }
 
-/// The input `u` and the commanded force `f = forcing + u` at the sample times `grid`: the
-/// columns of the record that the simulation does not produce.
+/// The input `u` at the sample times and the columns the model derives from it: the columns
+/// of the record that the simulation does not produce.
 pub struct InputColumns {
     pub u: Vec<f64>,
-    pub f: Vec<f64>,
+    pub derived: Vec<Vec<f64>>,
 }
 
 impl InputColumns {
-    pub fn new(hopper: &Hopper, grid: &[f64], u: Vec<f64>) -> Self {
-        let f = grid
-            .iter()
-            .zip(&u)
-            .map(|(&t, &u)| hopper.forcing(t) + u)
-            .collect();
-        Self { u, f }
+    pub fn new<S: Subject>(subject: &S, grid: &[f64], u: Vec<f64>) -> Self {
+        let derived = subject.input_columns(grid, &u);
+        Self { u, derived }
     }
 }
 
-/// The configured experiment on `hopper`, from `t = 0` on its limit cycle `orbit`.
-pub fn simulate_on(
+/// The configured experiment on `subject`, from `t = 0` on its limit cycle `cycle`.
+pub fn simulate_on<S: Subject>(
     settings: &Settings,
-    hopper: Hopper,
-    orbit: HopperOrbit,
+    subject: &S,
+    cycle: &LimitCycle<S::Mode>,
     stages: &mut Stages,
-) -> Result<Simulated> {
+) -> Result<Record<S>> {
     let (excitation, grid) = experiment_grid(settings)?;
-    let columns = |hopper: &Hopper, excitation: &Built, grid: &[f64]| {
-        InputColumns::new(hopper, grid, sample_input(excitation, grid))
+    let columns = |excitation: &Built, grid: &[f64]| {
+        InputColumns::new(subject, grid, sample_input(excitation, grid))
     };
     simulate_with_columns(
         settings,
-        (hopper, orbit),
+        subject,
+        cycle,
         (excitation, grid),
         columns,
         stages,
@@ -150,25 +133,27 @@ pub fn simulate_on(
 
 /// [`simulate_on`] with the input's columns from `columns`, called once the trajectory is
 /// known: a caller may have them computed on another thread meanwhile.
-pub fn simulate_with_columns(
+pub fn simulate_with_columns<S: Subject>(
     settings: &Settings,
-    (hopper, orbit): (Hopper, HopperOrbit),
+    subject: &S,
+    cycle: &LimitCycle<S::Mode>,
     (excitation, grid): (Built, Vec<f64>),
-    columns: impl FnOnce(&Hopper, &Built, &[f64]) -> InputColumns,
+    columns: impl FnOnce(&Built, &[f64]) -> InputColumns,
     stages: &mut Stages,
-) -> Result<Simulated> {
+) -> Result<Record<S>> {
     let n = grid.len();
     let mut input = None;
     let driven = stages
         .run("simulate", || {
+            // The outputs read the input's values already sampled.
             drive_sampled(
-                &hopper,
-                &orbit.cycle,
+                subject,
+                cycle,
                 excitation.input_fn(),
                 &grid,
                 &settings.integrator,
                 || {
-                    let c = columns(&hopper, &excitation, &grid);
+                    let c = columns(&excitation, &grid);
                     let u = c.u.clone();
                     input = Some(c);
                     u
@@ -178,144 +163,156 @@ pub fn simulate_with_columns(
         .map_err(|e| {
             crate::limits::experiment_failed(settings, crate::limits::Simulated::Experiment, e)
         })?;
-    let InputColumns { u, f } = input.context("the simulation read the input's columns")?;
+    let InputColumns { u, derived } = input.context("the simulation read the input's columns")?;
     let Driven {
         trajectory: traj,
         mut outputs,
     } = driven;
-    // The position sensor's lag, offset and gain, then measurement noise on the recorded
-    // position (seeded), as configured.
-    settings
-        .sensor()
-        .apply(1.0 / settings.sample_rate, &mut outputs[0]);
+    // The first output's sensor (the hopper's `[effects]` lag, offset and gain; ideal for a
+    // model file, whose outputs are written in the model), then measurement noise on every
+    // output (seeded), as configured.
+    if let Some(first) = outputs.first_mut() {
+        settings.sensor().apply(1.0 / settings.sample_rate, first);
+    }
     if let Some(noise) = settings.noise {
         add_noise(&mut outputs, noise.output_std, noise.seed).context("noise.output_std")?;
     }
-    let x = outputs.swap_remove(0);
-    let xd = (0..n).map(|i| traj.state(i)[1]).collect();
+    let states: Vec<Vec<f64>> = (0..subject.dim())
+        .map(|j| (0..n).map(|i| traj.state(i)[j]).collect())
+        .collect();
+    let modes = traj.modes.iter().map(|&m| subject.mode_value(m)).collect();
     let switches = traj.switches().count();
-    let sliding = traj.sliding.clone();
-    Ok(Simulated {
-        hopper,
-        orbit,
+    let record = TimeSeries::with_outputs(grid, u, outputs, settings.path.clone())
+        .context("the simulated record")?;
+    Ok(Record {
+        record,
+        derived,
+        states,
+        modes,
         excitation,
-        t: grid,
-        f,
-        u,
-        x,
-        xd,
         stats: traj.stats,
         switches,
-        sliding,
+        sliding: traj.sliding,
     })
 }
 
-/// `timeseries.csv` and `limit_cycle.csv`.
-pub fn write_simulation(settings: &Settings, sim: &Simulated, out: &mut OutputDir) -> Result<()> {
-    let path = out.path_for("timeseries.csv")?;
-    write_timeseries(&path, sim)?;
-    write_limit_cycle(settings, sim, out)
-}
-
-/// `timeseries.csv` to an already registered path (so it can be written on another thread).
-pub fn write_timeseries(path: &Path, sim: &Simulated) -> Result<()> {
-    htfid_data::write_timeseries_csv(
-        path,
-        &sim.t,
-        &[("f", &sim.f), ("x", &sim.x), ("xd", &sim.xd), ("u", &sim.u)],
-    )?;
+/// `timeseries.csv` to an already registered path (so it can be written on another thread):
+/// `t` and the model's columns ([`Subject::timeseries_columns`]).
+pub fn write_timeseries<S: Subject>(path: &Path, subject: &S, rec: &Record<S>) -> Result<()> {
+    let named = subject.timeseries_columns();
+    let columns: Vec<(&str, &[f64])> = named
+        .iter()
+        .map(|(name, column)| {
+            let values: &[f64] = match *column {
+                Column::Input => rec.record.input(),
+                Column::Derived(i) => &rec.derived[i],
+                Column::Output(i) => &rec.record.outputs()[i],
+                Column::State(i) => &rec.states[i],
+                Column::Mode => &rec.modes,
+            };
+            (name.as_str(), values)
+        })
+        .collect();
+    htfid_data::write_timeseries_csv(path, rec.record.time(), &columns)?;
     Ok(())
 }
 
-/// The columns of `limit_cycle.csv`.
-pub const LIMIT_CYCLE_HEADER: &[&str] = &["phase", "x", "xd", "s", "stick"];
-
-/// `limit_cycle.csv`.
-pub fn write_limit_cycle(settings: &Settings, sim: &Simulated, out: &mut OutputDir) -> Result<()> {
-    fill_limit_cycle(
-        out.csv("limit_cycle.csv", LIMIT_CYCLE_HEADER)?,
-        settings,
-        &sim.hopper,
-        &sim.orbit,
-    )
+/// `limit_cycle.csv` opened with its header: `phase` and the model's columns
+/// ([`Subject::cycle_columns`]).
+pub fn limit_cycle_csv<S: Subject>(outdir: &mut OutputDir, subject: &S) -> Result<CsvWriter> {
+    let mut header = vec!["phase".to_string()];
+    header.extend(subject.cycle_columns());
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    Ok(outdir.csv("limit_cycle.csv", &header)?)
 }
 
-/// Writes the rows of `limit_cycle.csv` into `csv` (opened with [`LIMIT_CYCLE_HEADER`]).
-pub fn fill_limit_cycle(
-    mut csv: htfid_data::CsvWriter,
+/// Writes the rows of `limit_cycle.csv` into `csv` (from [`limit_cycle_csv`]): one period of
+/// the orbit, input off: the states, the mode, and 1 where the orbit slides.
+pub fn fill_limit_cycle<S: Subject>(
+    mut csv: CsvWriter,
     settings: &Settings,
-    hopper: &Hopper,
-    orbit: &HopperOrbit,
+    subject: &S,
+    cycle: &LimitCycle<S::Mode>,
 ) -> Result<()> {
-    let samples = hopper.sample_orbit(orbit, ORBIT_SAMPLES, &settings.integrator)?;
-    for s in &samples {
-        // While stuck the velocity is zero and `s` is the chart the mass arrived in; the
-        // `stick` column marks those phases.
-        csv.write_row(&[s.phase, s.x, s.xd, s.s, f64::from(u8::from(s.stick))])?;
+    let period = cycle.period;
+    let phases: Vec<f64> = (0..ORBIT_SAMPLES)
+        .map(|i| period * i as f64 / ORBIT_SAMPLES as f64)
+        .collect();
+    let unforced = subject.with_input(None);
+    let orbit = simulate(
+        &unforced,
+        cycle.mode0,
+        0.0,
+        &cycle.state0,
+        period,
+        &phases,
+        &settings.integrator,
+    )?;
+    let mut row = Vec::with_capacity(subject.dim() + 3);
+    for (i, &phase) in phases.iter().enumerate() {
+        row.clear();
+        row.push(phase);
+        row.extend_from_slice(orbit.state(i));
+        row.push(subject.mode_value(orbit.modes[i]));
+        row.push(f64::from(u8::from(orbit.sliding_at(phase).is_some())));
+        csv.write_row(&row)?;
     }
     csv.finish()?;
     Ok(())
 }
 
-/// The `limit_cycle` block of `summary.json`.
-pub fn limit_cycle_json(orbit: &HopperOrbit) -> Value {
-    let c = &orbit.cycle;
-    let n = c.jacobian.nrows();
-    let jac: Vec<Vec<f64>> = (0..n)
-        .map(|i| (0..n).map(|j| c.jacobian[(i, j)]).collect())
-        .collect();
-    json!({
-        "period": c.period,
-        "t_on": orbit.t_on,
-        "t_off": orbit.t_off,
-        "duty": orbit.duty,
-        "state_phase0": c.state0,
-        "mode_phase0": c.mode0,
-        "period_map_jacobian": jac,
-        "floquet_multipliers": c.multipliers.iter().map(|m| [m.re, m.im]).collect::<Vec<_>>(),
-        "periodicity_residual": c.residual,
-        "newton_iterations": c.newton_iterations,
-        "stick_intervals": sliding_json(&c.sliding, c.t0),
-        "stick_fraction": c.sliding.iter().map(|s| s.end - s.start).sum::<f64>() / c.period,
-    })
+/// The `simulation` block of `summary.json`.
+fn simulation_json<S: Subject>(settings: &Settings, subject: &S, rec: &Record<S>) -> Value {
+    let mut block = Map::new();
+    block.insert(
+        "t_end".into(),
+        json!(rec.record.time().last().copied().unwrap_or(0.0)),
+    );
+    block.insert("samples".into(), json!(rec.record.len()));
+    block.insert("sample_rate".into(), json!(settings.sample_rate));
+    block.insert("switches".into(), json!(rec.switches));
+    block.insert("steps".into(), json!(rec.stats.steps));
+    block.insert("rejected_steps".into(), json!(rec.stats.rejected));
+    block.insert("rhs_evaluations".into(), json!(rec.stats.rhs_evals));
+    block.insert(
+        "excitation_segments".into(),
+        rec.excitation
+            .segments
+            .iter()
+            .map(|s| json!({"index": s.index, "start": s.start, "end": s.end, "phase": s.delay}))
+            .collect(),
+    );
+    subject.sliding_json(&rec.sliding, &mut block);
+    Value::Object(block)
 }
 
-/// Sliding intervals as JSON: times from `origin`, the chart the mass arrived in and the one
-/// it left into (`null` when still stuck at the end).
-pub fn sliding_json(sliding: &[SlidingInterval<HopperMode>], origin: f64) -> Value {
-    sliding
-        .iter()
-        .map(|s| {
-            json!({
-                "start": s.start - origin,
-                "end": s.end - origin,
-                "arrived": s.chart,
-                "left": s.exit,
-            })
-        })
-        .collect()
+/// The summary common to every command that simulates: the config, the model, its limit
+/// cycle and the simulation.
+pub fn base_summary<S: Subject>(
+    settings: &Settings,
+    subject: &S,
+    cycle: &LimitCycle<S::Mode>,
+    rec: &Record<S>,
+) -> Result<Value> {
+    let mut summary = head_summary(settings, subject, cycle)?;
+    summary["simulation"] = simulation_json(settings, subject, rec);
+    Ok(summary)
 }
 
-/// The summary common to every command that simulates.
-pub fn base_summary(settings: &Settings, sim: &Simulated) -> Value {
-    json!({
+/// The summary's head: the config, the model and its limit cycle.
+pub fn head_summary<S: Subject>(
+    settings: &Settings,
+    subject: &S,
+    cycle: &LimitCycle<S::Mode>,
+) -> Result<Value> {
+    let mut summary = json!({
         "name": settings.name,
         "config": settings.path.display().to_string(),
         "htfid_version": env!("CARGO_PKG_VERSION"),
-        "limit_cycle": limit_cycle_json(&sim.orbit),
-        "simulation": {
-            "t_end": sim.t.last().copied().unwrap_or(0.0),
-            "samples": sim.t.len(),
-            "sample_rate": settings.sample_rate,
-            "switches": sim.switches,
-            "stick_intervals": sim.sliding.len(),
-            "stick_time": sim.sliding.iter().map(|s| s.end - s.start).sum::<f64>(),
-            "steps": sim.stats.steps,
-            "rejected_steps": sim.stats.rejected,
-            "rhs_evaluations": sim.stats.rhs_evals,
-            "excitation_segments": sim.excitation.segments.iter().map(|s| json!({
-                "index": s.index, "start": s.start, "end": s.end, "phase": s.delay,
-            })).collect::<Vec<_>>(),
-        },
-    })
+        "limit_cycle": subject.cycle_json(cycle)?,
+    });
+    if let Some(model) = subject.model_json() {
+        summary["model"] = model;
+    }
+    Ok(summary)
 }

@@ -1,110 +1,20 @@
-//! `htfid theory CONFIG`: linearisation about the orbit and the harmonic transfer functions.
+//! `htfid theory CONFIG`: linearisation about the orbit and the harmonic transfer functions of
+//! every output, for any configured model ([`Subject`]).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use htfid_ltp::{linearise, square_wave_fourier, Floquet, Linearisation};
-use htfid_model::{Hopper, HopperMode, HopperOrbit};
 use htfid_plot::Style;
-use htfid_theory::{ExactHtf, HarmonicTransferFunction, HtfGrid, TruncatedHtf};
+use htfid_theory::{HarmonicTransferFunction, HtfGrid, LinearisedHtf, TruncatedHtf};
 use num_complex::Complex64;
-use serde_json::{json, Value};
+use serde_json::json;
 
-use crate::commands::simulate::{hopper_and_orbit, limit_cycle_json};
+use crate::commands::simulate::head_summary;
 use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
-use crate::settings::{Settings, System};
-
-/// Samples of `A(t)` kept along the orbit (the piecewise model uses quadrature, not these).
-const LINEAR_SAMPLES: usize = 256;
-
-/// The LTP model of the configured hopper and its exact HTF.
-pub struct Theory {
-    pub orbit: HopperOrbit,
-    pub linearisation: Linearisation<HopperMode>,
-    pub exact: ExactHtf,
-}
-
-pub fn build(settings: &Settings, stages: &mut Stages) -> Result<Theory> {
-    let (hopper, orbit) = hopper_and_orbit(settings, stages)?;
-    from_orbit(settings, hopper, orbit, stages)
-}
-
-pub fn from_orbit(
-    settings: &Settings,
-    hopper: Hopper,
-    orbit: HopperOrbit,
-    stages: &mut Stages,
-) -> Result<Theory> {
-    let linearisation = stages
-        .run("linearise", || {
-            linearise(&hopper, &orbit.cycle, LINEAR_SAMPLES, &settings.integrator)
-        })
-        .context("linearisation about the orbit failed")?;
-    let exact = ExactHtf::new(&linearisation.piecewise).context("exact HTF")?;
-    Ok(Theory {
-        orbit,
-        linearisation,
-        exact,
-    })
-}
-
-/// The `ltp` block of `summary.json`.
-pub fn ltp_json(theory: &Theory) -> Value {
-    let lti = &theory.linearisation.piecewise;
-    let floquet = Floquet::new(lti);
-    let mono = lti.monodromy_from(0.0);
-    let matrix = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
-        (0..m.nrows())
-            .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
-            .collect()
-    };
-    let orbit = &theory.orbit;
-    let period = orbit.cycle.period;
-    let s_fourier: Vec<[f64; 2]> = (0..=10)
-        .map(|n| {
-            let c = if orbit.duty >= 1.0 {
-                if n == 0 {
-                    Complex64::new(1.0, 0.0)
-                } else {
-                    Complex64::new(0.0, 0.0)
-                }
-            } else {
-                square_wave_fourier(orbit.t_on, orbit.t_off, period, n)
-            };
-            [c.re, c.im]
-        })
-        .collect();
-    let pieces: Vec<Value> = lti
-        .pieces()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            json!({
-                "start": lti.piece_start(i),
-                "duration": p.duration(),
-                "a": matrix(p.a()),
-                "jump": p.jump().map(matrix),
-            })
-        })
-        .collect();
-    json!({
-        "monodromy": matrix(&mono),
-        "floquet_multipliers": floquet.multipliers().iter().map(|m| [m.re, m.im]).collect::<Vec<_>>(),
-        "floquet_exponents": floquet.exponents().iter().map(|m| [m.re, m.im]).collect::<Vec<_>>(),
-        "monodromy_determinant": mono.determinant(),
-        "liouville_determinant": lti.liouville_determinant(),
-        "s_fourier": s_fourier,
-        "switches": theory.linearisation.switches.iter().map(|s| json!({
-            "time": s.time,
-            "from": s.from,
-            "to": s.to,
-            "saltation": matrix(&s.saltation),
-        })).collect::<Vec<_>>(),
-        "pieces": pieces,
-    })
-}
+use crate::settings::Settings;
+use crate::subject::{limit_cycle, ltp_json, with_subject, Subject};
 
 /// Parses `--omega 2,3.5,10`.
 fn parse_omegas(list: &str) -> Result<Vec<f64>> {
@@ -125,7 +35,6 @@ fn parse_omegas(list: &str) -> Result<Vec<f64>> {
     Ok(out)
 }
 
-/// Writes a theory CSV (`theory.csv`): rows `omega,n,re,im`.
 /// The columns of `theory.csv`.
 pub const THEORY_HEADER: &[&str] = &["omega", "n", "re", "im"];
 
@@ -159,74 +68,135 @@ pub fn run(
         None => settings.theory.omegas.clone(),
     };
     crate::limits::check_experiment(&settings, crate::limits::Stage::Theory { omegas: &omegas })?;
-    if let System::Model(model) = &settings.system {
-        if truncate.is_some() {
-            bail!("--truncate: model-language models use their exact HTF (no truncation)");
-        }
-        return crate::commands::models::theory_model(
-            &settings, model, &omegas, out, force, no_plots,
-        );
-    }
     if let Some(n) = truncate {
         if n > 200 {
             bail!("--truncate {n}: at most 200 harmonics (the exact HTF needs no truncation)");
         }
     }
-    let dir = resolve_dir(out, &settings.name);
-    let mut names = vec!["theory.csv", "summary.json"];
-    if !no_plots {
-        names.extend([
-            "theory_g0.svg",
-            "theory_g0.png",
-            "theory_harmonics.svg",
-            "theory_harmonics.png",
-            "theory_phases.svg",
-            "theory_phases.png",
-        ]);
-    }
-    let mut outdir = open(&dir, force, &names)?;
-    let mut stages = Stages::new();
-    let theory = build(&settings, &mut stages)?;
-    let harmonics = settings.theory.harmonics.clone();
-    let (grid, method) = match truncate {
-        None => (
-            stages.run("exact HTF", || theory.exact.grid(&harmonics, &omegas)),
-            json!({"method": "exact"}),
-        ),
-        Some(n) => {
-            let t = TruncatedHtf::new(&theory.linearisation.piecewise, n)
-                .context("truncated HTF (Wereley's harmonic state space)")?;
-            (
-                stages.run("truncated HTF", || t.grid(&harmonics, &omegas)),
-                json!({"method": "truncated", "truncation": n}),
-            )
-        }
+    let command = TheoryCommand {
+        omegas: &omegas,
+        truncate,
+        no_plots,
     };
-    stages.run("write outputs", || {
-        write_theory_csv(&mut outdir, "theory.csv", &grid)
-    })?;
-    if !no_plots {
-        stages.run("plots", || {
-            theory_plots(&mut outdir, &settings.name, "", &settings, &grid)
+    with_subject!(&settings, |subject| command
+        .run(&settings, subject, out, force))
+}
+
+/// What `htfid theory` was asked for beyond the config.
+struct TheoryCommand<'a> {
+    omegas: &'a [f64],
+    /// Wereley's truncated harmonic state space of this order instead of the exact HTF.
+    truncate: Option<usize>,
+    no_plots: bool,
+}
+
+impl TheoryCommand<'_> {
+    fn run<S: Subject>(
+        &self,
+        settings: &Settings,
+        subject: &S,
+        out: Option<PathBuf>,
+        force: bool,
+    ) -> Result<()> {
+        let outputs = subject.output_names();
+        let mut names: Vec<String> = vec!["theory.csv".into(), "summary.json".into()];
+        if outputs.len() > 1 {
+            names.extend(outputs.iter().map(|o| format!("theory_{o}.csv")));
+        }
+        // Figures of the first output under the plain names, of every further one with its
+        // name.
+        let suffixes: Vec<String> = (0..outputs.len()).map(|o| suffix(&outputs, o)).collect();
+        if !self.no_plots {
+            for suffix in &suffixes {
+                for stem in ["theory_g0", "theory_harmonics", "theory_phases"] {
+                    names.push(format!("{stem}{suffix}.svg"));
+                    names.push(format!("{stem}{suffix}.png"));
+                }
+            }
+        }
+        let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        let dir = resolve_dir(out, &settings.name);
+        let mut outdir = open(&dir, force, &name_refs)?;
+        let mut stages = Stages::new();
+        let cycle = limit_cycle(settings, subject, &mut stages)?;
+        let htf = stages
+            .run("linearise", || {
+                LinearisedHtf::new(subject, &cycle, &settings.integrator)
+            })
+            .context("linearisation about the orbit failed")?;
+        let harmonics = settings.theory.harmonics.clone();
+        let omegas = self.omegas;
+        let (grids, mut method) = match self.truncate {
+            None => (
+                stages
+                    .run("HTF", || htf.grids(&harmonics, omegas))
+                    .context("harmonic transfer functions")?,
+                json!({"method": subject.method_name(htf.method())}),
+            ),
+            Some(n) => {
+                let lti = &htf
+                    .linearisation()
+                    .context(
+                        "--truncate: this model's linearisation is not constant within each \
+                         mode, so it has no harmonic state space to truncate; its HTF is \
+                         computed exactly (leave out --truncate)",
+                    )?
+                    .piecewise;
+                let grids = stages.run("truncated HTF", || -> Result<Vec<HtfGrid>> {
+                    (0..outputs.len())
+                        .map(|o| {
+                            let t = TruncatedHtf::new(&lti.channel(o, 0)?, n)
+                                .context("truncated HTF (Wereley's harmonic state space)")?;
+                            Ok(t.grid(&harmonics, omegas))
+                        })
+                        .collect()
+                })?;
+                (grids, json!({"method": "truncated", "truncation": n}))
+            }
+        };
+        stages.run("write outputs", || -> Result<()> {
+            write_theory_csv(&mut outdir, "theory.csv", &grids[0])?;
+            if outputs.len() > 1 {
+                for (o, grid) in outputs.iter().zip(&grids) {
+                    write_theory_csv(&mut outdir, &format!("theory_{o}.csv"), grid)?;
+                }
+            }
+            Ok(())
         })?;
+        if !self.no_plots {
+            // Each output's figures; its name in the title where there are several.
+            stages.run("plots", || -> Result<()> {
+                for ((output, suffix), grid) in outputs.iter().zip(&suffixes).zip(&grids) {
+                    let title = if outputs.len() > 1 {
+                        format!("{} (output {output})", settings.name)
+                    } else {
+                        settings.name.clone()
+                    };
+                    theory_plots(&mut outdir, &title, suffix, settings, grid)?;
+                }
+                Ok(())
+            })?;
+        }
+        method["harmonics"] = json!(harmonics);
+        method["points"] = json!(omegas.len());
+        let mut summary = head_summary(settings, subject, &cycle)?;
+        summary["ltp"] = ltp_json(subject, &htf, &cycle);
+        summary["htf"] = subject.theory_htf_json(method, &grids);
+        summary["timings_ms"] = stages.to_json();
+        outdir.write_text("summary.json", &json_text(&summary))?;
+        let written = outdir.commit()?;
+        crate::results::theory(&summary, &dir, &written);
+        Ok(())
     }
-    let mut htf = method;
-    htf["harmonics"] = json!(harmonics);
-    htf["points"] = json!(omegas.len());
-    htf["max_abs"] = json!(grid.max_abs());
-    let summary = json!({
-        "name": settings.name,
-        "config": settings.path.display().to_string(),
-        "htfid_version": env!("CARGO_PKG_VERSION"),
-        "limit_cycle": limit_cycle_json(&theory.orbit),
-        "ltp": ltp_json(&theory),
-        "htf": htf,
-        "timings_ms": stages.to_json(),
-    });
-    outdir.write_text("summary.json", &json_text(&summary))?;
-    let written = outdir.commit()?;
-    crate::results::theory(&summary, &dir, &written);
-    Ok(())
+}
+
+/// The first output keeps the single-output file names; others get their name appended.
+pub(crate) fn suffix(outputs: &[String], o: usize) -> String {
+    if o == 0 {
+        String::new()
+    } else {
+        format!("_{}", outputs[o])
+    }
 }
 
 fn column(grid: &HtfGrid, n: i32) -> Vec<Complex64> {

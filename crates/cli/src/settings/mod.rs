@@ -637,29 +637,6 @@ impl Settings {
             System::Model(_) => htfid_diagnose::Sensor::default(),
         }
     }
-
-    /// The built-in hopper's settings, or an error for a command that does not take
-    /// model-language configs yet.
-    pub fn hopper(&self, command: &str) -> Result<(HopperParams, DamperLaw, Effects), ConfigError> {
-        match &self.system {
-            System::Hopper {
-                params,
-                damper,
-                effects,
-                ..
-            } => Ok((*params, *damper, *effects)),
-            System::Model(_) => Err(ConfigError {
-                path: self.path.clone(),
-                line: None,
-                column: None,
-                key: "model".into(),
-                message: format!(
-                    "this part of `htfid {command}` takes the built-in hopper ([model] m, k, c, \
-                     g, x0) only"
-                ),
-            }),
-        }
-    }
 }
 
 fn resolve_theory(src: &Source, t: Option<&RawTheory>) -> Result<TheorySettings, ConfigError> {
