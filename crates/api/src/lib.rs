@@ -193,7 +193,7 @@
 //! # Ok::<(), htfid_api::Error>(())
 //! ```
 
-use htfid_estimate::{deviation_record, locked_step, siddiqi, split_periodic};
+use htfid_estimate::{DataSpec, FromDataError, PeriodChoice, PeriodicRecord};
 use htfid_theory::HarmonicTransferFunction;
 
 pub use htfid_estimate::{Alpha, HtfEstimate, HtfRow};
@@ -235,6 +235,10 @@ pub enum Error {
     /// The estimation.
     #[error(transparent)]
     Estimate(#[from] htfid_estimate::Error),
+    /// What a record cannot give: too few periods, a band beyond its Nyquist frequency, a
+    /// period its data contradict, ...
+    #[error(transparent)]
+    FromData(#[from] htfid_estimate::FromDataError),
     /// Any other step of an experiment (`htfid-experiment`).
     #[error(transparent)]
     Experiment(htfid_experiment::ExperimentError),
@@ -450,12 +454,14 @@ impl Default for EstimateOptions {
 /// record (a step printed with few digits), and the step is then taken as `period / M`;
 /// resample a record whose sampling is not locked to the period. The record is cut to a whole
 /// number of periods, its period average (the orbit) removed from input and output, and
-/// Siddiqi's estimator run on the deviations.
+/// Siddiqi's estimator run on the deviations: `htfid_estimate::PeriodicRecord`, the same
+/// steps as `htfid estimate`.
 ///
 /// # Errors
 /// [`Error::Argument`]: `t0`, `dt` or `period` not finite (the last two not positive), `u` and
-/// `y` of unequal lengths, a period of no whole number of samples. [`Error::Estimate`]: fewer
-/// than two periods, a band the record cannot resolve.
+/// `y` of unequal lengths, a period of no whole number of samples. [`Error::FromData`]: fewer
+/// than 64 samples or two periods, a band and harmonics that read input beyond the Nyquist
+/// frequency, a period the output's own orbit contradicts, an estimator that fails.
 pub fn estimate(
     t0: f64,
     dt: f64,
@@ -477,28 +483,25 @@ pub fn estimate(
             ),
         });
     }
-    let Some(step) = locked_step(period, dt, u.len()) else {
-        return Err(Error::Argument {
+    let spec = DataSpec {
+        harmonics: options.harmonics.clone(),
+        band: options.band,
+        alpha: options.alpha,
+        orbit_harmonics: options.orbit_harmonics,
+        outer_harmonics: 0,
+    };
+    let given = PeriodChoice::Given(period);
+    let plan = PeriodicRecord::plan(y, dt, given, &spec).map_err(|e| match e {
+        FromDataError::PeriodNotWhole { per_period, .. } => Error::Argument {
             name: "period",
             reason: format!(
-                "{period} s is {:.4} samples of {dt} s, not a whole number: resample the \
-                 record so that a period holds a whole number of samples (the period average \
-                 and the estimator need N dt = P T)",
-                period / dt
+                "{period} s is {per_period:.4} samples of {dt} s, not a whole number: resample \
+                 the record so that a period holds a whole number of samples (the period \
+                 average and the estimator need N dt = P T)"
             ),
-        });
-    };
-    let dt = step;
-    let per_period = (period / step).round() as usize;
-    let n = (u.len() / per_period) * per_period;
-    let u = split_periodic(&u[..n], dt, t0, period, options.orbit_harmonics)?;
-    let y = split_periodic(&y[..n], dt, t0, period, 2 * options.orbit_harmonics)?;
-    let record = deviation_record(u.deviation, y.deviation, dt, t0)?;
-    Ok(siddiqi(
-        &record,
-        period,
-        &options.harmonics,
-        options.band,
-        options.alpha,
-    )?)
+        },
+        other => Error::FromData(other),
+    })?;
+    let mut found = plan.estimate(t0, u, &[y], &spec)?;
+    Ok(found.outputs.swap_remove(0).estimate)
 }

@@ -95,6 +95,7 @@ mod banded;
 mod error;
 mod estimate;
 mod experiment;
+mod from_data;
 mod lines;
 mod lm;
 mod multi;
@@ -110,6 +111,11 @@ pub use error::{Error, Result};
 pub use estimate::{band_level, BiasSource, HarmonicSeries, HtfEstimate, HtfRow, Method};
 pub use experiment::{
     estimate_experiment, Design, Estimator, Layout, LineWindows, Request, Sampled,
+};
+pub use from_data::{
+    excited_band, periodic_value, DataEstimate, DataSpec, FromDataError, HarmonicSummary,
+    OutputEstimate, PeriodChoice, PeriodicRecord, Signal, BAND_FALSE_ALARM, MIN_PERIODS,
+    OUTER_SIGNIFICANT_SHARE, UNEXCITED_SHARE,
 };
 pub use htfid_data::TimeSeries;
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
