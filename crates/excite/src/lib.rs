@@ -95,4 +95,7 @@ pub use input::DesignInput;
 pub use multisine::{Amplitude, BinSelection, Line, Multisine, Parity, PhaseRule};
 pub use report::{DesignReport, HarmonicCoverage};
 pub use signal::Signal;
-pub use train::{alias_map, AliasEntry, PhaseShiftedTrain, Segment, TrainLayout};
+pub use train::{
+    alias_map, alias_sizes, AliasEntry, AliasSize, AliasSizes, AliasedHarmonic, PhaseShiftedTrain,
+    Segment, TrainLayout,
+};

@@ -270,11 +270,127 @@ pub fn alias_map(
         .collect())
 }
 
+/// How strongly the harmonics that alias onto each estimated one stand against it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AliasSizes {
+    /// Copies of the train.
+    pub copies: usize,
+    /// Largest `|m|` considered.
+    pub n_max: i32,
+    /// Per estimated harmonic, in the order asked.
+    pub by_harmonic: Vec<AliasedHarmonic>,
+}
+
+/// One estimated harmonic and the harmonics that alias onto it, with their sizes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AliasedHarmonic {
+    /// The estimated harmonic `n`.
+    pub harmonic: i32,
+    /// Its size (the largest `|G_n|` over the band, for an HTF).
+    pub max_abs_g: f64,
+    /// Every `m != n`, `|m| <= n_max`, `m = n (mod K)`, ascending.
+    pub aliases: Vec<AliasSize>,
+}
+
+/// A harmonic that aliases onto an estimated one.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AliasSize {
+    /// The harmonic `m`.
+    pub harmonic: i32,
+    /// Its size.
+    pub max_abs_g: f64,
+    /// Its size over the estimated harmonic's: the share of the estimate it takes over.
+    pub relative_to_estimated: f64,
+}
+
+/// [`alias_map`] with sizes: `sizes` gives the size of each harmonic of a list (every
+/// estimated harmonic and every alias, ascending, each once), for example the largest `|G_m|`
+/// of a model's HTF over the band, so that a reader sees which aliases matter.
+///
+/// # Errors
+/// As [`alias_map`].
+pub fn alias_sizes(
+    copies: usize,
+    harmonics: &[i32],
+    n_max: i32,
+    sizes: impl FnOnce(&[i32]) -> Vec<f64>,
+) -> Result<AliasSizes, ExciteError> {
+    let map = alias_map(copies, harmonics, n_max)?;
+    let mut all: Vec<i32> = map
+        .iter()
+        .flat_map(|e| std::iter::once(e.harmonic).chain(e.aliases.iter().copied()))
+        .collect();
+    all.sort_unstable();
+    all.dedup();
+    let measured = sizes(&all);
+    let size = |n: i32| {
+        all.iter()
+            .position(|&m| m == n)
+            .and_then(|i| measured.get(i).copied())
+            .unwrap_or(0.0)
+    };
+    Ok(AliasSizes {
+        copies,
+        n_max,
+        by_harmonic: map
+            .into_iter()
+            .map(|entry| {
+                let own = size(entry.harmonic);
+                AliasedHarmonic {
+                    harmonic: entry.harmonic,
+                    max_abs_g: own,
+                    aliases: entry
+                        .aliases
+                        .iter()
+                        .map(|&m| AliasSize {
+                            harmonic: m,
+                            max_abs_g: size(m),
+                            relative_to_estimated: size(m) / own,
+                        })
+                        .collect(),
+                }
+            })
+            .collect(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::LinearChirp;
     use approx::assert_abs_diff_eq;
+
+    /// Nine copies: `G_2` is aliased by `G_-7` and `G_11` (within 12), sized by the closure
+    /// (here `1 / (1 + |m|)`), each alias against the estimated harmonic's size.
+    #[test]
+    fn alias_sizes_name_each_alias_with_its_share() {
+        let sized = alias_sizes(9, &[0, 2], 12, |hs| {
+            hs.iter()
+                .map(|&m| 1.0 / (1.0 + f64::from(m.abs())))
+                .collect()
+        })
+        .unwrap();
+        let two = &sized.by_harmonic[1];
+        assert_eq!(two.harmonic, 2);
+        assert_abs_diff_eq!(two.max_abs_g, 1.0 / 3.0);
+        let found: Vec<(i32, f64)> = two
+            .aliases
+            .iter()
+            .map(|a| (a.harmonic, a.relative_to_estimated))
+            .collect();
+        assert_eq!(found.len(), 2);
+        assert_eq!((found[0].0, found[1].0), (-7, 11));
+        assert_abs_diff_eq!(found[0].1, 3.0 / 8.0, epsilon = 1e-15);
+        assert_abs_diff_eq!(found[1].1, 3.0 / 12.0, epsilon = 1e-15);
+        assert_eq!(
+            sized.by_harmonic[0]
+                .aliases
+                .iter()
+                .map(|a| a.harmonic)
+                .collect::<Vec<_>>(),
+            vec![-9, 9]
+        );
+    }
 
     #[test]
     fn paper_train_layout() {

@@ -169,6 +169,13 @@ impl HtfGrid {
         Some(self.values.iter().skip(ih).step_by(nh).copied().collect())
     }
 
+    /// Largest `|G_n|` along the frequency axis (0 when `n` is not in the grid; NaN entries
+    /// ignored).
+    pub fn peak(&self, n: i32) -> f64 {
+        self.harmonic(n)
+            .map_or(0.0, |g| g.iter().map(|v| v.norm()).fold(0.0, f64::max))
+    }
+
     /// Largest `|G|` in the grid (0 for an empty grid; NaN entries ignored).
     pub fn max_abs(&self) -> f64 {
         self.values.iter().map(|v| v.norm()).fold(0.0, f64::max)

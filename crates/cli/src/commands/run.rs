@@ -9,7 +9,7 @@ use htfid_estimate::{
     Alpha, Design, HtfEstimate, Layout, LineSpec, LineWindows, Method, MultiOptions, Request,
     UncertaintyBudget,
 };
-use htfid_excite::{alias_map, Polarity};
+use htfid_excite::{alias_sizes, Polarity};
 use htfid_experiment::distortion_bootstrap;
 use htfid_identify::{budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_orbit::LimitCycle;
@@ -802,7 +802,9 @@ pub(crate) fn fit_json(settings: &Settings, fit: &HtfFit) -> Value {
 /// Markers drawn per harmonic and estimator, at most.
 const MAX_MARKERS: usize = 120;
 
-/// Which harmonics the chirp train's phase shifts cannot tell apart, with their sizes.
+/// Which harmonics the chirp train's phase shifts cannot tell apart, with their sizes
+/// (`htfid_excite::alias_sizes`, each harmonic's largest `|G_m|` of the exact HTF over 200
+/// frequencies of the band).
 pub(crate) fn aliasing(
     settings: &Settings,
     exact: &dyn HarmonicTransferFunction,
@@ -810,36 +812,24 @@ pub(crate) fn aliasing(
     let Excitation::ChirpTrain { copies, .. } = settings.excitation else {
         return Ok(None);
     };
-    let h = &settings.estimation.harmonics;
-    let map = alias_map(copies, h, 10)?;
     let (lo, hi) = settings.estimation.band;
     let omegas = crate::settings::log_grid(lo, hi, 200);
-    let mut harmonics: Vec<i32> = map
+    let sized = alias_sizes(copies, &settings.estimation.harmonics, 10, |harmonics| {
+        let grid = exact.grid(harmonics, &omegas);
+        harmonics.iter().map(|&n| grid.peak(n)).collect()
+    })?;
+    let by_harmonic: serde_json::Map<String, Value> = sized
+        .by_harmonic
         .iter()
-        .flat_map(|e| std::iter::once(e.harmonic).chain(e.aliases.iter().copied()))
+        .map(|h| {
+            (
+                h.harmonic.to_string(),
+                json!({"max_abs_g": h.max_abs_g, "aliases": h.aliases}),
+            )
+        })
         .collect();
-    harmonics.sort_unstable();
-    harmonics.dedup();
-    let grid = exact.grid(&harmonics, &omegas);
-    let peak = |n: i32| {
-        grid.harmonic(n)
-            .map_or(0.0, |g| g.iter().map(|v| v.norm()).fold(0.0, f64::max))
-    };
-    let mut out = serde_json::Map::new();
-    for entry in map {
-        let own = peak(entry.harmonic);
-        let aliases: Vec<Value> = entry
-            .aliases
-            .iter()
-            .map(|&m| json!({"harmonic": m, "max_abs_g": peak(m), "relative_to_estimated": peak(m) / own}))
-            .collect();
-        out.insert(
-            entry.harmonic.to_string(),
-            json!({"max_abs_g": own, "aliases": aliases}),
-        );
-    }
     Ok(Some(
-        json!({"copies": copies, "n_max": 10, "by_harmonic": out}),
+        json!({"copies": sized.copies, "n_max": sized.n_max, "by_harmonic": by_harmonic}),
     ))
 }
 
