@@ -708,9 +708,15 @@ fn substeps(s: &Stepping) -> usize {
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Column {
     Model(Param),
-    Initial { segment: usize, param: Param },
+    Initial {
+        segment: usize,
+        param: Param,
+    },
     SensorOffset,
     SensorGain,
+    /// The sensor's time constant, by differentiating its low-pass
+    /// ([`Sensor::tau_derivative`]).
+    SensorLag,
     Difference,
 }
 
@@ -727,7 +733,8 @@ fn sensitivity_of(s: Slot) -> Option<Param> {
         Slot::C2 => Param::C2,
         Slot::XStop => Param::XStop,
         Slot::KStop => Param::KStop,
-        // A delay moves the force's time, a sensor lag filters the output: differences.
+        // A delay moves the force's time: differences. (A sensor lag filters the output:
+        // its column is [`Column::SensorLag`].)
         Slot::Delay | Slot::TauS => return None,
         // Friction, a lag and a damper threshold change the force law where the sensitivities
         // do not hold (`sim::sensitivities_hold`); `Context::columns` keeps differences then.
@@ -760,6 +767,7 @@ impl Context<'_> {
             .map(|&s| match s {
                 Slot::SensorB => Column::SensorOffset,
                 Slot::SensorG => Column::SensorGain,
+                Slot::TauS => Column::SensorLag,
                 _ => sensitivity_of(s).map_or(Column::Difference, Column::Model),
             })
             .collect();
@@ -775,7 +783,12 @@ impl Context<'_> {
         }
         let simulated = columns
             .iter()
-            .filter(|c| matches!(c, Column::Model(_) | Column::Initial { .. }))
+            .filter(|c| {
+                matches!(
+                    c,
+                    Column::Model(_) | Column::Initial { .. } | Column::SensorLag
+                )
+            })
             .count();
         (simulated > 0 && simulated <= MAX_SENSITIVITIES).then_some(columns)
     }
@@ -853,6 +866,10 @@ impl Context<'_> {
                 g: 1.0,
                 ..sensor
             };
+            // The lag's column, from the positions before the sensor.
+            let lag = plan
+                .contains(&Column::SensorLag)
+                .then(|| sensor.tau_derivative(dt, &positions));
             low_pass.apply(dt, &mut positions);
             for column in sens.chunks_mut(len) {
                 low_pass.apply(dt, column);
@@ -864,6 +881,19 @@ impl Context<'_> {
                 match *c {
                     Column::SensorOffset => out.fill(1.0),
                     Column::SensorGain => out.copy_from_slice(&positions[scored.clone()]),
+                    Column::SensorLag => {
+                        let column =
+                            &lag.as_deref().expect("computed for the plan")[scored.clone()];
+                        // A time constant fitted as a logarithm: `d/du = v d/dv`.
+                        let chain = if j < layout.slots.len() && layout.log[j] {
+                            u[j].exp()
+                        } else {
+                            1.0
+                        };
+                        for (o, &d) in out.iter_mut().zip(column) {
+                            *o = chain * d;
+                        }
+                    }
                     Column::Initial { segment, .. } if segment != k => out.fill(0.0),
                     Column::Model(_) | Column::Initial { .. } => {
                         let i = cols.iter().position(|&(jj, _)| jj == j).expect("listed");
@@ -1196,6 +1226,7 @@ mod tests {
             Slot::KStop,
             Slot::SensorB,
             Slot::SensorG,
+            Slot::TauS,
             Slot::Delay,
         ];
         let layout = Layout {
@@ -1306,7 +1337,8 @@ mod tests {
     /// The Jacobian from forward sensitivities against central differences of the residuals
     /// (the plain simulation, a second method), column by column, for every parameter the
     /// sensitivities carry, both segments' initial states, the sensor's offset, gain and
-    /// low-pass, a delay (a difference column) and both damper laws, on a record that
+    /// low-pass (its time constant's column from the low-pass's own derivative), a delay (a
+    /// difference column) and both damper laws, on a record that
     /// crosses the damper switch and the contact many times.
     ///
     /// Tolerance: `1e-6` of the column's largest entry. At 16 sub-steps per sample
@@ -1334,6 +1366,7 @@ mod tests {
                         param: Param::Velocity
                     })
                 );
+                assert!(plan.contains(&Column::SensorLag), "{plan:?}");
                 let m = ctx.n_fit();
                 let truth = central_differences(residuals, &stepping, u, typical, m);
                 for j in 0..u.len() {

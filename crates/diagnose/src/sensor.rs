@@ -56,6 +56,22 @@ impl Sensor {
             }
         }
     }
+
+    /// The derivative of the readings of positions `x` (sampled `dt` apart) with respect to
+    /// the time constant `tau_s`: `g dL/dtau_s (x)`, `L` the low-pass of
+    /// [`Sensor::apply`], differentiated step by step (exact to rounding; fits take it
+    /// instead of a difference). At `tau_s = 0` it is the derivative from above, `-g x'`,
+    /// with the low-pass's own slopes.
+    pub fn tau_derivative(&self, dt: f64, x: &[f64]) -> Vec<f64> {
+        if x.len() < 5 {
+            return vec![0.0; x.len()];
+        }
+        let mut d = low_pass_tau_derivative(self.tau_s.max(0.0), dt, x);
+        for v in &mut d {
+            *v *= self.g;
+        }
+        d
+    }
 }
 
 /// Slopes of the samples by finite differences of fourth order inside and third order at the
@@ -98,6 +114,45 @@ fn low_pass(tau: f64, h: f64, x: &mut [f64]) {
     }
 }
 
+/// `d/dtau` of [`low_pass`]`(tau, h, x)`, by differentiating its recursion: the particular
+/// solutions' ends `p = x - tau v + tau^2 a2 - tau^3 a3` give `-v + 2 tau a2 - 3 tau^2 a3`, the
+/// decay `exp(-h / tau)` gives `h / tau^2` times itself (0 at `tau = 0`).
+fn low_pass_tau_derivative(tau: f64, h: f64, x: &[f64]) -> Vec<f64> {
+    let v = slopes(x, h);
+    let (decay, d_decay) = if tau > 0.0 {
+        let e = (-h / tau).exp();
+        (e, h / (tau * tau) * e)
+    } else {
+        (0.0, 0.0)
+    };
+    let (t2, t3) = (tau * tau, tau * tau * tau);
+    let mut out = vec![0.0; x.len()];
+    let (mut s, mut ds) = (0.0, 0.0);
+    for i in 0..x.len() - 1 {
+        let (x0, x1, v0, v1) = (x[i], x[i + 1], v[i], v[i + 1]);
+        let d = (x1 - x0) / h;
+        let a2_start = (6.0 * d - 4.0 * v0 - 2.0 * v1) / h;
+        let a2_end = (-6.0 * d + 2.0 * v0 + 4.0 * v1) / h;
+        let a3 = (-12.0 * d + 6.0 * (v0 + v1)) / (h * h);
+        let p_start = x0 - tau * v0 + t2 * a2_start - t3 * a3;
+        let p_end = x1 - tau * v1 + t2 * a2_end - t3 * a3;
+        let dp_start = -v0 + 2.0 * tau * a2_start - 3.0 * t2 * a3;
+        let dp_end = -v1 + 2.0 * tau * a2_end - 3.0 * t2 * a3;
+        if i == 0 {
+            (s, ds) = if tau <= h {
+                (p_start, dp_start)
+            } else {
+                (x0, 0.0)
+            };
+            out[0] = ds;
+        }
+        ds = dp_end + (ds - dp_start) * decay + (s - p_start) * d_decay;
+        s = p_end + (s - p_start) * decay;
+        out[i + 1] = ds;
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -129,6 +184,68 @@ mod tests {
                 })
                 .fold(0.0, f64::max);
             assert!(worst < 1e-5, "tau {tau}, dt {dt}: worst error {worst:e}");
+        }
+    }
+
+    /// The derivative by `tau_s` against differences of the readings themselves, on both
+    /// sides of `tau = dt` where the start changes. The readings carry rounding of about
+    /// `1e-13` (the recursion's terms reach tens), so the differences take wide steps and
+    /// Richardson's extrapolation: central differences at `h = 1e-3 tau` and `h / 2` leave
+    /// `O(h^4)` and a rounding of `1e-13 / h` (at most `3e-8`), checked to `1e-6` of the largest
+    /// derivative. At `tau = 0`, one-sided differences at `1e-4` and `5e-5` extrapolated leave
+    /// `O(h^2)`, about `1e-5` of it here; checked to `1e-4`.
+    #[test]
+    fn tau_derivative_is_the_derivative_of_the_readings() {
+        let dt = 0.01;
+        let x: Vec<f64> = (0..400)
+            .map(|i| {
+                let t = i as f64 * dt;
+                (7.0 * t).sin() + 0.3 * (23.0 * t).cos() + 0.1 * t
+            })
+            .collect();
+        let sensor = |tau: f64| Sensor {
+            tau_s: tau,
+            b: 0.2,
+            g: 1.7,
+        };
+        let read = |tau: f64| {
+            let mut y = x.clone();
+            sensor(tau).apply(dt, &mut y);
+            y
+        };
+        let largest = |d: &[f64]| d.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        for tau in [0.004, 0.02, 0.3] {
+            let exact = sensor(tau).tau_derivative(dt, &x);
+            let central = |h: f64| -> Vec<f64> {
+                let (up, down) = (read(tau + h), read(tau - h));
+                up.iter()
+                    .zip(&down)
+                    .map(|(a, b)| (a - b) / (2.0 * h))
+                    .collect()
+            };
+            let h = 1e-3 * tau;
+            let (wide, narrow) = (central(h), central(h / 2.0));
+            let scale = largest(&exact);
+            for (i, e) in exact.iter().enumerate() {
+                let fd = (4.0 * narrow[i] - wide[i]) / 3.0;
+                assert!(
+                    (e - fd).abs() <= 1e-6 * scale,
+                    "tau {tau}, sample {i}: {e} against {fd}"
+                );
+            }
+        }
+        let exact = sensor(0.0).tau_derivative(dt, &x);
+        let at = read(0.0);
+        let forward =
+            |h: f64| -> Vec<f64> { read(h).iter().zip(&at).map(|(a, b)| (a - b) / h).collect() };
+        let (wide, narrow) = (forward(1e-4), forward(5e-5));
+        let scale = largest(&exact);
+        for (i, e) in exact.iter().enumerate() {
+            let fd = 2.0 * narrow[i] - wide[i];
+            assert!(
+                (e - fd).abs() <= 1e-4 * scale,
+                "tau 0, sample {i}: {e} against {fd}"
+            );
         }
     }
 

@@ -208,11 +208,11 @@ impl Joint<'_, '_> {
         }
         bounds.extend_from_slice(&est.state_box);
         scales.extend(x0.iter().map(|v| v.abs().max(1e-3)));
-        // Exact columns for the model's parameters and the initial state; differences for the
-        // boundary effects' own, and for all where the sensitivities do not hold (the motion
-        // slides) or their simulation fails (a fit must not fail where differences work).
+        // Exact columns for the model's parameters, the initial state and the sensors' offset,
+        // gain and lag; differences for the input side's offset, delay and lag, and for all
+        // where the sensitivities do not hold (the motion slides) or their simulation fails (a
+        // fit must not fail where differences work).
         let exact_at: Vec<usize> = (0..k).chain(k + e..k + e + x0.len()).collect();
-        let boundary: Vec<usize> = (k..k + e).collect();
         let every: Vec<usize> = (0..k + e + x0.len()).collect();
         // Once the sensitivities fail (the motion slides), the rest of the fit differences.
         let failed = std::cell::Cell::new(false);
@@ -229,21 +229,30 @@ impl Joint<'_, '_> {
                     jac,
                 )
             };
-            let exact = !failed.get()
-                && est
-                    .sensitivities(
-                        &trial,
-                        self.names,
-                        &p[k + e..],
-                        &b,
-                        est.rec.len(),
-                        est.rows.clone(),
-                        &exact_at,
-                        jac,
-                    )
-                    .is_ok();
-            failed.set(!exact);
-            differences(if exact { &boundary } else { &every }, jac)
+            let raw = if failed.get() {
+                None
+            } else {
+                est.sensitivities(
+                    &trial,
+                    self.names,
+                    &p[k + e..],
+                    &b,
+                    est.rec.len(),
+                    est.rows.clone(),
+                    &exact_at,
+                    jac,
+                )
+                .ok()
+            };
+            failed.set(raw.is_none());
+            match raw {
+                Some(raw) => {
+                    let input_side =
+                        est.sensor_columns(&raw, (effects, &b, k), est.rows.clone(), jac);
+                    differences(&input_side, jac)
+                }
+                None => differences(&every, jac),
+            }
         };
         let lm = LmOptions {
             scales: Some(scales.clone()),

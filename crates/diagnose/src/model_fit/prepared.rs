@@ -10,7 +10,7 @@ use htfid_lang::{output_sensitivities, ForwardError, InputFn, Model, Site};
 use htfid_orbit::ShootingOptions;
 
 use super::ModelFitOptions;
-use crate::boundary::Boundary;
+use crate::boundary::{Boundary, BoundaryEffect};
 use crate::interp::{Interpolation, SampledSignal};
 use crate::noise::{input_noise_level, with_white_noise};
 use crate::sensor::Sensor;
@@ -402,6 +402,8 @@ impl<'a> Prepared<'a> {
     /// `b` (its sensors are linear in the outputs up to their offsets, so they map the
     /// derivatives by their linear part). Column `i` of the result (`names` first, then the
     /// states) goes to column `at[i]` of `jac` (column-major, one column per fitted value).
+    /// Returns the model's outputs before the sensors, for the sensors' own columns
+    /// ([`Prepared::sensor_columns`]).
     #[allow(clippy::too_many_arguments)] // reason: the model, the point, the rows and the target
     pub(super) fn sensitivities(
         &self,
@@ -413,7 +415,7 @@ impl<'a> Prepared<'a> {
         rows: std::ops::Range<usize>,
         at: &[usize],
         jac: &mut [f64],
-    ) -> Result<(), ForwardError> {
+    ) -> Result<Vec<Vec<f64>>, ForwardError> {
         let driven = model.with_input(Some(b.input(&self.signal)));
         let t0 = self.rec.time()[0];
         let times = &self.rec.time()[..upto.clamp(1, self.rec.len())];
@@ -433,7 +435,64 @@ impl<'a> Prepared<'a> {
                 }
             }
         }
-        Ok(())
+        Ok(sens.outputs)
+    }
+
+    /// The exact columns of the output-side boundary effects among `effects` (their
+    /// parameters from column `first` of `jac` on, in [`Boundary::with_all`]'s order), from
+    /// the model's outputs `raw` before the sensors of `b`: a reading is `b + g L(y)`, `L` the
+    /// sensor's low-pass, so `d/db = 1`, `d/dg = L(y)` and `d/dtau_s = g dL/dtau_s (y)`
+    /// ([`Sensor::tau_derivative`]). Returns the columns it did not fill (the input side's:
+    /// an offset, delay or lag of the input), for differences.
+    pub(super) fn sensor_columns(
+        &self,
+        raw: &[Vec<f64>],
+        (effects, b, first): (&[BoundaryEffect], &Boundary, usize),
+        rows: std::ops::Range<usize>,
+        jac: &mut [f64],
+    ) -> Vec<usize> {
+        let outputs = self.rec.outputs().len();
+        let len = rows.len();
+        let m = outputs * len;
+        let mut left = Vec::new();
+        let mut at = first;
+        for &effect in effects {
+            let n = effect.parameter_count(outputs);
+            match effect {
+                BoundaryEffect::SensorOffsetGain => {
+                    for o in 0..outputs {
+                        let mut lagged = raw[o].clone();
+                        Sensor {
+                            b: 0.0,
+                            g: 1.0,
+                            ..b.sensors[o]
+                        }
+                        .apply(self.dt, &mut lagged);
+                        let (offset, gain) = (at + 2 * o, at + 2 * o + 1);
+                        jac[offset * m..(offset + 1) * m].fill(0.0);
+                        jac[gain * m..(gain + 1) * m].fill(0.0);
+                        for (k, i) in rows.clone().enumerate() {
+                            jac[offset * m + o * len + k] = 1.0 / self.scale[o];
+                            jac[gain * m + o * len + k] = lagged[i] / self.scale[o];
+                        }
+                    }
+                }
+                BoundaryEffect::SensorLag => {
+                    let column = &mut jac[at * m..(at + 1) * m];
+                    for o in 0..outputs {
+                        let d = b.sensors[o].tau_derivative(self.dt, &raw[o]);
+                        for (k, i) in rows.clone().enumerate() {
+                            column[o * len + k] = d[i] / self.scale[o];
+                        }
+                    }
+                }
+                BoundaryEffect::InputOffset
+                | BoundaryEffect::InputDelay
+                | BoundaryEffect::ActuatorLag => left.extend(at..at + n),
+            }
+            at += n;
+        }
+        left
     }
 
     /// The initial state that best fits the scored samples with `model`'s parameters fixed:
@@ -670,5 +729,87 @@ impl StateSamples {
                 }
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sensors' exact columns (offset and gain per output, one lag for both) against
+    /// central differences of the scaled residuals themselves (simulation, sensors, scaling:
+    /// a second method), on a two-output model driven by a sum of sines. The readings are
+    /// linear in `b` and `g`, so their differences are exact to rounding; the lag's central
+    /// difference of step `1e-4 tau` leaves `O(h^2)` (`~1e-8` relative) and a rounding of
+    /// `~1e-13 / h`. Tolerance: `1e-6` of each column's largest entry.
+    #[test]
+    fn sensor_columns_are_the_derivatives_of_the_residuals() {
+        let model = Model::parse(
+            r#"
+            states = ["x", "v"]
+            parameters = { k = 4.0, c = 0.5 }
+            flow = { x = "v", v = "-k*x - c*v + u" }
+            outputs = { x = "x", v = "v" }
+            initial = { x = 0.1, v = 0.0 }
+            "#,
+        )
+        .unwrap();
+        let dt = 0.01;
+        let n = 1200;
+        let time: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let u: Vec<f64> = time
+            .iter()
+            .map(|t| (1.1 * t).sin() + 0.5 * (3.7 * t + 0.2).sin())
+            .collect();
+        let y0: Vec<f64> = time.iter().map(|t| 0.2 * (1.1 * t - 0.3).sin()).collect();
+        let y1: Vec<f64> = time.iter().map(|t| 0.2 * (1.1 * t + 1.2).cos()).collect();
+        let rec = TimeSeries::with_outputs(time, u, vec![y0, y1], "test").unwrap();
+        let est = Prepared::new(&model, &rec, n, &ModelFitOptions::default()).unwrap();
+        let effects = [BoundaryEffect::SensorOffsetGain, BoundaryEffect::SensorLag];
+        // b_x, g_x, b_v, g_v, tau_s.
+        let p = [0.01, 1.1, -0.02, 0.9, 0.03];
+        let x0 = [0.1, 0.0];
+        let residuals = |p: &[f64]| -> Vec<f64> {
+            let b = Boundary::with_all(&effects, p, 2);
+            let sim = est.simulate(&model, &x0, &b).unwrap();
+            let mut r = vec![0.0; est.residual_len()];
+            est.fill(&sim, &mut r);
+            r
+        };
+        let m = est.residual_len();
+        let mut jac = vec![0.0; m * (p.len() + 2)];
+        let b = Boundary::with_all(&effects, &p, 2);
+        let raw = est
+            .sensitivities(
+                &model,
+                &[],
+                &x0,
+                &b,
+                rec.len(),
+                est.rows.clone(),
+                &[5, 6],
+                &mut jac,
+            )
+            .unwrap();
+        let left = est.sensor_columns(&raw, (&effects, &b, 0), est.rows.clone(), &mut jac);
+        assert!(left.is_empty(), "{left:?}");
+        for j in 0..p.len() {
+            let h = if j == 4 { 1e-4 * p[4] } else { 1e-4 };
+            let (mut up, mut down) = (p, p);
+            up[j] += h;
+            down[j] -= h;
+            let (ru, rd) = (residuals(&up), residuals(&down));
+            let column = &jac[j * m..(j + 1) * m];
+            let scale = column.iter().map(|v| v.abs()).fold(0.0, f64::max);
+            assert!(scale > 0.0, "column {j} is zero");
+            for i in 0..m {
+                let fd = (ru[i] - rd[i]) / (2.0 * h);
+                assert!(
+                    (column[i] - fd).abs() <= 1e-6 * scale,
+                    "column {j}, row {i}: {} against {fd}",
+                    column[i]
+                );
+            }
+        }
     }
 }
