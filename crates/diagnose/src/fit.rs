@@ -733,12 +733,15 @@ fn sensitivity_of(s: Slot) -> Option<Param> {
         Slot::C2 => Param::C2,
         Slot::XStop => Param::XStop,
         Slot::KStop => Param::KStop,
-        // A delay moves the force's time: differences. (A sensor lag filters the output:
-        // its column is [`Column::SensorLag`].)
-        Slot::Delay | Slot::TauS => return None,
-        // Friction, a lag and a damper threshold change the force law where the sensitivities
-        // do not hold (`sim::sensitivities_hold`); `Context::columns` keeps differences then.
-        Slot::Mu | Slot::Tau | Slot::VTh => return None,
+        // A delay moves the force's time, an actuator lag filters it: their columns are forced
+        // by the force's derivatives (`Force::rate`, `Force::tau_derivative`).
+        Slot::Delay => Param::Delay,
+        Slot::Tau => Param::Tau,
+        // A sensor lag filters the output: its column is [`Column::SensorLag`].
+        Slot::TauS => return None,
+        // Friction and a damper threshold change the force law where the sensitivities do
+        // not hold (`sim::sensitivities_hold`); `Context::columns` keeps differences then.
+        Slot::Mu | Slot::VTh => return None,
         Slot::SensorB | Slot::SensorG => return None,
     })
 }
@@ -746,8 +749,9 @@ fn sensitivity_of(s: Slot) -> Option<Param> {
 impl Context<'_> {
     /// How each column of the Jacobian of a fit of `layout` from `start` is formed, or `None`
     /// to take forward differences of all of them: fixed steps, a model whose force is
-    /// continuous across its guards at every point the fit can reach (no friction, lag or
-    /// damper threshold in it or free), and at least one column worth the simulation.
+    /// continuous across its guards at every point the fit can reach (no friction or damper
+    /// threshold in it or free; an actuator lag acts on the force before the model reads it,
+    /// see `MeasuredForce::drive`), and at least one column worth the simulation.
     fn columns(
         &self,
         start: &ModelPoint,
@@ -757,8 +761,12 @@ impl Context<'_> {
         let Stepping::Fixed { .. } = stepping else {
             return None;
         };
-        let changes_law = |s: &Slot| matches!(s, Slot::Mu | Slot::Tau | Slot::VTh);
-        if !sensitivities_hold(&start.effects) || layout.slots.iter().any(changes_law) {
+        let changes_law = |s: &Slot| matches!(s, Slot::Mu | Slot::VTh);
+        let driven = Effects {
+            tau: 0.0,
+            ..start.effects
+        };
+        if !sensitivities_hold(&driven) || layout.slots.iter().any(changes_law) {
             return None;
         }
         let mut columns: Vec<Column> = layout
@@ -781,16 +789,23 @@ impl Context<'_> {
                 param: Param::Velocity,
             });
         }
-        let simulated = columns
-            .iter()
-            .filter(|c| {
-                matches!(
-                    c,
-                    Column::Model(_) | Column::Initial { .. } | Column::SensorLag
-                )
-            })
-            .count();
-        (simulated > 0 && simulated <= MAX_SENSITIVITIES).then_some(columns)
+        let integrated = |columns: &[Column]| {
+            columns
+                .iter()
+                .filter(|c| matches!(c, Column::Model(_) | Column::Initial { .. }))
+                .count()
+        };
+        // Over the cap, the delay's and the lag's columns are differenced first.
+        if integrated(&columns) > MAX_SENSITIVITIES {
+            for c in &mut columns {
+                if matches!(c, Column::Model(Param::Delay | Param::Tau)) {
+                    *c = Column::Difference;
+                }
+            }
+        }
+        // The sensor's lag needs the simulation's positions, not a column of its own.
+        let simulated = integrated(&columns) + usize::from(columns.contains(&Column::SensorLag));
+        (simulated > 0 && integrated(&columns) <= MAX_SENSITIVITIES).then_some(columns)
     }
 
     /// The Jacobian (`n x np`, column-major) of the fit residuals at `u`, where they are `r`,
@@ -1145,6 +1160,7 @@ mod tests {
     fn jacobian_case(
         dt: f64,
         damper: DamperLaw,
+        lag: bool,
         body: impl FnOnce(&Context<'_>, &ModelPoint, &Layout, &[f64], &[f64], &CaseResiduals<'_>),
     ) {
         use crate::interp::Interpolation;
@@ -1201,6 +1217,7 @@ mod tests {
                 c2: 0.5,
                 input_offset: 0.2,
                 delay: 0.013,
+                tau: if lag { 0.03 } else { 0.0 },
                 hard_stop: Some(HardStop {
                     x_stop: 0.02,
                     k_stop: 60.0,
@@ -1213,22 +1230,39 @@ mod tests {
                 g: 1.1,
             },
         };
-        let slots = vec![
-            Slot::M,
-            Slot::K,
-            Slot::C,
-            Slot::CF,
-            Slot::X0,
-            Slot::InputOffset,
-            Slot::K3,
-            Slot::C2,
-            Slot::XStop,
-            Slot::KStop,
-            Slot::SensorB,
-            Slot::SensorG,
-            Slot::TauS,
-            Slot::Delay,
-        ];
+        // Every slot the sensitivities carry; with the actuator's lag, its time constant and
+        // fewer of the others (at most `MAX_SENSITIVITIES` simulated columns).
+        let slots = if lag {
+            vec![
+                Slot::M,
+                Slot::K,
+                Slot::C,
+                Slot::X0,
+                Slot::InputOffset,
+                Slot::XStop,
+                Slot::SensorG,
+                Slot::TauS,
+                Slot::Delay,
+                Slot::Tau,
+            ]
+        } else {
+            vec![
+                Slot::M,
+                Slot::K,
+                Slot::C,
+                Slot::CF,
+                Slot::X0,
+                Slot::InputOffset,
+                Slot::K3,
+                Slot::C2,
+                Slot::XStop,
+                Slot::KStop,
+                Slot::SensorB,
+                Slot::SensorG,
+                Slot::TauS,
+                Slot::Delay,
+            ]
+        };
         let layout = Layout {
             log: slots.iter().map(|s| s.log_scaled()).collect(),
             slots,
@@ -1337,8 +1371,9 @@ mod tests {
     /// The Jacobian from forward sensitivities against central differences of the residuals
     /// (the plain simulation, a second method), column by column, for every parameter the
     /// sensitivities carry, both segments' initial states, the sensor's offset, gain and
-    /// low-pass (its time constant's column from the low-pass's own derivative), a delay (a
-    /// difference column) and both damper laws, on a record that
+    /// low-pass (its time constant's column from the low-pass's own derivative), a delay, an
+    /// actuator's lag (in a second case with fewer columns) and both damper laws, on a
+    /// record that
     /// crosses the damper switch and the contact many times.
     ///
     /// Tolerance: `1e-6` of the column's largest entry. At 16 sub-steps per sample
@@ -1348,48 +1383,59 @@ mod tests {
     /// measured 6e-8 at most (it falls a hundredfold from a step of `1e-4`, so it is the
     /// difference's, not the sensitivities'), and a rounding error near `1e-11`. A term left
     /// out of a derivative, or a contact's stiffness taken on the wrong side of its edge at a
-    /// split step (5e-4 before the side became part of the chart), is far larger. The delay's
-    /// column is a forward difference of step `1e-7` (the fits' own): `1e-5`.
+    /// split step (5e-4 before the side became part of the chart), is far larger. (A column
+    /// still differenced would be a forward difference of step `1e-7`, the fits' own: `1e-5`.)
     /// (`c_f` acts only while the damper is off: its column is zero with it always on.)
     #[test]
     fn forward_sensitivities_give_the_jacobian_of_the_simulated_residuals() {
         for damper in [DamperLaw::Switching, DamperLaw::AlwaysOn] {
-            jacobian_case(0.01, damper, |ctx, start, layout, u, typical, residuals| {
-                let stepping = Stepping::Fixed { substeps: 16 };
-                let (plan, jac) = case_jacobian(
-                    ctx, start, layout, u, typical, residuals, &stepping, &stepping,
+            for lag in [false, true] {
+                jacobian_case(
+                    0.01,
+                    damper,
+                    lag,
+                    |ctx, start, layout, u, typical, residuals| {
+                        let stepping = Stepping::Fixed { substeps: 16 };
+                        let (plan, jac) = case_jacobian(
+                            ctx, start, layout, u, typical, residuals, &stepping, &stepping,
+                        );
+                        assert_eq!(
+                            plan.last(),
+                            Some(&Column::Initial {
+                                segment: 1,
+                                param: Param::Velocity
+                            })
+                        );
+                        assert!(plan.contains(&Column::SensorLag), "{plan:?}");
+                        let m = ctx.n_fit();
+                        let truth = central_differences(residuals, &stepping, u, typical, m);
+                        for j in 0..u.len() {
+                            let column = &jac[j * m..(j + 1) * m];
+                            let scale = largest(column);
+                            let worst = largest_difference(column, &truth[j * m..(j + 1) * m]);
+                            assert!(
+                                scale > 0.0 || plan[j] == Column::Model(Param::CF),
+                                "{damper:?} column {j} ({:?}) is zero",
+                                plan[j]
+                            );
+                            let tolerance = if plan[j] == Column::Difference {
+                                1e-5
+                            } else {
+                                1e-6
+                            };
+                            assert!(
+                                worst <= tolerance * scale,
+                                "{damper:?} column {j} ({:?}): off by {worst:.3e} of {scale:.3e}",
+                                plan[j]
+                            );
+                        }
+                        // The delay's column and, with the actuator's lag, the lag's are forced by the
+                        // force's derivatives, not differenced.
+                        assert!(plan.contains(&Column::Model(Param::Delay)), "{plan:?}");
+                        assert_eq!(lag, plan.contains(&Column::Model(Param::Tau)), "{plan:?}");
+                    },
                 );
-                assert_eq!(
-                    plan.last(),
-                    Some(&Column::Initial {
-                        segment: 1,
-                        param: Param::Velocity
-                    })
-                );
-                assert!(plan.contains(&Column::SensorLag), "{plan:?}");
-                let m = ctx.n_fit();
-                let truth = central_differences(residuals, &stepping, u, typical, m);
-                for j in 0..u.len() {
-                    let column = &jac[j * m..(j + 1) * m];
-                    let scale = largest(column);
-                    let worst = largest_difference(column, &truth[j * m..(j + 1) * m]);
-                    assert!(
-                        scale > 0.0 || plan[j] == Column::Model(Param::CF),
-                        "{damper:?} column {j} ({:?}) is zero",
-                        plan[j]
-                    );
-                    let tolerance = if plan[j] == Column::Difference {
-                        1e-5
-                    } else {
-                        1e-6
-                    };
-                    assert!(
-                        worst <= tolerance * scale,
-                        "{damper:?} column {j} ({:?}): off by {worst:.3e} of {scale:.3e}",
-                        plan[j]
-                    );
-                }
-            });
+            }
         }
     }
 
@@ -1407,39 +1453,46 @@ mod tests {
     fn the_jacobians_coarser_steps_stay_within_rk4s_error_of_fine_ones() {
         const TOL: f64 = 1e-2;
         for damper in [DamperLaw::Switching, DamperLaw::AlwaysOn] {
-            jacobian_case(0.07, damper, |ctx, start, layout, u, typical, residuals| {
-                let fit = ctx.stepping(start);
-                let coarse = ctx.jacobian_stepping(start);
-                let (Stepping::Fixed { substeps: s_fit }, Stepping::Fixed { substeps: s_jac }) =
-                    (&fit, &coarse)
-                else {
-                    panic!("fixed steps expected");
-                };
-                assert!(s_jac < s_fit, "{s_jac} sub-steps against the fit's {s_fit}");
-                let fine = Stepping::Fixed {
-                    substeps: 8 * s_fit,
-                };
-                let (plan, jac) =
-                    case_jacobian(ctx, start, layout, u, typical, residuals, &coarse, &fit);
-                let m = ctx.n_fit();
-                let reference = central_differences(residuals, &fine, u, typical, m);
-                let mut worst_all = 0.0_f64;
-                for (j, c) in plan.iter().enumerate() {
-                    let column = &jac[j * m..(j + 1) * m];
-                    let truth = &reference[j * m..(j + 1) * m];
-                    let scale = largest(truth);
-                    if scale == 0.0 {
-                        continue;
+            jacobian_case(
+                0.07,
+                damper,
+                false,
+                |ctx, start, layout, u, typical, residuals| {
+                    let fit = ctx.stepping(start);
+                    let coarse = ctx.jacobian_stepping(start);
+                    let (Stepping::Fixed { substeps: s_fit }, Stepping::Fixed { substeps: s_jac }) =
+                        (&fit, &coarse)
+                    else {
+                        panic!("fixed steps expected");
+                    };
+                    assert!(s_jac < s_fit, "{s_jac} sub-steps against the fit's {s_fit}");
+                    let fine = Stepping::Fixed {
+                        substeps: 8 * s_fit,
+                    };
+                    let (plan, jac) =
+                        case_jacobian(ctx, start, layout, u, typical, residuals, &coarse, &fit);
+                    let m = ctx.n_fit();
+                    let reference = central_differences(residuals, &fine, u, typical, m);
+                    let mut worst_all = 0.0_f64;
+                    for (j, c) in plan.iter().enumerate() {
+                        let column = &jac[j * m..(j + 1) * m];
+                        let truth = &reference[j * m..(j + 1) * m];
+                        let scale = largest(truth);
+                        if scale == 0.0 {
+                            continue;
+                        }
+                        let worst = largest_difference(column, truth);
+                        worst_all = worst_all.max(worst / scale);
+                        assert!(
+                            worst <= TOL * scale,
+                            "{damper:?} column {j} ({c:?}): off by {worst:.3e} of {scale:.3e}"
+                        );
                     }
-                    let worst = largest_difference(column, truth);
-                    worst_all = worst_all.max(worst / scale);
-                    assert!(
-                        worst <= TOL * scale,
-                        "{damper:?} column {j} ({c:?}): off by {worst:.3e} of {scale:.3e}"
+                    eprintln!(
+                        "{damper:?}: {s_jac} against {s_fit} sub-steps, worst {worst_all:.2e}"
                     );
-                }
-                eprintln!("{damper:?}: {s_jac} against {s_fit} sub-steps, worst {worst_all:.2e}");
-            });
+                },
+            );
         }
     }
 

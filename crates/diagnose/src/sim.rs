@@ -219,6 +219,25 @@ impl Force {
             Force::Lagged(l) => l.eval(t),
         }
     }
+
+    /// Its time derivative at `t`.
+    #[inline]
+    pub(crate) fn rate(&self, t: f64) -> f64 {
+        match self {
+            Force::Sampled(s) => s.rate(t),
+            Force::Lagged(l) => l.rate(t),
+        }
+    }
+
+    /// Its derivative at `t` by the actuator lag's time constant; without a lag the
+    /// derivative from above, `-f'` (a lag `tau` reads `f - tau f'` to first order).
+    #[inline]
+    pub(crate) fn tau_derivative(&self, t: f64) -> f64 {
+        match self {
+            Force::Sampled(s) => -s.rate(t),
+            Force::Lagged(l) => l.tau_derivative(t),
+        }
+    }
 }
 
 /// The model with its non-smooth points made visible to the integrator: besides the damper's
@@ -559,7 +578,17 @@ pub(crate) enum Param {
     KStop,
     Position,
     Velocity,
+    /// The delay of the force: its column's forcing is `-(forcing' + f') / m` at the delayed
+    /// time.
+    Delay,
+    /// The actuator lag's time constant: its column's forcing is `(dF/dtau) / m`.
+    Tau,
 }
+
+/// [`Param::Delay`] and [`Param::Tau`] as the columns of [`Sensitive`] index them (beyond
+/// [`Field::derivatives`]' own).
+const DELAY: usize = Param::Delay as usize;
+const TAU: usize = Param::Tau as usize;
 
 /// Most columns of [`simulate_sensitivities`] integrated together. Beyond eight (a state of
 /// 18 numbers) a column costs more: on 65 000 samples of the Silverbox model at 6 sub-steps,
@@ -597,8 +626,10 @@ struct Chart {
 struct Sensitive<'a, const M: usize> {
     located: Located<'a>,
     force: &'a Force,
-    /// Which derivative of [`Field::derivatives`] each column reads.
+    /// Which derivative of [`Field::derivatives`] each column reads, or [`DELAY`], [`TAU`].
     params: [usize; M],
+    /// Whether a column is the delay's or the lag's, which read the force's derivatives.
+    reads_rates: bool,
 }
 
 impl<const M: usize> Sensitive<'_, M> {
@@ -624,9 +655,30 @@ impl<const M: usize> HybridSystem for Sensitive<'_, M> {
                 .derivatives(mode.hopper, mode.inside, x[0], x[1], f);
         let sx: &[f64; M] = x[2..2 + M].try_into().expect("M columns");
         let sv: &[f64; M] = x[2 + M..2 + 2 * M].try_into().expect("M columns");
+        // The force's derivatives by the delay and the lag, at the delayed time; `a_p` of the
+        // input offset is the acceleration per unit force, `1 / m`.
+        let (by_delay, by_tau) = if self.reads_rates {
+            let hopper = self.located.hopper;
+            let td = t - hopper.effects().delay;
+            let p = hopper.params();
+            let w = p.pump_frequency();
+            let forcing_rate = -p.forcing_amplitude * w * (w * td).sin();
+            let per_force = a_p[Param::InputOffset as usize];
+            (
+                -(forcing_rate + self.force.rate(td)) * per_force,
+                self.force.tau_derivative(td) * per_force,
+            )
+        } else {
+            (0.0, 0.0)
+        };
         let mut d = [0.0; M];
         for j in 0..M {
-            d[j] = a_x * sx[j] + a_v * sv[j] + a_p[self.params[j]];
+            let forcing = match self.params[j] {
+                DELAY => by_delay,
+                TAU => by_tau,
+                p => a_p[p],
+            };
+            d[j] = a_x * sx[j] + a_v * sv[j] + forcing;
         }
         dxdt[0] = x[1];
         dxdt[1] = a;
@@ -758,6 +810,10 @@ impl Sensitivities<'_> {
             located: Located::new(self.hopper, None, Some(self.force)),
             force: self.force,
             params: std::array::from_fn(|j| self.params[j] as usize),
+            reads_rates: self
+                .params
+                .iter()
+                .any(|p| matches!(p, Param::Delay | Param::Tau)),
         };
         let mut x0 = [0.0; N];
         x0[..2].copy_from_slice(&self.xv0);
