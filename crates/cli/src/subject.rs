@@ -177,6 +177,22 @@ pub fn limit_cycle<S: Subject>(
         .map_err(|e| subject.no_cycle(settings, anyhow::Error::new(e)))
 }
 
+/// The limit cycle of `subject` ([`limit_cycle`]) and its HTFs, linearised about it
+/// (`LinearisedHtf`): the start of `theory` and `run`.
+pub fn about_orbit<'a, S: Subject>(
+    settings: &Settings,
+    subject: &'a S,
+    stages: &mut Stages,
+) -> Result<(LimitCycle<S::Mode>, LinearisedHtf<'a, S>)> {
+    let cycle = limit_cycle(settings, subject, stages)?;
+    let htf = stages
+        .run("linearise", || {
+            LinearisedHtf::new(subject, &cycle, &settings.integrator)
+        })
+        .context("linearisation about the orbit failed")?;
+    Ok((cycle, htf))
+}
+
 fn matrix(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
     (0..m.nrows())
         .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())

@@ -90,6 +90,18 @@ fn slopes(x: &[f64], dt: f64) -> Vec<f64> {
     v
 }
 
+/// The cubic Hermite piece from `(x0, v0)` to `(x1, v1)` over `h`: its second derivative
+/// halved at the start and at the end, and its third derivative over six.
+#[inline]
+fn hermite_terms(x0: f64, x1: f64, v0: f64, v1: f64, h: f64) -> (f64, f64, f64) {
+    let d = (x1 - x0) / h;
+    (
+        (6.0 * d - 4.0 * v0 - 2.0 * v1) / h,
+        (-6.0 * d + 2.0 * v0 + 4.0 * v1) / h,
+        (-12.0 * d + 6.0 * (v0 + v1)) / (h * h),
+    )
+}
+
 fn low_pass(tau: f64, h: f64, x: &mut [f64]) {
     let v = slopes(x, h);
     let decay = (-h / tau).exp();
@@ -98,10 +110,7 @@ fn low_pass(tau: f64, h: f64, x: &mut [f64]) {
     let mut prev = x[0];
     for i in 0..x.len() - 1 {
         let (x0, x1, v0, v1) = (prev, x[i + 1], v[i], v[i + 1]);
-        let d = (x1 - x0) / h;
-        let a2_start = (6.0 * d - 4.0 * v0 - 2.0 * v1) / h;
-        let a2_end = (-6.0 * d + 2.0 * v0 + 4.0 * v1) / h;
-        let a3 = (-12.0 * d + 6.0 * (v0 + v1)) / (h * h);
+        let (a2_start, a2_end, a3) = hermite_terms(x0, x1, v0, v1, h);
         let p_start = x0 - tau * v0 + t2 * a2_start - t3 * a3;
         let p_end = x1 - tau * v1 + t2 * a2_end - t3 * a3;
         if i == 0 {
@@ -130,10 +139,7 @@ fn low_pass_tau_derivative(tau: f64, h: f64, x: &[f64]) -> Vec<f64> {
     let (mut s, mut ds) = (0.0, 0.0);
     for i in 0..x.len() - 1 {
         let (x0, x1, v0, v1) = (x[i], x[i + 1], v[i], v[i + 1]);
-        let d = (x1 - x0) / h;
-        let a2_start = (6.0 * d - 4.0 * v0 - 2.0 * v1) / h;
-        let a2_end = (-6.0 * d + 2.0 * v0 + 4.0 * v1) / h;
-        let a3 = (-12.0 * d + 6.0 * (v0 + v1)) / (h * h);
+        let (a2_start, a2_end, a3) = hermite_terms(x0, x1, v0, v1, h);
         let p_start = x0 - tau * v0 + t2 * a2_start - t3 * a3;
         let p_end = x1 - tau * v1 + t2 * a2_end - t3 * a3;
         let dp_start = -v0 + 2.0 * tau * a2_start - 3.0 * t2 * a3;

@@ -14,7 +14,7 @@ use htfid_experiment::distortion_bootstrap;
 use htfid_identify::{budget_with_bias, errors_against, fit_to_htf, HtfFit, HtfFitSpec};
 use htfid_orbit::LimitCycle;
 use htfid_plot::Style;
-use htfid_theory::{HarmonicTransferFunction, HtfChannel, LinearisedHtf, Tabulated};
+use htfid_theory::{HarmonicTransferFunction, HtfChannel, Tabulated};
 use num_complex::Complex64;
 use serde_json::{json, Value};
 
@@ -28,7 +28,7 @@ use crate::plots::{self, Curve};
 use crate::progress::Stages;
 use crate::settings::{AlphaSetting, Estimator, Excitation, Settings};
 use crate::signals::Built;
-use crate::subject::{limit_cycle, ltp_json, with_subject, Subject};
+use crate::subject::{about_orbit, ltp_json, with_subject, Subject};
 
 pub fn run(config: &Path, out: Option<PathBuf>, force: bool, no_plots: bool) -> Result<()> {
     let settings = Settings::from_file(config)?;
@@ -87,12 +87,7 @@ fn run_on<S: Subject>(
     let mut outdir = open(&dir, force, &name_refs)?;
     let mut stages = Stages::new();
 
-    let cycle = limit_cycle(settings, subject, &mut stages)?;
-    let htf = stages
-        .run("linearise", || {
-            LinearisedHtf::new(subject, &cycle, &settings.integrator)
-        })
-        .context("linearisation about the orbit failed")?;
+    let (cycle, htf) = about_orbit(settings, subject, &mut stages)?;
     let channels = (0..outputs.len())
         .map(|o| htf.channel(o))
         .collect::<Result<Vec<_>, _>>()?;

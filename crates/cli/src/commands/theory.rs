@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use htfid_plot::Style;
-use htfid_theory::{HarmonicTransferFunction, HtfGrid, LinearisedHtf, TruncatedHtf};
+use htfid_theory::{HarmonicTransferFunction, HtfGrid, TruncatedHtf};
 use num_complex::Complex64;
 use serde_json::json;
 
@@ -14,7 +14,7 @@ use crate::output::{json_text, open, resolve_dir};
 use crate::plots::{self, Curve};
 use crate::progress::Stages;
 use crate::settings::Settings;
-use crate::subject::{limit_cycle, ltp_json, with_subject, Subject};
+use crate::subject::{about_orbit, ltp_json, with_subject, Subject};
 
 /// Parses `--omega 2,3.5,10`.
 fn parse_omegas(list: &str) -> Result<Vec<f64>> {
@@ -118,12 +118,7 @@ impl TheoryCommand<'_> {
         let dir = resolve_dir(out, &settings.name);
         let mut outdir = open(&dir, force, &name_refs)?;
         let mut stages = Stages::new();
-        let cycle = limit_cycle(settings, subject, &mut stages)?;
-        let htf = stages
-            .run("linearise", || {
-                LinearisedHtf::new(subject, &cycle, &settings.integrator)
-            })
-            .context("linearisation about the orbit failed")?;
+        let (cycle, htf) = about_orbit(settings, subject, &mut stages)?;
         let harmonics = settings.theory.harmonics.clone();
         let omegas = self.omegas;
         let (grids, mut method) = match self.truncate {
