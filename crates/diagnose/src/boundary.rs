@@ -205,6 +205,34 @@ impl Boundary {
         }
     }
 
+    /// The derivative of the applied input ([`Boundary::input`]) by the input side's
+    /// parameter `effect` (an offset, a delay or a lag), as a function of time: 1 for the
+    /// offset, `-F'(t - delay)` for the delay and `dF/dtau (t - delay)` for the lag, `F` the
+    /// recorded input read between samples and lagged (`-f'` at `tau = 0`, the derivative
+    /// from above); `None` for the sensors' effects.
+    pub(crate) fn input_direction(
+        &self,
+        effect: BoundaryEffect,
+        signal: &Arc<SampledSignal>,
+    ) -> Option<InputFn> {
+        let delay = self.delay;
+        let lagged =
+            (self.tau > 0.0).then(|| Arc::new(LaggedSignal::new(Arc::clone(signal), self.tau)));
+        let signal = Arc::clone(signal);
+        Some(match effect {
+            BoundaryEffect::InputOffset => Arc::new(|_| 1.0),
+            BoundaryEffect::InputDelay => match lagged {
+                Some(l) => Arc::new(move |t| -l.rate(t - delay)),
+                None => Arc::new(move |t| -signal.rate(t - delay)),
+            },
+            BoundaryEffect::ActuatorLag => match lagged {
+                Some(l) => Arc::new(move |t| l.tau_derivative(t - delay)),
+                None => Arc::new(move |t| -signal.rate(t - delay)),
+            },
+            BoundaryEffect::SensorOffsetGain | BoundaryEffect::SensorLag => return None,
+        })
+    }
+
     /// Turns the model's outputs (sampled `dt` apart) into the recorded ones, in place.
     pub(crate) fn outputs(&self, dt: f64, y: &mut [Vec<f64>]) {
         for (column, sensor) in y.iter_mut().zip(&self.sensors) {

@@ -22,7 +22,7 @@ use std::cell::RefCell;
 use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
 use htfid_orbit::transition_jump;
 
-use crate::model::{Mode, Model, ParameterSensitivity};
+use crate::model::{InputFn, Mode, Model, ParameterSensitivity};
 use crate::ModelError;
 
 /// Why forward sensitivities could not be computed.
@@ -58,8 +58,12 @@ pub struct OutputSensitivities {
 struct Augmented<'a> {
     model: &'a Model,
     sens: ParameterSensitivity,
-    /// Parameters (`k`) and all sensitivity columns (`m`).
+    /// The derivatives by the input, with the input's directions: a column `k + j` follows a
+    /// change `directions[j](t)` of the input.
+    input: Option<(ParameterSensitivity, &'a [InputFn])>,
+    /// Parameters (`k`), their columns and the input's (`kq`), all columns (`m`).
     k: usize,
+    kq: usize,
     m: usize,
     n: usize,
     scratch: RefCell<Scratch>,
@@ -69,11 +73,34 @@ struct Augmented<'a> {
 struct Scratch {
     a: Vec<f64>,
     fp: Vec<f64>,
+    one: Vec<f64>,
 }
 
 impl Augmented<'_> {
     fn u(&self, t: f64) -> f64 {
         self.model.input_value(t)
+    }
+
+    /// The input's directions at `t`.
+    fn directions(&self, t: f64) -> Vec<f64> {
+        self.input
+            .as_ref()
+            .map_or_else(Vec::new, |(_, d)| d.iter().map(|w| w(t)).collect())
+    }
+
+    /// The parameter terms of every column `j < kq` into `out` (`rows x kq`, row-major): the
+    /// parameters' `k` columns from `by_params` (`rows x k`), the input's from `by_input`
+    /// (`rows x 1`) times each direction `w`.
+    fn spread(&self, rows: usize, by_params: &[f64], by_input: &[f64], w: &[f64], out: &mut [f64]) {
+        let (k, kq) = (self.k, self.kq);
+        for i in 0..rows {
+            for j in 0..k {
+                out[i * kq + j] = by_params[i * k + j];
+            }
+            for (jj, wj) in w.iter().enumerate() {
+                out[i * kq + k + jj] = by_input[i] * wj;
+            }
+        }
     }
 }
 
@@ -85,21 +112,29 @@ impl HybridSystem for Augmented<'_> {
     }
 
     fn vector_field(&self, mode: Mode, t: f64, x: &[f64], dxdt: &mut [f64]) {
-        let (n, k, m) = (self.n, self.k, self.m);
+        let (n, k, kq, m) = (self.n, self.k, self.kq, self.m);
         let (state, s) = x.split_at(n);
         self.model.vector_field(mode, t, state, &mut dxdt[..n]);
         let mut scratch = self.scratch.borrow_mut();
-        let Scratch { a, fp } = &mut *scratch;
+        let Scratch { a, fp, one } = &mut *scratch;
         a.resize(n * n, 0.0);
-        fp.resize(n * k.max(1), 0.0);
+        fp.resize(n * kq.max(1), 0.0);
         self.model.jacobian(mode, t, state, a);
-        if k > 0 {
+        if let Some((input, _)) = &self.input {
+            let mut by_params = vec![0.0; n * k];
+            if k > 0 {
+                self.sens.flow(mode, t, state, self.u(t), &mut by_params);
+            }
+            one.resize(n, 0.0);
+            input.flow(mode, t, state, self.u(t), one);
+            self.spread(n, &by_params, one, &self.directions(t), fp);
+        } else if k > 0 {
             self.sens.flow(mode, t, state, self.u(t), fp);
         }
         let ds = &mut dxdt[n..];
         for i in 0..n {
             for j in 0..m {
-                let mut acc = if j < k { fp[i * k + j] } else { 0.0 };
+                let mut acc = if j < kq { fp[i * kq + j] } else { 0.0 };
                 for l in 0..n {
                     acc += a[i * n + l] * s[l * m + j];
                 }
@@ -128,15 +163,27 @@ impl HybridSystem for Augmented<'_> {
     /// (`htfid_orbit::transition_jump`) with the parameter terms:
     /// `S+ = DR S- + jump (h_x S- + h_p) / speed + R_p`.
     fn transition(&self, mode: Mode, index: usize, t: f64, x: &mut [f64]) -> Mode {
-        let (n, k, m) = (self.n, self.k, self.m);
+        let (n, k, m) = (self.n, self.kq, self.m);
         let u = self.u(t);
         let before: Vec<f64> = x[..n].to_vec();
         let g = self.model.global_guard(mode, index);
         let jump = transition_jump(self.model, mode, index, t, &before);
         let (mut h_p, mut r_p) = (vec![0.0; k], vec![0.0; n * k]);
-        if k > 0 {
-            self.sens.guard(g, t, &before, u, &mut h_p);
-            self.sens.reset(g, t, &before, u, &mut r_p);
+        let (mut h_params, mut r_params) = (vec![0.0; self.k], vec![0.0; n * self.k]);
+        if self.k > 0 {
+            self.sens.guard(g, t, &before, u, &mut h_params);
+            self.sens.reset(g, t, &before, u, &mut r_params);
+        }
+        if let Some((input, _)) = &self.input {
+            let (mut h_u, mut r_u) = (vec![0.0; 1], vec![0.0; n]);
+            input.guard(g, t, &before, u, &mut h_u);
+            input.reset(g, t, &before, u, &mut r_u);
+            let w = self.directions(t);
+            self.spread(1, &h_params, &h_u, &w, &mut h_p);
+            self.spread(n, &r_params, &r_u, &w, &mut r_p);
+        } else {
+            h_p.copy_from_slice(&h_params);
+            r_p.copy_from_slice(&r_params);
         }
         x[..n].copy_from_slice(&jump.x_plus);
         let s = &mut x[n..];
@@ -206,14 +253,45 @@ pub fn output_sensitivities(
     grid: &[f64],
     opts: &Options,
 ) -> Result<OutputSensitivities, ForwardError> {
+    output_sensitivities_with_input(model, params, &[], initial_state, mode0, t0, x0, grid, opts)
+}
+
+/// [`output_sensitivities`] with columns for changes of the input as well, after the
+/// parameters' and before the initial state's: the column of `directions[j]` follows the
+/// input changed by `directions[j](t)` (the derivative of the input by whatever moves it: 1
+/// for an offset, `-u'(t - d)` for a delay `d`), through the model's exact derivatives by its
+/// input (`Model::input_sensitivity`) in its flows, guards, resets and outputs.
+///
+/// # Errors
+/// [`ForwardError`].
+#[allow(clippy::too_many_arguments)] // reason: the model, what to differentiate and the grid
+pub fn output_sensitivities_with_input(
+    model: &Model,
+    params: &[&str],
+    directions: &[InputFn],
+    initial_state: bool,
+    mode0: Mode,
+    t0: f64,
+    x0: &[f64],
+    grid: &[f64],
+    opts: &Options,
+) -> Result<OutputSensitivities, ForwardError> {
     let sens = model.parameter_sensitivity(params)?;
+    let input = if directions.is_empty() {
+        None
+    } else {
+        Some((model.input_sensitivity()?, directions))
+    };
     let n = model.dim();
     let k = params.len();
-    let m = k + if initial_state { n } else { 0 };
+    let kq = k + directions.len();
+    let m = kq + if initial_state { n } else { 0 };
     let sys = Augmented {
         model,
         sens: sens.clone(),
+        input: input.clone(),
         k,
+        kq,
         m,
         n,
         scratch: RefCell::new(Scratch::default()),
@@ -222,7 +300,7 @@ pub fn output_sensitivities(
     start[..n].copy_from_slice(x0);
     if initial_state {
         for i in 0..n {
-            start[n + i * m + k + i] = 1.0;
+            start[n + i * m + kq + i] = 1.0;
         }
     }
     let end = grid.last().copied().unwrap_or(t0);
@@ -236,7 +314,9 @@ pub fn output_sensitivities(
     let mut columns = vec![vec![vec![0.0; grid.len()]; p]; m];
     let mut y = vec![0.0; p];
     let mut c = vec![0.0; p * n];
-    let mut yp = vec![0.0; p * k];
+    let mut yp = vec![0.0; p * kq];
+    let mut y_params = vec![0.0; p * k];
+    let mut y_u = vec![0.0; p];
     for (i, &t) in grid.iter().enumerate() {
         let u = model.input_value(t);
         let state = traj.state(i);
@@ -244,12 +324,18 @@ pub fn output_sensitivities(
         model.eval_outputs(traj.modes[i], t, x, u, &mut y);
         model.output_state_jacobian(t, x, u, &mut c);
         if k > 0 {
-            sens.output(t, x, u, &mut yp);
+            sens.output(t, x, u, &mut y_params);
+        }
+        if let Some((input, _)) = &input {
+            input.output(t, x, u, &mut y_u);
+            sys.spread(p, &y_params, &y_u, &sys.directions(t), &mut yp);
+        } else {
+            yp.copy_from_slice(&y_params);
         }
         for o in 0..p {
             outputs[o][i] = y[o];
             for (j, column) in columns.iter_mut().enumerate() {
-                let mut acc = if j < k { yp[o * k + j] } else { 0.0 };
+                let mut acc = if j < kq { yp[o * kq + j] } else { 0.0 };
                 for l in 0..n {
                     acc += c[o * n + l] * s[l * m + j];
                 }

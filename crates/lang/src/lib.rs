@@ -64,5 +64,7 @@ mod read;
 pub use build::{Output, Parameter, State};
 pub use error::{Location, ModelError};
 pub use extend::{Extension, Site};
-pub use forward::{output_sensitivities, ForwardError, OutputSensitivities};
+pub use forward::{
+    output_sensitivities, output_sensitivities_with_input, ForwardError, OutputSensitivities,
+};
 pub use model::{InputFn, Mode, Model, ParameterSensitivity};

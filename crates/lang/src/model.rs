@@ -794,7 +794,6 @@ impl Model {
         &self,
         params: &[&str],
     ) -> Result<ParameterSensitivity, ModelError> {
-        let def = &self.def;
         for name in params {
             if self.parameter_index(name).is_none() {
                 return Err(ModelError::Parameter {
@@ -803,6 +802,25 @@ impl Model {
                 });
             }
         }
+        self.derivatives_by(params)
+    }
+
+    /// The exact derivatives by the input, in the shape of [`Model::parameter_sensitivity`]
+    /// with one column: `df/du` per mode, `dh/du` per guard, `dR/du` per reset, `dy/du` of the
+    /// outputs. For the sensitivities to a change of the input itself (its offset, delay or
+    /// lag), which enter as `df/du` times the change.
+    ///
+    /// # Errors
+    /// [`ModelError::Invalid`] should a derivative fail to compile (internal).
+    pub fn input_sensitivity(&self) -> Result<ParameterSensitivity, ModelError> {
+        let input = self.def.input.clone();
+        self.derivatives_by(&[input.as_str()])
+    }
+
+    /// The derivatives of every flow, guard, reset and output by the variables `by`
+    /// (parameters or the input), compiled.
+    fn derivatives_by(&self, params: &[&str]) -> Result<ParameterSensitivity, ModelError> {
+        let def = &self.def;
         let names: Vec<&str> = std::iter::once("t")
             .chain(def.states.iter().map(|s| s.name.as_str()))
             .chain(std::iter::once(def.input.as_str()))

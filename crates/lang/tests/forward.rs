@@ -181,3 +181,104 @@ fn the_two_dof_sensitivities_with_two_outputs() {
 fn the_sensitivities_cross_a_moved_switch_where_the_field_jumps() {
     check("two-dof-shifted", &["s", "k2", "c1"], 1e-4, 5.0, 6);
 }
+
+/// Columns along the input's directions against closed forms: an integrator `x' = u` driven
+/// by `u(t) = sin(t - d)` has `dx/dd = -(sin(t - d) - sin(-d))` (the direction `-cos(t - d)`
+/// integrated), and with an output `y = x + 2 u` reading the input the output's column adds
+/// `2 w(t)`; an input offset (direction 1) gives `t` and `t + 2`. A guard `x - 0.5 = 0` with
+/// a reset `x -> x - u` (both through the input) moves the crossing: after it, the column of
+/// a constant input change `w` is `w t - w` from the reset's `-u` (the crossing time's shift
+/// cancels in the integrator, whose field `u` is the same on both sides: the saltation
+/// carries `dx/dd` through unchanged). Tolerance: 1e-9, the integrator's `rtol = 1e-12`
+/// over values of order one.
+#[test]
+fn input_directions_give_the_closed_form_derivatives() {
+    let d = 0.3;
+    let model = Model::parse(
+        r#"
+        states = ["x"]
+        parameters = { k = 1.0 }
+        flow = { x = "u" }
+        outputs = { y = "x + 2*u" }
+        initial = { x = 0.0 }
+        "#,
+    )
+    .unwrap()
+    .with_input(Some(Arc::new(move |t: f64| (t - d).sin())));
+    let grid: Vec<f64> = (0..=200).map(|i| 0.025 * i as f64).collect();
+    let delay: InputFn = Arc::new(move |t: f64| -(t - d).cos());
+    let offset: InputFn = Arc::new(|_| 1.0);
+    let s = htfid_lang::output_sensitivities_with_input(
+        &model,
+        &[],
+        &[delay, offset],
+        false,
+        model.initial_mode(),
+        0.0,
+        &[0.0],
+        &grid,
+        &tight(),
+    )
+    .unwrap();
+    assert_eq!(s.columns.len(), 2);
+    for (i, &t) in grid.iter().enumerate() {
+        let by_delay = -((t - d).sin() - (-d).sin()) + 2.0 * -(t - d).cos();
+        let by_offset = t + 2.0;
+        assert!((s.columns[0][0][i] - by_delay).abs() < 1e-9, "t {t}");
+        assert!((s.columns[1][0][i] - by_offset).abs() < 1e-9, "t {t}");
+    }
+
+    // A constant input 1 reaches the guard at t = 0.5 and the reset takes u off.
+    let model = Model::parse(
+        r#"
+        states = ["x"]
+        parameters = { k = 1.0 }
+
+        [modes.before]
+        x = "u"
+
+        [modes.after]
+        x = "u"
+
+        [[guards]]
+        name = "half"
+        from = "before"
+        to = "after"
+        when = "x - 0.5"
+        direction = "rising"
+        reset = { x = "x - u" }
+
+        [outputs]
+        y = "x"
+
+        [initial]
+        mode = "before"
+        x = 0.0
+        "#,
+    )
+    .unwrap();
+    let model = model.with_input(Some(Arc::new(|_t: f64| 1.0)));
+    let offset: InputFn = Arc::new(|_| 1.0);
+    let s = htfid_lang::output_sensitivities_with_input(
+        &model,
+        &[],
+        &[offset],
+        false,
+        model.initial_mode(),
+        0.0,
+        &[0.0],
+        &grid,
+        &tight(),
+    )
+    .unwrap();
+    for (i, &t) in grid.iter().enumerate() {
+        let exact = if t < 0.5 { t } else { t - 1.0 };
+        if (t - 0.5).abs() > 1e-9 {
+            assert!(
+                (s.columns[0][0][i] - exact).abs() < 1e-9,
+                "t {t}: {}",
+                s.columns[0][0][i]
+            );
+        }
+    }
+}

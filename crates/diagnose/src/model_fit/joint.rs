@@ -208,33 +208,36 @@ impl Joint<'_, '_> {
         }
         bounds.extend_from_slice(&est.state_box);
         scales.extend(x0.iter().map(|v| v.abs().max(1e-3)));
-        // Exact columns for the model's parameters, the initial state and the sensors' offset,
-        // gain and lag; differences for the input side's offset, delay and lag, and for all
-        // where the sensitivities do not hold (the motion slides) or their simulation fails (a
-        // fit must not fail where differences work).
-        let exact_at: Vec<usize> = (0..k).chain(k + e..k + e + x0.len()).collect();
+        // Exact columns for everything: the model's parameters, the input side's boundary
+        // effects (the input's change by each, through the model's derivatives by its input),
+        // the initial state, and the sensors' offset, gain and lag (from the model's outputs);
+        // differences for all where the sensitivities do not hold (the motion slides) or their
+        // simulation fails (a fit must not fail where differences work).
         let every: Vec<usize> = (0..k + e + x0.len()).collect();
         // Once the sensitivities fail (the motion slides), the rest of the fit differences.
         let failed = std::cell::Cell::new(false);
         let jacobian = |p: &[f64], r: &[f64], jac: &mut [f64]| -> Result<(), String> {
             let trial = self.model_at(&p[..k]).map_err(|e| e.to_string())?;
             let b = Boundary::with_all(effects, &p[k..k + e], outputs);
-            let differences = |cols: &[usize], jac: &mut [f64]| {
-                difference_columns(
-                    &residuals,
-                    p,
-                    r,
-                    cols,
-                    (est.fd_step(), &scales, &bounds),
-                    jac,
-                )
-            };
+            let (mut input_side, mut directions) = (Vec::new(), Vec::new());
+            let mut at = k;
+            for &effect in effects {
+                if let Some(d) = b.input_direction(effect, &est.signal) {
+                    input_side.push(at);
+                    directions.push(d);
+                }
+                at += effect.parameter_count(outputs);
+            }
+            let exact_at: Vec<usize> = (0..k)
+                .chain(input_side.iter().copied())
+                .chain(k + e..k + e + x0.len())
+                .collect();
             let raw = if failed.get() {
                 None
             } else {
                 est.sensitivities(
                     &trial,
-                    self.names,
+                    (self.names, &directions),
                     &p[k + e..],
                     &b,
                     est.rec.len(),
@@ -247,11 +250,18 @@ impl Joint<'_, '_> {
             failed.set(raw.is_none());
             match raw {
                 Some(raw) => {
-                    let input_side =
-                        est.sensor_columns(&raw, (effects, &b, k), est.rows.clone(), jac);
-                    differences(&input_side, jac)
+                    let left = est.sensor_columns(&raw, (effects, &b, k), est.rows.clone(), jac);
+                    debug_assert_eq!(left, input_side);
+                    Ok(())
                 }
-                None => differences(&every, jac),
+                None => difference_columns(
+                    &residuals,
+                    p,
+                    r,
+                    &every,
+                    (est.fd_step(), &scales, &bounds),
+                    jac,
+                ),
             }
         };
         let lm = LmOptions {

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use htfid_estimate::{levenberg_marquardt_with_jacobian, LmOptions};
 use htfid_hybrid::{simulate, HybridSystem, Options};
-use htfid_lang::{output_sensitivities, ForwardError, InputFn, Model, Site};
+use htfid_lang::{output_sensitivities_with_input, ForwardError, InputFn, Model, Site};
 use htfid_orbit::ShootingOptions;
 
 use super::ModelFitOptions;
@@ -400,15 +400,17 @@ impl<'a> Prepared<'a> {
     /// `model` and by the initial state `x0`, from forward sensitivities
     /// ([`output_sensitivities`]) simulated over the first `upto` samples with the boundary
     /// `b` (its sensors are linear in the outputs up to their offsets, so they map the
-    /// derivatives by their linear part). Column `i` of the result (`names` first, then the
-    /// states) goes to column `at[i]` of `jac` (column-major, one column per fitted value).
+    /// derivatives by their linear part). The input's `directions` add columns for changes of
+    /// the input (`Boundary::input_direction`). Column `i` of the result (`names` first, then
+    /// the directions, then the states) goes to column `at[i]` of `jac` (column-major, one
+    /// column per fitted value).
     /// Returns the model's outputs before the sensors, for the sensors' own columns
     /// ([`Prepared::sensor_columns`]).
     #[allow(clippy::too_many_arguments)] // reason: the model, the point, the rows and the target
     pub(super) fn sensitivities(
         &self,
         model: &Model,
-        names: &[&str],
+        (names, directions): (&[&str], &[InputFn]),
         x0: &[f64],
         b: &Boundary,
         upto: usize,
@@ -420,7 +422,17 @@ impl<'a> Prepared<'a> {
         let t0 = self.rec.time()[0];
         let times = &self.rec.time()[..upto.clamp(1, self.rec.len())];
         let mode = driven.start_mode(self.mode0, t0, x0);
-        let sens = output_sensitivities(&driven, names, true, mode, t0, x0, times, &self.sim_opts)?;
+        let sens = output_sensitivities_with_input(
+            &driven,
+            names,
+            directions,
+            true,
+            mode,
+            t0,
+            x0,
+            times,
+            &self.sim_opts,
+        )?;
         let len = rows.len();
         let m = self.rec.outputs().len() * len;
         for (mut column, &j) in sens.columns.into_iter().zip(at) {
@@ -442,8 +454,9 @@ impl<'a> Prepared<'a> {
     /// parameters from column `first` of `jac` on, in [`Boundary::with_all`]'s order), from
     /// the model's outputs `raw` before the sensors of `b`: a reading is `b + g L(y)`, `L` the
     /// sensor's low-pass, so `d/db = 1`, `d/dg = L(y)` and `d/dtau_s = g dL/dtau_s (y)`
-    /// ([`Sensor::tau_derivative`]). Returns the columns it did not fill (the input side's:
-    /// an offset, delay or lag of the input), for differences.
+    /// ([`Sensor::tau_derivative`]). Returns the columns it did not fill: the input side's
+    /// (an offset, delay or lag of the input), whose columns the sensitivities carry
+    /// ([`Prepared::sensitivities`] with their directions).
     pub(super) fn sensor_columns(
         &self,
         raw: &[Vec<f64>],
@@ -539,7 +552,7 @@ impl<'a> Prepared<'a> {
             let jacobian = |z: &[f64], r: &[f64], jac: &mut [f64]| -> Result<(), String> {
                 let exact = !failed.get()
                     && self
-                        .sensitivities(model, &[], z, b, rows.end, rows.clone(), &every, jac)
+                        .sensitivities(model, (&[], &[]), z, b, rows.end, rows.clone(), &every, jac)
                         .is_ok();
                 failed.set(!exact);
                 if exact {
@@ -782,7 +795,7 @@ mod tests {
         let raw = est
             .sensitivities(
                 &model,
-                &[],
+                (&[], &[]),
                 &x0,
                 &b,
                 rec.len(),
@@ -806,6 +819,104 @@ mod tests {
                 let fd = (ru[i] - rd[i]) / (2.0 * h);
                 assert!(
                     (column[i] - fd).abs() <= 1e-6 * scale,
+                    "column {j}, row {i}: {} against {fd}",
+                    column[i]
+                );
+            }
+        }
+    }
+
+    /// The input side's columns (an offset, a delay and an actuator's lag of the input) from
+    /// the sensitivities along the input's directions, against central differences of the
+    /// residuals extrapolated (`O(h^4)`). The simulation itself moves with a delay or a lag:
+    /// its steps cross the knots of the input's spline (where its third derivative jumps) at
+    /// other places, which leaves a noise of about `1e-9` of the outputs even at `rtol =
+    /// 1e-12` (measured: differences at `1.3e-5` s scattered by `1e-4` of a column). Steps of
+    /// `1e-3` (of the offset, and in s of the delay and the lag) bring that noise to `1e-6`,
+    /// the extrapolation's truncation `h^4` times the fifth derivatives stays far below.
+    /// Tolerance: `1e-5` of each column's largest entry.
+    #[test]
+    fn input_columns_are_the_derivatives_of_the_residuals() {
+        let model = Model::parse(
+            r#"
+            states = ["x", "v"]
+            parameters = { k = 4.0, c = 0.5 }
+            flow = { x = "v", v = "-k*x - c*v + u" }
+            outputs = { x = "x" }
+            initial = { x = 0.1, v = 0.0 }
+            "#,
+        )
+        .unwrap();
+        let dt = 0.01;
+        let n = 1200;
+        let time: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let u: Vec<f64> = time
+            .iter()
+            .map(|t| (1.1 * t).sin() + 0.5 * (3.7 * t + 0.2).sin())
+            .collect();
+        let y: Vec<f64> = time.iter().map(|t| 0.2 * (1.1 * t - 0.3).sin()).collect();
+        let rec = TimeSeries::with_outputs(time, u, vec![y], "test").unwrap();
+        let opts = ModelFitOptions {
+            rtol: 1e-12,
+            ..ModelFitOptions::default()
+        };
+        let est = Prepared::new(&model, &rec, n, &opts).unwrap();
+        let effects = [
+            BoundaryEffect::InputOffset,
+            BoundaryEffect::InputDelay,
+            BoundaryEffect::ActuatorLag,
+        ];
+        let p = [0.05, 0.013, 0.02];
+        let x0 = [0.1, 0.0];
+        let residuals = |p: &[f64]| -> Vec<f64> {
+            let b = Boundary::with_all(&effects, p, 1);
+            let sim = est.simulate(&model, &x0, &b).unwrap();
+            let mut r = vec![0.0; est.residual_len()];
+            est.fill(&sim, &mut r);
+            r
+        };
+        let m = est.residual_len();
+        let mut jac = vec![0.0; m * (p.len() + 2)];
+        let b = Boundary::with_all(&effects, &p, 1);
+        let directions: Vec<InputFn> = effects
+            .iter()
+            .map(|&e| b.input_direction(e, &est.signal).unwrap())
+            .collect();
+        let raw = est
+            .sensitivities(
+                &model,
+                (&[], &directions),
+                &x0,
+                &b,
+                rec.len(),
+                est.rows.clone(),
+                &[0, 1, 2, 3, 4],
+                &mut jac,
+            )
+            .unwrap();
+        assert_eq!(
+            est.sensor_columns(&raw, (&effects, &b, 0), est.rows.clone(), &mut jac),
+            vec![0, 1, 2]
+        );
+        for (j, h) in [1e-3, 1e-3, 1e-3].into_iter().enumerate() {
+            let central = |h: f64| -> Vec<f64> {
+                let (mut up, mut down) = (p, p);
+                up[j] += h;
+                down[j] -= h;
+                let (ru, rd) = (residuals(&up), residuals(&down));
+                ru.iter()
+                    .zip(&rd)
+                    .map(|(a, b)| (a - b) / (2.0 * h))
+                    .collect()
+            };
+            let (wide, narrow) = (central(h), central(h / 2.0));
+            let column = &jac[j * m..(j + 1) * m];
+            let scale = column.iter().map(|v| v.abs()).fold(0.0, f64::max);
+            assert!(scale > 0.0, "column {j} is zero");
+            for i in 0..m {
+                let fd = (4.0 * narrow[i] - wide[i]) / 3.0;
+                assert!(
+                    (column[i] - fd).abs() <= 1e-5 * scale,
                     "column {j}, row {i}: {} against {fd}",
                     column[i]
                 );

@@ -253,7 +253,7 @@ impl Search<'_, '_> {
         let at: Vec<usize> = (0..columns).collect();
         est.sensitivities(
             &all,
-            &names,
+            (&names, &[]),
             &reached.state,
             &Boundary::default(),
             est.rec.len(),
