@@ -115,7 +115,7 @@ pub use experiment::{
 pub use from_data::{
     excited_band, periodic_value, DataEstimate, DataSpec, FromDataError, HarmonicSummary,
     OutputEstimate, PeriodChoice, PeriodicRecord, Signal, BAND_FALSE_ALARM, MIN_PERIODS,
-    OUTER_SIGNIFICANT_SHARE, UNEXCITED_SHARE,
+    MIN_SAMPLES, OUTER_SIGNIFICANT_SHARE, UNEXCITED_SHARE,
 };
 pub use htfid_data::TimeSeries;
 pub use lines::{periodic_lines, periodic_lines_paired, LineSpec};
