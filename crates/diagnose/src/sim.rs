@@ -628,8 +628,11 @@ struct Sensitive<'a, const M: usize> {
     force: &'a Force,
     /// Which derivative of [`Field::derivatives`] each column reads, or [`DELAY`], [`TAU`].
     params: [usize; M],
-    /// Whether a column is the delay's or the lag's, which read the force's derivatives.
-    reads_rates: bool,
+    /// Whether a column is the delay's, which reads the force's rate.
+    reads_rate: bool,
+    /// Whether a column is the lag's, which reads the force's derivative by its time
+    /// constant.
+    reads_tau: bool,
 }
 
 impl<const M: usize> Sensitive<'_, M> {
@@ -657,20 +660,26 @@ impl<const M: usize> HybridSystem for Sensitive<'_, M> {
         let sv: &[f64; M] = x[2 + M..2 + 2 * M].try_into().expect("M columns");
         // The force's derivatives by the delay and the lag, at the delayed time; `a_p` of the
         // input offset is the acceleration per unit force, `1 / m`.
-        let (by_delay, by_tau) = if self.reads_rates {
+        let (mut by_delay, mut by_tau) = (0.0, 0.0);
+        if self.reads_rate || self.reads_tau {
             let hopper = self.located.hopper;
             let td = t - hopper.effects().delay;
-            let p = hopper.params();
-            let w = p.pump_frequency();
-            let forcing_rate = -p.forcing_amplitude * w * (w * td).sin();
             let per_force = a_p[Param::InputOffset as usize];
-            (
-                -(forcing_rate + self.force.rate(td)) * per_force,
-                self.force.tau_derivative(td) * per_force,
-            )
-        } else {
-            (0.0, 0.0)
-        };
+            if self.reads_rate {
+                let p = hopper.params();
+                // Measured data carry the forcing in their input: no sine without one.
+                let forcing_rate = if p.forcing_amplitude == 0.0 {
+                    0.0
+                } else {
+                    let w = p.pump_frequency();
+                    -p.forcing_amplitude * w * (w * td).sin()
+                };
+                by_delay = -(forcing_rate + self.force.rate(td)) * per_force;
+            }
+            if self.reads_tau {
+                by_tau = self.force.tau_derivative(td) * per_force;
+            }
+        }
         let mut d = [0.0; M];
         for j in 0..M {
             let forcing = match self.params[j] {
@@ -810,10 +819,8 @@ impl Sensitivities<'_> {
             located: Located::new(self.hopper, None, Some(self.force)),
             force: self.force,
             params: std::array::from_fn(|j| self.params[j] as usize),
-            reads_rates: self
-                .params
-                .iter()
-                .any(|p| matches!(p, Param::Delay | Param::Tau)),
+            reads_rate: self.params.contains(&Param::Delay),
+            reads_tau: self.params.contains(&Param::Tau),
         };
         let mut x0 = [0.0; N];
         x0[..2].copy_from_slice(&self.xv0);
