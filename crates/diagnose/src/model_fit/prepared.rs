@@ -749,6 +749,36 @@ impl StateSamples {
 mod tests {
     use super::*;
 
+    /// A damped oscillator driven by a sum of sines, with the given outputs (position `x`,
+    /// velocity `v`), and a record of 1200 samples at 100 Hz whose outputs are sines (what the
+    /// residuals compare with; their values do not matter to a derivative).
+    fn oscillator(outputs: &str) -> (Model, TimeSeries) {
+        let model = Model::parse(&format!(
+            r#"
+            states = ["x", "v"]
+            parameters = {{ k = 4.0, c = 0.5 }}
+            flow = {{ x = "v", v = "-k*x - c*v + u" }}
+            outputs = {outputs}
+            initial = {{ x = 0.1, v = 0.0 }}
+            "#
+        ))
+        .unwrap();
+        let time: Vec<f64> = (0..1200).map(|i| i as f64 * 0.01).collect();
+        let u: Vec<f64> = time
+            .iter()
+            .map(|t| (1.1 * t).sin() + 0.5 * (3.7 * t + 0.2).sin())
+            .collect();
+        let ys: Vec<Vec<f64>> = (0..model.outputs().len())
+            .map(|o| {
+                time.iter()
+                    .map(|t| 0.2 * (1.1 * t - 0.3 + 1.5 * o as f64).sin())
+                    .collect()
+            })
+            .collect();
+        let rec = TimeSeries::with_outputs(time, u, ys, "test").unwrap();
+        (model, rec)
+    }
+
     /// The sensors' exact columns (offset and gain per output, one lag for both) against
     /// central differences of the scaled residuals themselves (simulation, sensors, scaling:
     /// a second method), on a two-output model driven by a sum of sines. The readings are
@@ -757,26 +787,8 @@ mod tests {
     /// `~1e-13 / h`. Tolerance: `1e-6` of each column's largest entry.
     #[test]
     fn sensor_columns_are_the_derivatives_of_the_residuals() {
-        let model = Model::parse(
-            r#"
-            states = ["x", "v"]
-            parameters = { k = 4.0, c = 0.5 }
-            flow = { x = "v", v = "-k*x - c*v + u" }
-            outputs = { x = "x", v = "v" }
-            initial = { x = 0.1, v = 0.0 }
-            "#,
-        )
-        .unwrap();
-        let dt = 0.01;
-        let n = 1200;
-        let time: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-        let u: Vec<f64> = time
-            .iter()
-            .map(|t| (1.1 * t).sin() + 0.5 * (3.7 * t + 0.2).sin())
-            .collect();
-        let y0: Vec<f64> = time.iter().map(|t| 0.2 * (1.1 * t - 0.3).sin()).collect();
-        let y1: Vec<f64> = time.iter().map(|t| 0.2 * (1.1 * t + 1.2).cos()).collect();
-        let rec = TimeSeries::with_outputs(time, u, vec![y0, y1], "test").unwrap();
+        let (model, rec) = oscillator(r#"{ x = "x", v = "v" }"#);
+        let n = rec.len();
         let est = Prepared::new(&model, &rec, n, &ModelFitOptions::default()).unwrap();
         let effects = [BoundaryEffect::SensorOffsetGain, BoundaryEffect::SensorLag];
         // b_x, g_x, b_v, g_v, tau_s.
@@ -837,25 +849,8 @@ mod tests {
     /// Tolerance: `1e-5` of each column's largest entry.
     #[test]
     fn input_columns_are_the_derivatives_of_the_residuals() {
-        let model = Model::parse(
-            r#"
-            states = ["x", "v"]
-            parameters = { k = 4.0, c = 0.5 }
-            flow = { x = "v", v = "-k*x - c*v + u" }
-            outputs = { x = "x" }
-            initial = { x = 0.1, v = 0.0 }
-            "#,
-        )
-        .unwrap();
-        let dt = 0.01;
-        let n = 1200;
-        let time: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-        let u: Vec<f64> = time
-            .iter()
-            .map(|t| (1.1 * t).sin() + 0.5 * (3.7 * t + 0.2).sin())
-            .collect();
-        let y: Vec<f64> = time.iter().map(|t| 0.2 * (1.1 * t - 0.3).sin()).collect();
-        let rec = TimeSeries::with_outputs(time, u, vec![y], "test").unwrap();
+        let (model, rec) = oscillator(r#"{ x = "x" }"#);
+        let n = rec.len();
         let opts = ModelFitOptions {
             rtol: 1e-12,
             ..ModelFitOptions::default()
