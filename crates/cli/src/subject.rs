@@ -160,16 +160,22 @@ impl<'a> Configured<'a> {
     }
 }
 
-/// The limit cycle of `subject` (settling for at least 30 periods, then Newton shooting).
+/// How the commands find a limit cycle: settling for the configured periods (at least 30),
+/// then Newton shooting.
+fn shooting(settings: &Settings) -> ShootingOptions {
+    ShootingOptions {
+        settle_periods: settings.settle_periods.max(30),
+        ..ShootingOptions::default()
+    }
+}
+
+/// The limit cycle of `subject` ([`shooting`]).
 pub fn limit_cycle<S: Subject>(
     settings: &Settings,
     subject: &S,
     stages: &mut Stages,
 ) -> Result<LimitCycle<S::Mode>> {
-    let shooting = ShootingOptions {
-        settle_periods: settings.settle_periods.max(30),
-        ..ShootingOptions::default()
-    };
+    let shooting = shooting(settings);
     stages
         .run("limit cycle", || {
             subject.limit_cycle(&shooting, &settings.integrator)
@@ -421,10 +427,7 @@ impl Subject for Model {
     /// A model file's own values may have a limit cycle where the configured ones do not: the
     /// message names the override that loses it, tried one at a time.
     fn no_cycle(&self, settings: &Settings, err: anyhow::Error) -> anyhow::Error {
-        let shooting = ShootingOptions {
-            settle_periods: settings.settle_periods.max(30),
-            ..ShootingOptions::default()
-        };
+        let shooting = shooting(settings);
         if let Some(o) = &settings.overrides {
             if o.base.limit_cycle(&shooting, &settings.integrator).is_ok() {
                 for (name, value, line, column) in &o.entries {
@@ -531,19 +534,15 @@ impl Subject for Model {
         for (i, o) in self.outputs().iter().enumerate() {
             columns.push((o.name.clone(), Column::Output(i)));
         }
-        for (i, s) in self.states().iter().enumerate() {
-            columns.push((format!("state.{}", s.name), Column::State(i)));
+        for (i, name) in state_columns(self).enumerate() {
+            columns.push((name, Column::State(i)));
         }
         columns.push(("mode".into(), Column::Mode));
         columns
     }
 
     fn cycle_columns(&self) -> Vec<String> {
-        let mut header: Vec<String> = self
-            .states()
-            .iter()
-            .map(|s| format!("state.{}", s.name))
-            .collect();
+        let mut header: Vec<String> = state_columns(self).collect();
         header.push("mode".into());
         header.push("sliding".into());
         header
@@ -556,4 +555,9 @@ impl Subject for Model {
     fn mode_json(&self, mode: Mode) -> Value {
         json!(self.mode_name(mode))
     }
+}
+
+/// The columns of a model's states in the files: `state.<name>`.
+fn state_columns(model: &Model) -> impl Iterator<Item = String> + '_ {
+    model.states().iter().map(|s| format!("state.{}", s.name))
 }

@@ -157,10 +157,20 @@ pub enum FromDataError {
         /// How far the two periods part over the record, in periods.
         drift: f64,
     },
+    /// An input or output holds fewer samples than the plan reads.
+    #[error("{signal} holds {samples} samples; the plan reads {needed}")]
+    Length {
+        /// The input or which output.
+        signal: Signal,
+        /// Samples given.
+        samples: usize,
+        /// Samples the plan reads ([`PeriodicRecord::samples`]).
+        needed: usize,
+    },
     /// An input or output could not be split into its orbit and the rest.
     #[error("{signal}: period average: {source}")]
     Split {
-        /// `None` for the input, else the output's index.
+        /// The input or which output.
         signal: Signal,
         /// The split's error.
         #[source]
@@ -308,12 +318,11 @@ impl PeriodicRecord {
 
     /// Estimates every output's HTFs: the input `u` and the `outputs` (the first is the one
     /// the plan was made from), sampled from absolute time `t_start`, each at least
-    /// [`PeriodicRecord::samples`] long; their first `samples` are read. `report` is called
-    /// before each output's estimate with its index, for progress.
+    /// [`PeriodicRecord::samples`] long; their first `samples` are read.
     ///
     /// # Errors
-    /// [`FromDataError`]: a split or an estimate that fails, a given period the first
-    /// output contradicts.
+    /// [`FromDataError`]: a signal shorter than the plan, a split or an estimate that fails, a
+    /// given period the first output contradicts.
     pub fn estimate(
         &self,
         t_start: f64,
@@ -322,6 +331,21 @@ impl PeriodicRecord {
         spec: &DataSpec,
     ) -> Result<DataEstimate, FromDataError> {
         let (n, dt, period) = (self.samples, self.dt, self.period);
+        let signals = std::iter::once((Signal::Input, u.len())).chain(
+            outputs
+                .iter()
+                .enumerate()
+                .map(|(o, y)| (Signal::Output(o), y.len())),
+        );
+        for (signal, samples) in signals {
+            if samples < n {
+                return Err(FromDataError::Length {
+                    signal,
+                    samples,
+                    needed: n,
+                });
+            }
+        }
         let input = split_periodic(&u[..n], dt, t_start, period, spec.orbit_harmonics).map_err(
             |source| FromDataError::Split {
                 signal: Signal::Input,

@@ -134,6 +134,15 @@ fn what_the_record_cannot_give_is_refused() {
         Ok(plan) => plan,
         Err(e) => panic!("{e}"),
     };
+    // An output shorter than the periods the plan reads.
+    match plan.estimate(0.0, &u, &[&y, &y[..100]], &spec) {
+        Err(FromDataError::Length {
+            samples: 100,
+            needed,
+            ..
+        }) => assert_eq!(needed, plan.samples),
+        other => panic!("{other:?}"),
+    }
     match plan.estimate(0.0, &u, &[&y], &spec) {
         Err(FromDataError::PeriodContradicted { own, .. }) => {
             assert!((own.period - PERIOD).abs() < 1e-3, "{}", own.period)

@@ -208,18 +208,22 @@ fn input_directions_give_the_closed_form_derivatives() {
     let grid: Vec<f64> = (0..=200).map(|i| 0.025 * i as f64).collect();
     let delay: InputFn = Arc::new(move |t: f64| -(t - d).cos());
     let offset: InputFn = Arc::new(|_| 1.0);
-    let s = htfid_lang::output_sensitivities_with_input(
-        &model,
-        &[],
-        &[delay, offset],
-        false,
-        model.initial_mode(),
-        0.0,
-        &[0.0],
-        &grid,
-        &tight(),
-    )
-    .unwrap();
+    // The outputs' columns along `directions`, from `x = 0` at `t = 0`.
+    let along = |model: &Model, directions: &[InputFn]| {
+        htfid_lang::output_sensitivities_with_input(
+            model,
+            &[],
+            directions,
+            false,
+            model.initial_mode(),
+            0.0,
+            &[0.0],
+            &grid,
+            &tight(),
+        )
+        .unwrap()
+    };
+    let s = along(&model, &[delay, offset]);
     assert_eq!(s.columns.len(), 2);
     for (i, &t) in grid.iter().enumerate() {
         let by_delay = -((t - d).sin() - (-d).sin()) + 2.0 * -(t - d).cos();
@@ -259,18 +263,7 @@ fn input_directions_give_the_closed_form_derivatives() {
     .unwrap();
     let model = model.with_input(Some(Arc::new(|_t: f64| 1.0)));
     let offset: InputFn = Arc::new(|_| 1.0);
-    let s = htfid_lang::output_sensitivities_with_input(
-        &model,
-        &[],
-        &[offset],
-        false,
-        model.initial_mode(),
-        0.0,
-        &[0.0],
-        &grid,
-        &tight(),
-    )
-    .unwrap();
+    let s = along(&model, &[offset]);
     for (i, &t) in grid.iter().enumerate() {
         let exact = if t < 0.5 { t } else { t - 1.0 };
         if (t - 0.5).abs() > 1e-9 {

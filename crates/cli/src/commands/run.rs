@@ -504,34 +504,17 @@ impl<S: Subject> Experiment<'_, S> {
             |fitted: &S, orbit: &LimitCycle<S::Mode>| -> Result<Vec<HtfEstimate>> {
                 let mut quiet = Stages::silent();
                 let rec = simulate_on(&again, fitted, orbit, &mut quiet)?;
+                // One estimator, prepared once from the input, for every output.
+                let input = (rec.record.time(), rec.record.input());
+                let prepared = design(&again, input, &rec.excitation, est)?;
                 orbit_deviation(&again, fitted, orbit, &rec)?
                     .iter()
-                    .map(|y| {
-                        estimate(
-                            &again,
-                            (rec.record.time(), rec.record.input()),
-                            &rec.excitation,
-                            y,
-                            est,
-                        )
-                    })
+                    .map(|y| prepared.estimate(y))
                     .collect()
             },
         )?;
         Ok((b.htf_bias, b.parameter_bias))
     }
-}
-
-/// Estimates the HTFs of output `y` driven by `u` (sampled at `t`) with `est`, reading the
-/// records the configured excitation laid out (`htfid_estimate::estimate_experiment`).
-pub(crate) fn estimate(
-    settings: &Settings,
-    (t, u): (&[f64], &[f64]),
-    excitation: &Built,
-    y: &[f64],
-    est: Estimator,
-) -> Result<HtfEstimate> {
-    design(settings, (t, u), excitation, est)?.estimate(y)
 }
 
 /// Per configured estimator, each output's HTF at its estimate's rows when the input fixes
