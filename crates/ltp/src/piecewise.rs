@@ -78,7 +78,8 @@ pub enum LtpError {
     WrongShape {
         /// Index of the offending piece.
         piece: usize,
-        /// Which matrix (`"A"`, `"B"`, `"C"`, `"D"` or `"J"`).
+        /// Which matrix (`"A"`, `"B"`, `"C"`, `"D"` or `"J"`; a tangent's `"dA"` ... `"dJ"`,
+        /// `"dtau"`).
         matrix: &'static str,
         /// Expected number of rows.
         expected_rows: usize,
@@ -94,7 +95,8 @@ pub enum LtpError {
     NonFinite {
         /// Index of the offending piece.
         piece: usize,
-        /// Which matrix (`"A"`, `"B"`, `"C"`, `"D"` or `"J"`).
+        /// Which matrix (`"A"`, `"B"`, `"C"`, `"D"` or `"J"`; a tangent's `"dA"` ... `"dJ"`,
+        /// `"dtau"`).
         matrix: &'static str,
         /// Row of the first non-finite entry.
         row: usize,
@@ -104,6 +106,14 @@ pub enum LtpError {
     /// The state dimension must be at least one.
     #[error("the state dimension must be at least 1")]
     EmptyState,
+    /// A tangent ([`crate::PiecewiseTangent`]) with another number of pieces than its system.
+    #[error("a tangent of {found} pieces for a system of {expected}")]
+    TangentPieces {
+        /// Pieces of the system.
+        expected: usize,
+        /// Pieces of the tangent.
+        found: usize,
+    },
     /// Sampled Fourier analysis needs samples of equal shape.
     #[error(
         "sample {index} is {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}"
@@ -490,7 +500,7 @@ impl PiecewiseLti {
     }
 }
 
-fn check_matrix(
+pub(crate) fn check_matrix(
     piece: usize,
     matrix: &'static str,
     m: &DMatrix<f64>,

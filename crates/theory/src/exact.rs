@@ -15,6 +15,8 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
 
+mod tangent;
+
 /// Eigenvector matrices with a condition number above this send the system
 /// to the block-exponential method. Near a defective matrix the eigenvalues
 /// themselves are only accurate to `~cond * eps`, and the modal sum cancels
@@ -73,6 +75,9 @@ struct ModalPiece {
     /// Row-major `V_{i+1}^{-1} J_{i+1} V_i`: modal coordinates at the end of
     /// this piece to modal coordinates after the next piece's jump.
     transfer: Vec<Complex64>,
+    /// The eigenvectors `V` and `V^{-1}` (for the derivatives, `tangent`).
+    v: DMatrix<Complex64>,
+    v_inv: DMatrix<Complex64>,
 }
 
 #[derive(Debug, Clone)]
@@ -190,6 +195,8 @@ pub struct ExactHtf {
     pieces: Vec<PieceData>,
     modal: Option<Modal>,
     multipliers: Vec<Complex64>,
+    /// The system itself (what a tangent of [`ExactHtf::derivatives`] must fit).
+    lti: PiecewiseLti,
 }
 
 impl ExactHtf {
@@ -236,6 +243,7 @@ impl ExactHtf {
             pieces,
             modal,
             multipliers: Floquet::new(lti).multipliers().to_vec(),
+            lti: lti.clone(),
         })
     }
 
@@ -626,6 +634,8 @@ fn build_modal(pieces: &[PieceData], n: usize) -> Result<Modal, TheoryError> {
             beta: beta.iter().copied().collect(),
             gamma: gamma.iter().copied().collect(),
             transfer: row_major(&transfer),
+            v: v.clone(),
+            v_inv: w.clone(),
         });
     }
     let mut monodromy = DMatrix::<Complex64>::identity(n, n);
