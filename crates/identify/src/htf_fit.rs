@@ -1,12 +1,13 @@
 //! Fitting named parameters to HTF estimates through the exact HTF of the model.
 
 use htfid_estimate::{
-    contiguous_clusters, levenberg_marquardt, uncertainty_budget, BiasSource, FdScheme, FitBias,
-    FitBudgetInput, HtfEstimate, LmOptions, UncertaintyBudget,
+    contiguous_clusters, levenberg_marquardt, levenberg_marquardt_with_jacobian,
+    uncertainty_budget, BiasSource, FdScheme, FitBias, FitBudgetInput, HtfEstimate, LmOptions,
+    UncertaintyBudget,
 };
 use htfid_hybrid::Options;
 use htfid_orbit::{find_limit_cycle, LimitCycle, ShootingOptions};
-use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
+use htfid_theory::{HarmonicTransferFunction, HtfChannel, LinearisedHtf};
 use num_complex::Complex64;
 
 use crate::Parametric;
@@ -85,6 +86,10 @@ pub struct HtfFit {
     pub cost: f64,
     /// Why it stopped.
     pub stop: String,
+    /// How its Jacobian was formed: `"exact"` (the model's
+    /// [`Parametric::linearisation_tangents`] through
+    /// [`htfid_theory::ExactHtf::derivatives`]) or `"forward_difference"` (step [`FD_STEP`]).
+    pub jacobian_method: &'static str,
     /// The error budget at 95 % ([`htfid_estimate::uncertainty_budget`]): noise, the
     /// estimates' own known bias ([`HtfEstimate::bias`], the regularised estimators' smoothing
     /// bias) and model-structure error, from clusters of [`CLUSTER_POINTS`] neighbouring
@@ -120,7 +125,8 @@ pub struct FitPoint {
 /// one `s^2`: the fitted values end about a tenth of a standard error from the minimum.
 pub const FIT_TOLERANCE: f64 = 0.01;
 
-/// Relative step of the forward differences that form the fit's Jacobian, `FD_STEP *
+/// Relative step of the forward differences that form the fit's Jacobian when the model gives
+/// no linearisation tangents ([`Parametric::linearisation_tangents`]), `FD_STEP *
 /// max(|p|, 1e-3)` per parameter. Each residual carries the orbit's and the HTF's own error, of
 /// the order of the integrator's tolerance (about `1e-10` relative at the default `rtol`), which
 /// a step `h` turns into an error `1e-10 / h` of the Jacobian, while the truncation error
@@ -135,9 +141,12 @@ pub const CLUSTER_POINTS: usize = 10;
 /// Fits `spec.parameters` of `model` to `estimates` (`(output index, estimate)` pairs),
 /// starting from the model's current values and its limit cycle `cycle`. Weights are
 /// `1 / stderr`, floored at `1e-6` of the harmonic's largest estimate so that noise-free
-/// estimates do not get infinite weight; parameter bounds come from the model. The Jacobian is a
-/// forward difference of step [`FD_STEP`]; the fit ends at a step worth less than
-/// [`FIT_TOLERANCE`].
+/// estimates do not get infinite weight; parameter bounds come from the model. The Jacobian is
+/// exact where the model gives the tangents of its closed-form linearisation
+/// ([`Parametric::linearisation_tangents`], the derivatives then from
+/// [`htfid_theory::ExactHtf::derivatives`]), otherwise a forward difference of step
+/// [`FD_STEP`] ([`HtfFit::jacobian_method`] says which); the fit ends at a step worth less
+/// than [`FIT_TOLERANCE`].
 ///
 /// # Errors
 /// [`IdentifyError`].
@@ -212,7 +221,8 @@ pub fn fit_to_htf<S: Parametric>(
                 .unzip()
         })
         .collect();
-    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+    // The trial model and its limit cycle at `p`.
+    let trial_at = |p: &[f64]| -> Result<(S, LimitCycle<S::Mode>), String> {
         let changes: Vec<(&str, f64)> = names.iter().copied().zip(p.iter().copied()).collect();
         let trial = model.unforced_with(&changes)?;
         let cyc = find_limit_cycle(
@@ -225,6 +235,10 @@ pub fn fit_to_htf<S: Parametric>(
             opts,
         )
         .map_err(|e| e.to_string())?;
+        Ok((trial, cyc))
+    };
+    let residuals = |p: &[f64], r: &mut [f64]| -> Result<(), String> {
+        let (trial, cyc) = trial_at(p)?;
         let htf = LinearisedHtf::new(&trial, &cyc, opts).map_err(|e| e.to_string())?;
         let channels = (0..htf.n_outputs())
             .map(|o| htf.channel(o))
@@ -241,6 +255,34 @@ pub fn fit_to_htf<S: Parametric>(
         Ok(())
     };
     let m = 2 * rows.len();
+    // The exact Jacobian: the derivatives of every fitted value along the model's tangents.
+    let jacobian = |p: &[f64], _r: &[f64], jac: &mut [f64]| -> Result<(), String> {
+        let (trial, cyc) = trial_at(p)?;
+        let htf = LinearisedHtf::new(&trial, &cyc, opts).map_err(|e| e.to_string())?;
+        let lin = htf
+            .linearisation()
+            .ok_or("the model's HTF is no longer the closed form")?;
+        let tangents = trial
+            .linearisation_tangents(&names, &cyc, lin, opts)
+            .ok_or("the model no longer gives its linearisation's tangents")??;
+        for (o, (at, points)) in per_output.iter().enumerate() {
+            let HtfChannel::Exact(exact) = htf.channel(o).map_err(|e| e.to_string())? else {
+                return Err("the model's HTF is no longer the closed form".into());
+            };
+            let channel: Vec<_> = tangents.iter().map(|t| t.channel(o, 0)).collect();
+            let derivatives = exact
+                .derivatives(&channel, points)
+                .map_err(|e| e.to_string())?;
+            for (j, column) in derivatives.iter().enumerate() {
+                for (&i, g) in at.iter().zip(column) {
+                    let weight = rows[i].4;
+                    jac[j * m + 2 * i] = -g.re * weight;
+                    jac[j * m + 2 * i + 1] = -g.im * weight;
+                }
+            }
+        }
+        Ok(())
+    };
     let lm = LmOptions {
         ftol: FIT_TOLERANCE / (m - info.len()).max(1) as f64,
         fd_scheme: FdScheme::Forward,
@@ -249,7 +291,12 @@ pub fn fit_to_htf<S: Parametric>(
         bounds: Some(info.iter().map(|&(_, b)| b).collect()),
         ..LmOptions::default()
     };
-    let fit = levenberg_marquardt(residuals, &p0, m, &lm)?;
+    let exact = exact_tangents_available(model, cycle, &names, opts);
+    let fit = if exact {
+        levenberg_marquardt_with_jacobian(residuals, jacobian, &p0, m, &lm)?
+    } else {
+        levenberg_marquardt(residuals, &p0, m, &lm)?
+    };
     let uncertainty = budget(estimates, &rows, &fit.jacobian, &fit.residuals);
     Ok(HtfFit {
         parameters: spec.parameters.clone(),
@@ -262,6 +309,7 @@ pub fn fit_to_htf<S: Parametric>(
         iterations: fit.iterations,
         cost: fit.cost,
         stop: format!("{:?}", fit.stop),
+        jacobian_method: if exact { "exact" } else { "forward_difference" },
         uncertainty,
         fitted: rows
             .iter()
@@ -274,6 +322,32 @@ pub fn fit_to_htf<S: Parametric>(
             .collect(),
         residuals: fit.residuals,
         jacobian: fit.jacobian,
+    })
+}
+
+/// Whether `model` gives the exact tangents of its closed-form linearisation about `cycle`
+/// for every one of `names` (checked on the model as given: the trials are the same model
+/// with other values).
+fn exact_tangents_available<S: Parametric>(
+    model: &S,
+    cycle: &LimitCycle<S::Mode>,
+    names: &[&str],
+    opts: &Options,
+) -> bool {
+    if !model.is_piecewise_constant() {
+        return false;
+    }
+    let Ok(unforced) = model.unforced_with(&[]) else {
+        return false;
+    };
+    let Ok(htf) = LinearisedHtf::new(&unforced, cycle, opts) else {
+        return false;
+    };
+    htf.linearisation().is_some_and(|lin| {
+        matches!(
+            unforced.linearisation_tangents(names, cycle, lin, opts),
+            Some(Ok(_))
+        )
     })
 }
 

@@ -50,6 +50,7 @@
 //! ```
 
 mod compare;
+mod hopper_tangent;
 mod htf_fit;
 mod parametric;
 

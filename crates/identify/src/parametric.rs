@@ -1,9 +1,11 @@
 //! What a parametric fit needs of a model: its named parameters, and the same model with other
 //! values and its input off, whose limit cycle the fit finds again at every trial.
 
+use htfid_hybrid::Options;
 use htfid_lang::Model;
-use htfid_ltp::InputOutput;
+use htfid_ltp::{InputOutput, Linearisation, PiecewiseTangent};
 use htfid_model::{Hopper, HopperParams};
+use htfid_orbit::LimitCycle;
 
 /// A rhythmic model with named parameters: every model-language [`Model`] and the built-in
 /// [`Hopper`]. Rust users implement it (with [`InputOutput`]) to fit their own models with
@@ -19,6 +21,22 @@ pub trait Parametric: InputOutput + Sized {
 
     /// The period of its forcing, s.
     fn forcing_period(&self) -> Option<f64>;
+
+    /// How the piecewise linearisation `lin` about `cycle` (of this model, input off) changes
+    /// per unit change of each of `names`, exactly: every piece's matrices and jumps and the
+    /// motion of every switch ([`PiecewiseTangent`]). With them [`fit_to_htf`](crate::fit_to_htf)
+    /// takes its Jacobian from [`htfid_theory::ExactHtf::derivatives`] instead of differences.
+    /// `None` (the default) when the model does not give them; an error when it should and
+    /// cannot (the fit then stops with it).
+    fn linearisation_tangents(
+        &self,
+        _names: &[&str],
+        _cycle: &LimitCycle<Self::Mode>,
+        _lin: &Linearisation<Self::Mode>,
+        _opts: &Options,
+    ) -> Option<Result<Vec<PiecewiseTangent>, String>> {
+        None
+    }
 }
 
 impl Parametric for Model {
@@ -75,5 +93,16 @@ impl Parametric for Hopper {
 
     fn forcing_period(&self) -> Option<f64> {
         Some(self.params().period)
+    }
+
+    /// Exact for the hopper without effects (`crate::hopper_tangent`): `m, k, c, g, x0, a`.
+    fn linearisation_tangents(
+        &self,
+        names: &[&str],
+        cycle: &LimitCycle<Self::Mode>,
+        lin: &Linearisation<Self::Mode>,
+        opts: &Options,
+    ) -> Option<Result<Vec<PiecewiseTangent>, String>> {
+        crate::hopper_tangent::tangents(self, names, cycle, lin, opts)
     }
 }

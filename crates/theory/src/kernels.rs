@@ -139,7 +139,8 @@ pub(crate) fn dd_exp(nodes: &[(Complex64, Complex64)]) -> Complex64 {
         for node in &nodes[1..] {
             let y = node.0 - nodes[0].0;
             for k in 1..TERMS {
-                h[k] = h[k] + y * h[k - 1];
+                let carried = y * h[k - 1];
+                h[k] += carried;
             }
         }
         let mut inv_fact = inv_factorial(m);

@@ -774,6 +774,7 @@ pub(crate) fn fit_json(settings: &Settings, fit: &HtfFit) -> Value {
     out.insert("iterations".into(), json!(fit.iterations));
     out.insert("cost".into(), json!(fit.cost));
     out.insert("stop".into(), json!(fit.stop));
+    out.insert("jacobian".into(), json!(fit.jacobian_method));
     Value::Object(out)
 }
 
