@@ -156,7 +156,10 @@ fn derivatives_match_extrapolated_differences() {
         let htf = ExactHtf::new(&lti).unwrap();
         for seed in [1, 2, 3] {
             let t = everything(&lti, seed);
-            let got = htf.derivatives(std::slice::from_ref(&t), &pts).unwrap().remove(0);
+            let got = htf
+                .derivatives(std::slice::from_ref(&t), &pts)
+                .unwrap()
+                .remove(0);
             let want = extrapolated(&lti, &t, 1e-4, &pts);
             let err = relative_error(&got, &want);
             eprintln!("{name}, seed {seed}: {err:e}");

@@ -69,19 +69,19 @@ def rimless_wheel():
     tq = lambda t: tau0 + A * math.cos(wp * t)
     M = HModel()
     M.name, M.P, M.T, M.wp = "rimless_wheel", P, T, wp
-    M.states, M.modes, M.n = ["th", "om"], ["stance"], 2
+    M.states, M.modes, M.n = ["th", "om"], ["main"], 2  # the one mode of a model without [modes] is `main` (docs/models.md)
     M.f = lambda m, t, x, u: np.array([x[1], (m_ * g * l * math.sin(x[0]) - b * x[1] + tq(t) + u) / J])
     M.A = lambda m, t, x: np.array([[0.0, 1.0], [m_ * g * l * math.cos(x[0]) / J, -b / J]])
     M.B = lambda m, t, x: np.array([0.0, 1 / J])
     c2 = math.cos(2 * al)
-    M.guards = [Guard("heelstrike", "stance", "stance", lambda t, x: x[0] - al,
+    M.guards = [Guard("heelstrike", "main", "main", lambda t, x: x[0] - al,
                       lambda t, x: np.array([1.0, 0.0]), lambda t, x: 0.0, +1,
                       R=lambda t, x: np.array([x[0] - 2 * al, c2 * x[1]]),
                       DR=lambda t, x: np.diag([1.0, c2]))]
     M.outputs = [Out("height", lambda m, t, x, u: l * math.cos(x[0]), lambda m, t, x: np.array([-l * math.sin(x[0]), 0.0]),
                      lambda m, t, x: 0.0),
                  Out("th", lambda m, t, x, u: x[0], lambda m, t, x: np.array([1.0, 0.0]), lambda m, t, x: 0.0, jumps=True)]
-    M.init_mode, M.init_x = "stance", np.array([-0.3, 1.0])
+    M.init_mode, M.init_x = "main", np.array([-0.3, 1.0])
     M.regions = None
     return M
 
