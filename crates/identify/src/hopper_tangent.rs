@@ -17,7 +17,7 @@
 
 use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
 use htfid_ltp::{Linearisation, PiecewiseTangent};
-use htfid_model::{DamperLaw, Effects, Hopper, HopperMode};
+use htfid_model::{Effects, Hopper, HopperMode};
 use htfid_orbit::LimitCycle;
 use nalgebra::{DMatrix, DVector};
 
@@ -169,11 +169,9 @@ fn compute(
     for (j, &p) in which.iter().enumerate() {
         let mut t = PiecewiseTangent::zero(piecewise);
         for (i, piece) in t.pieces_mut().iter_mut().enumerate() {
-            // Whether the damper acts in this piece.
-            let on = match (hopper.damper(), lin_mode(lin, i)) {
-                (DamperLaw::AlwaysOn, _) | (DamperLaw::Switching, HopperMode::Damped) => 1.0,
-                (DamperLaw::Switching, HopperMode::Free) => 0.0,
-            };
+            // Whether the damper acts in this piece (an always-on damper's one chart is
+            // `Damped`), as in the hopper's own field.
+            let on = lin_mode(lin, i).switch();
             let mm = q.m * q.m;
             let (a, b) = match NAMES[p] {
                 "m" => ([q.k / mm, q.c * on / mm], -1.0 / mm),

@@ -33,17 +33,13 @@ use htfid_ltp::PiecewiseTangent;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
-use super::{solve_in_place, ExactHtf, Modal, ONE, ZERO};
+use super::{row_major, solve_in_place, ExactHtf, Modal, ONE, ZERO};
 use crate::error::TheoryError;
 use crate::kernels::{dd_exp, phi1};
 
-/// Row-major `n x n` products and conversions on flat slices.
+/// `m` as a complex matrix.
 fn complex(m: &DMatrix<f64>) -> DMatrix<Complex64> {
     m.map(|x| Complex64::new(x, 0.0))
-}
-
-fn row_major(m: &DMatrix<Complex64>) -> Vec<Complex64> {
-    m.transpose().as_slice().to_vec()
 }
 
 /// `out = m v` for row-major `m` (`n x n`).
