@@ -62,6 +62,21 @@ impl Expr {
         Expr::bin(BinOp::Add, self, other)
     }
 
+    /// The difference `self - other` (unsimplified).
+    pub fn minus(self, other: Expr) -> Expr {
+        Expr::bin(BinOp::Sub, self, other)
+    }
+
+    /// The product `self * other` (unsimplified).
+    pub fn times(self, other: Expr) -> Expr {
+        Expr::bin(BinOp::Mul, self, other)
+    }
+
+    /// The quotient `self / other` (unsimplified).
+    pub fn over(self, other: Expr) -> Expr {
+        Expr::bin(BinOp::Div, self, other)
+    }
+
     pub(crate) fn neg(a: Expr) -> Expr {
         Expr(Node::Neg(Box::new(a)))
     }

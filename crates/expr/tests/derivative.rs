@@ -197,3 +197,27 @@ fn kinks_follow_the_branch_of_the_value() {
     assert!((at("if(y, x, 2*x)", 1.0, 0.0) - 2.0).abs() < 1e-15); // c = 0 takes the else branch
     assert!((at("if(y, x, 2*x)", 1.0, 1e-300) - 1.0).abs() < 1e-15);
 }
+
+/// Expressions built in code (`plus`, `minus`, `times`, `over`) mean what their text means:
+/// the same values and the same derivatives as the parsed `(x + y) * x - y / z`.
+#[test]
+fn built_expressions_match_their_parsed_text() {
+    let (x, y, z) = (Expr::var("x"), Expr::var("y"), Expr::var("z"));
+    let built = x.clone().plus(y.clone()).times(x).minus(y.over(z));
+    let parsed = parse("(x + y) * x - y / z").unwrap();
+    assert_eq!(built, parsed);
+    for v in [[1.5, -2.0, 4.0], [0.3, 0.7, -1.1]] {
+        let (a, b) = (eval(&built, v), eval(&parsed, v));
+        assert!((a - b).abs() <= 1e-15 * a.abs().max(1.0), "{a} vs {b}");
+        for name in common::VARS {
+            let (a, b) = (
+                eval(&built.derivative(name), v),
+                eval(&parsed.derivative(name), v),
+            );
+            assert!(
+                (a - b).abs() <= 1e-15 * a.abs().max(1.0),
+                "d/d{name}: {a} vs {b}"
+            );
+        }
+    }
+}

@@ -55,6 +55,20 @@ impl Parametric for Model {
     fn forcing_period(&self) -> Option<f64> {
         self.period()
     }
+
+    /// Exact wherever the model's linearisation is constant within each mode for every value
+    /// of `names` ([`Model::piecewise_tangents`]).
+    fn linearisation_tangents(
+        &self,
+        names: &[&str],
+        cycle: &LimitCycle<Self::Mode>,
+        lin: &Linearisation<Self::Mode>,
+        opts: &Options,
+    ) -> Option<Result<Vec<PiecewiseTangent>, String>> {
+        self.piecewise_tangents(names, cycle, lin, opts)
+            .map_err(|e| e.to_string())
+            .transpose()
+    }
 }
 
 /// The smallest mass and stiffness a fit may try: both must stay positive.

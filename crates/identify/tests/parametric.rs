@@ -10,7 +10,7 @@ use htfid_hybrid::Options;
 use htfid_identify::{fit_to_htf, HtfFitSpec, Parametric};
 use htfid_lang::Model;
 use htfid_model::{Hopper, HopperParams};
-use htfid_orbit::ShootingOptions;
+use htfid_orbit::{LimitCycle, ShootingOptions};
 use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 
 fn opts() -> Options {
@@ -116,46 +116,82 @@ fn the_hopper_names_its_parameters_and_refuses_others() {
     assert!((changed.params().forcing_amplitude - 2.0).abs() < 1e-12);
 }
 
-/// The fit's Jacobian (exact: the hopper's linearisation tangents, its orbit's sensitivity
-/// and moved switches, through `ExactHtf::derivatives`) against a second method: central
-/// differences of the exact HTF at steps `h` and `2h` (`h = 1e-4` of the parameter), each
-/// model's orbit found afresh at `rtol = 1e-12`, combined by Richardson extrapolation
-/// (truncation `O(h^4)`, about 1e-16; the orbit's error over the step, `1e-12 / 1e-4 =
-/// 1e-8`). Measured: 1e-10 of the column's norm for `k`, `c` and `m` (the forward difference
-/// of step `FD_STEP` that the fit took before was 1.2e-4 off for `k`); the tolerance, 1e-7,
-/// is ten times the reference's own error. The forcing amplitude `a` moves neither the
-/// switches nor any matrix of this piecewise-linear hopper, so its column is zero and has no
-/// relative error to measure.
-#[test]
-fn the_fits_jacobian_matches_an_extrapolated_central_difference() {
-    let hopper = Hopper::new(HopperParams::paper()).unwrap();
-    let start = hopper
-        .limit_cycle(&ShootingOptions::default(), &opts())
-        .unwrap();
-    let htf = LinearisedHtf::new(&hopper, &start.cycle, &opts()).unwrap();
-    let estimate = exact_estimate(&htf.channel(0).unwrap());
-    let spec = HtfFitSpec::new(
-        vec!["k".into(), "c".into(), "m".into()],
-        vec![-1, 0, 1],
-        (1.0, 40.0),
-    );
-    let fit = fit_to_htf(&hopper, &start.cycle, &[(0, &estimate)], &spec, &opts()).unwrap();
-    assert_eq!(fit.jacobian_method, "exact");
-
-    let tight = Options {
+/// Options tight enough that the orbits of the finite-difference reference are found to
+/// `rtol = 1e-12`.
+fn tight() -> Options {
+    Options {
         rtol: 1e-12,
         atol: 1e-14,
         ..Options::default()
-    };
+    }
+}
+
+/// The limit cycle of any of the models here.
+trait Cycle: Parametric {
+    fn cycle(&self, opts: &Options) -> LimitCycle<Self::Mode>;
+}
+
+impl Cycle for Hopper {
+    fn cycle(&self, opts: &Options) -> LimitCycle<Self::Mode> {
+        self.limit_cycle(&ShootingOptions::default(), opts)
+            .unwrap()
+            .cycle
+    }
+}
+
+impl Cycle for Model {
+    fn cycle(&self, opts: &Options) -> LimitCycle<Self::Mode> {
+        self.limit_cycle(&ShootingOptions::default(), opts).unwrap()
+    }
+}
+
+/// `G_-1, G_0, G_1` of `htf` at `omegas`, as an estimate with a uniform standard error.
+fn estimate_at(htf: &dyn HarmonicTransferFunction, omegas: &[f64]) -> HtfEstimate {
+    let harmonics = vec![-1, 0, 1];
+    let values = harmonics
+        .iter()
+        .map(|&n| omegas.iter().map(|&w| htf.g(n, w)).collect())
+        .collect();
+    HtfEstimate::new(
+        Method::Siddiqi,
+        harmonics,
+        vec![omegas.to_vec(); 3],
+        values,
+        vec![vec![1e-6; omegas.len()]; 3],
+    )
+    .expect("consistent arrays")
+}
+
+/// The fit's Jacobian at the first step against a second method, for the parameters `names`
+/// of `model`: central differences of the exact HTF at steps `h` and `2h` (`h = 1e-4` of the
+/// parameter), each model's orbit found afresh at `rtol = 1e-12`, combined by Richardson
+/// extrapolation (truncation `O(h^4)`, about 1e-16; the orbit's error over the step,
+/// `1e-12 / 1e-4 = 1e-8`). Returns per column the norm of the difference, the reference's
+/// norm and the parameter's value. The fit starts at the truth, so the Jacobian it reports
+/// is taken at `model`'s own values.
+fn jacobian_against_differences<S: Cycle>(
+    model: &S,
+    names: &[&str],
+    omegas: &[f64],
+) -> Vec<Column> {
+    let start = model.cycle(&opts());
+    let htf = LinearisedHtf::new(model, &start, &opts()).unwrap();
+    let estimate = estimate_at(&htf.channel(0).unwrap(), omegas);
+    let spec = HtfFitSpec::new(
+        names.iter().map(|n| (*n).to_string()).collect(),
+        vec![-1, 0, 1],
+        (0.0, f64::INFINITY),
+    );
+    let fit = fit_to_htf(model, &start, &[(0, &estimate)], &spec, &opts()).unwrap();
+    assert_eq!(fit.jacobian_method, "exact");
     let points: Vec<(i32, f64)> = fit.fitted.iter().map(|f| (f.n, f.omega)).collect();
     let g_at = |name: &str, value: f64| {
-        let trial = hopper.unforced_with(&[(name, value)]).unwrap();
-        let cycle = trial
-            .limit_cycle(&ShootingOptions::default(), &tight)
-            .unwrap();
-        let htf = LinearisedHtf::new(&trial, &cycle.cycle, &tight).unwrap();
+        let trial = model.unforced_with(&[(name, value)]).unwrap();
+        let cycle = trial.cycle(&tight());
+        let htf = LinearisedHtf::new(&trial, &cycle, &tight()).unwrap();
         htf.channel(0).unwrap().values(&points)
     };
+    let mut out = Vec::new();
     for (j, name) in fit.parameters.iter().enumerate() {
         let p = fit.values[j];
         let h = 1e-4 * p;
@@ -176,11 +212,126 @@ fn the_fits_jacobian_matches_an_extrapolated_central_difference() {
                 norm += reference.powi(2);
             }
         }
-        let relative = (diff / norm).sqrt();
-        eprintln!("d/d{name}: relative difference {relative:e}");
-        assert!(
-            relative < 1e-7,
-            "d/d{name}: relative difference {relative:e}"
+        let (diff, norm) = (diff.sqrt(), norm.sqrt());
+        eprintln!(
+            "d/d{name}: relative difference {:e} (column norm {norm:e}, times the value {:e})",
+            diff / norm,
+            norm * p.abs()
         );
+        out.push(Column {
+            name: name.clone(),
+            diff,
+            norm,
+            value: p,
+        });
     }
+    out
+}
+
+/// One column of the comparison.
+struct Column {
+    name: String,
+    /// The norm of the difference from the reference, and the reference's norm.
+    diff: f64,
+    norm: f64,
+    /// The parameter's value.
+    value: f64,
+}
+
+/// The tolerance of the comparisons below: ten times the reference's own error (1e-8, see
+/// [`jacobian_against_differences`]).
+const JACOBIAN_TOLERANCE: f64 = 1e-7;
+
+/// Every column within [`JACOBIAN_TOLERANCE`] of its reference, relative to its norm. A
+/// parameter that moves nothing (a rest length, which shifts the whole orbit and its guards
+/// with it) has a column that is zero in exact arithmetic; the reference's is then its own
+/// error. Compared on the scale of a relative change (the column times the parameter's
+/// value), such a column must be zero to within the tolerance of the largest column.
+fn assert_columns(columns: &[Column]) {
+    let largest = columns
+        .iter()
+        .map(|c| c.norm * c.value.abs())
+        .fold(0.0, f64::max);
+    for c in columns {
+        let name = &c.name;
+        if c.norm * c.value.abs() >= 1e-6 * largest {
+            let relative = c.diff / c.norm;
+            assert!(
+                relative < JACOBIAN_TOLERANCE,
+                "d/d{name}: relative difference {relative:e}"
+            );
+        } else {
+            let scaled = c.diff * c.value.abs() / largest;
+            assert!(
+                scaled < JACOBIAN_TOLERANCE,
+                "d/d{name}: not zero, {scaled:e} of the largest"
+            );
+        }
+    }
+}
+
+/// The built-in hopper (its tangents from its own orbit sensitivity and moved switches).
+/// Measured: 1e-10 of the column's norm for `k`, `c` and `m` (the forward difference of step
+/// `FD_STEP` that the fit took before was 1.2e-4 off for `k`). The forcing amplitude `a`
+/// moves neither the switches nor any matrix of this piecewise-linear hopper, so its column
+/// is zero and has no relative error to measure.
+#[test]
+fn the_fits_jacobian_matches_an_extrapolated_central_difference() {
+    let hopper = Hopper::new(HopperParams::paper()).unwrap();
+    let names = ["k", "c", "m"];
+    let omegas: Vec<f64> = (0..60).map(|i| 2.0 + 0.5 * f64::from(i)).collect();
+    assert_columns(&jacobian_against_differences(&hopper, &names, &omegas));
+}
+
+/// The hopper written in the model language (its tangents from symbolic second derivatives,
+/// the orbit's periodic sensitivity and the moved switches, `Model::piecewise_tangents`),
+/// with every parameter that shapes its linearisation, the mass and the rest length
+/// included.
+#[test]
+fn the_model_files_jacobian_matches_an_extrapolated_central_difference() {
+    let names = ["k", "c", "m", "x0", "a"];
+    let omegas: Vec<f64> = (0..60).map(|i| 2.0 + 0.5 * f64::from(i)).collect();
+    assert_columns(&jacobian_against_differences(
+        &model_file(),
+        &names,
+        &omegas,
+    ));
+}
+
+fn shipped(name: &str) -> Model {
+    Model::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../models/{name}.toml")),
+    )
+    .expect("the shipped model reads")
+}
+
+/// The ball on the vibrating table: every switch is an impact whose saltation depends on the
+/// restitution `e`, on gravity and on the table's motion, on a guard that moves in time. The
+/// linearisation's matrices do not change at all; the whole derivative is the moved impact
+/// and its changed jump (`dJ` from the saltation's symbolic derivatives).
+#[test]
+fn the_bouncing_balls_jacobian_matches_an_extrapolated_central_difference() {
+    let names = ["e", "g", "A"];
+    let wp = std::f64::consts::TAU / 0.25;
+    let omegas: Vec<f64> = (0..40).map(|i| wp * (0.05 + 0.07 * f64::from(i))).collect();
+    assert_columns(&jacobian_against_differences(
+        &shipped("bouncing-ball"),
+        &names,
+        &omegas,
+    ));
+}
+
+/// The hopper with a flight phase: touchdown on a fixed height, liftoff where the ground's
+/// force (spring, damper and the thrust of time) vanishes; the stance matrices, both guards
+/// and the touchdown's non-identity saltation all move.
+#[test]
+fn the_flight_hoppers_jacobian_matches_an_extrapolated_central_difference() {
+    let names = ["k", "c", "m", "L0", "a"];
+    let wp = std::f64::consts::TAU / 0.5;
+    let omegas: Vec<f64> = (0..40).map(|i| wp * (0.05 + 0.07 * f64::from(i))).collect();
+    assert_columns(&jacobian_against_differences(
+        &shipped("flight-hopper"),
+        &names,
+        &omegas,
+    ));
 }

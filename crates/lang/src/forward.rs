@@ -19,8 +19,9 @@
 
 use std::cell::RefCell;
 
-use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
-use htfid_orbit::transition_jump;
+use htfid_hybrid::{simulate, Crossing, HybridSystem, Options, Trajectory};
+use htfid_orbit::{transition_jump, LimitCycle};
+use nalgebra::{DMatrix, DVector};
 
 use crate::model::{InputFn, Mode, Model, ParameterSensitivity};
 use crate::ModelError;
@@ -40,6 +41,13 @@ pub enum ForwardError {
          sensitivities do not hold"
     )]
     Sliding(f64),
+    /// The orbit has a Floquet multiplier of 1 (or one so close that `I - M` is singular):
+    /// its periodic sensitivity is undefined.
+    #[error(
+        "the orbit's monodromy has a Floquet multiplier of 1: its sensitivity to the \
+         parameters is undefined"
+    )]
+    UnitMultiplier,
 }
 
 /// A model's outputs on a grid and their derivatives with respect to parameters and,
@@ -344,4 +352,56 @@ pub fn output_sensitivities_with_input(
         }
     }
     Ok(OutputSensitivities { outputs, columns })
+}
+
+/// One period of `cycle` (a limit cycle of `model`, its input off) with the orbit's own
+/// periodic sensitivity to `params` beside it: the state `[x, dx/dp row by row]` (`n (1 + k)`
+/// entries) along the orbit, its events carrying the sensitivities just before each reset.
+///
+/// The sensitivity `z = dx/dp` of the periodic orbit (the period fixed by the forcing) is the
+/// periodic solution of `z' = A z + df/dp` with the guards' jumps: one period from `z = 0`
+/// gives the particular end `z_T`, and `(I - M) z(t0) = z_T` with `M = cycle.jacobian`, the
+/// monodromy. A second period from that start is the one returned.
+///
+/// # Errors
+/// [`ForwardError`]: an unknown name, a failed or sliding simulation, a unit multiplier.
+pub(crate) fn periodic_sensitivity(
+    model: &Model,
+    params: &[&str],
+    cycle: &LimitCycle<Mode>,
+    opts: &Options,
+) -> Result<Trajectory<Mode>, ForwardError> {
+    let sens = model.parameter_sensitivity(params)?;
+    let (n, k) = (model.dim(), params.len());
+    let sys = Augmented {
+        model,
+        sens,
+        input: None,
+        k,
+        kq: k,
+        m: k,
+        n,
+        scratch: RefCell::new(Scratch::default()),
+    };
+    let end = cycle.t0 + cycle.period;
+    let run = |start: &[f64]| -> Result<Trajectory<Mode>, ForwardError> {
+        let traj = simulate(&sys, cycle.mode0, cycle.t0, start, end, &[], opts)
+            .map_err(|e| ForwardError::Simulation(e.to_string()))?;
+        match traj.sliding.first() {
+            Some(slide) => Err(ForwardError::Sliding(slide.start)),
+            None => Ok(traj),
+        }
+    };
+    let mut start = vec![0.0; n * (1 + k)];
+    start[..n].copy_from_slice(&cycle.state0);
+    let particular = run(&start)?;
+    let lu = (DMatrix::<f64>::identity(n, n) - &cycle.jacobian).lu();
+    for j in 0..k {
+        let column = DVector::from_fn(n, |l, _| particular.final_state[n + l * k + j]);
+        let periodic = lu.solve(&column).ok_or(ForwardError::UnitMultiplier)?;
+        for l in 0..n {
+            start[n + l * k + j] = periodic[l];
+        }
+    }
+    run(&start)
 }

@@ -60,6 +60,7 @@ mod extend;
 mod forward;
 mod model;
 mod read;
+mod tangent;
 
 pub use build::{Output, Parameter, State};
 pub use error::{Location, ModelError};

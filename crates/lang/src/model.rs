@@ -60,6 +60,9 @@ pub struct Model {
     values: Vec<f64>,
     compiled: Arc<Compiled>,
     input: Option<InputFn>,
+    /// The programs of the linearisation's tangents, per set of parameters, shared by every
+    /// model with this definition (they read the parameters' values as variables).
+    tangents: Arc<crate::tangent::Cache>,
 }
 
 impl fmt::Debug for Model {
@@ -108,7 +111,7 @@ fn with_outputs<R>(p: &Program, vars: &[f64], f: impl FnOnce(&[f64]) -> R) -> R 
     }
 }
 
-fn fold(e: &Expr, params: &[Parameter], values: &[f64]) -> Expr {
+pub(crate) fn fold(e: &Expr, params: &[Parameter], values: &[f64]) -> Expr {
     let mut out = e.clone();
     for (p, &v) in params.iter().zip(values) {
         if out.depends_on(&p.name) {
@@ -118,7 +121,7 @@ fn fold(e: &Expr, params: &[Parameter], values: &[f64]) -> Expr {
     out.simplify()
 }
 
-fn constant_in_mode(exprs: &[Expr], vars: &[&str], input: &str) -> bool {
+pub(crate) fn constant_in_mode(exprs: &[Expr], vars: &[&str], input: &str) -> bool {
     // Constant within a mode: no time, no state; an input term is linear-affine and its
     // derivative no longer depends on it only if it does not appear.
     exprs.iter().all(|e| {
@@ -259,6 +262,7 @@ impl Model {
             values,
             compiled: Arc::new(compiled),
             input: None,
+            tangents: Arc::default(),
         };
         model.check_signals_periodic(&src)?;
         Ok(model)
@@ -306,6 +310,7 @@ impl Model {
             values,
             compiled: Arc::new(compiled),
             input,
+            tangents: Arc::default(),
         })
     }
 
@@ -317,6 +322,10 @@ impl Model {
     /// The resolved definition.
     pub(crate) fn def(&self) -> &ModelDef {
         &self.def
+    }
+
+    pub(crate) fn tangent_cache(&self) -> &crate::tangent::Cache {
+        &self.tangents
     }
 
     /// The model's name.
@@ -411,6 +420,7 @@ impl Model {
             values: values.to_vec(),
             compiled: Arc::new(compiled),
             input: self.input.clone(),
+            tangents: self.tangents.clone(),
         })
     }
 

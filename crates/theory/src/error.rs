@@ -38,9 +38,6 @@ pub enum TheoryError {
         /// `||A V - V diag(lambda)|| / ||A||` of the computed decomposition.
         residual: f64,
     },
-    /// Derivatives of the exact HTF are formed on the modal path only.
-    #[error("derivatives of the exact HTF need every piece's state matrix safely diagonalisable (the modal method); this system takes the block-exponential method")]
-    DerivativeNeedsModal,
     /// A Fourier-coefficient provider returned a matrix of the wrong shape.
     #[error("coefficient {matrix:?}_{harmonic} is {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}")]
     CoefficientShape {

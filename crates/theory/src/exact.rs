@@ -16,6 +16,7 @@ use num_complex::Complex64;
 use std::f64::consts::TAU;
 
 mod tangent;
+mod tangent_block;
 
 /// Eigenvector matrices with a condition number above this send the system
 /// to the block-exponential method. Near a defective matrix the eigenvalues

@@ -137,11 +137,13 @@ impl ExactHtf {
     /// [`HarmonicTransferFunction::values`](crate::HarmonicTransferFunction::values)) along
     /// each of `tangents`: entry `[t][i]` is the rate of change of the value at `points[i]`
     /// when the system moves along `tangents[t]` ([`htfid_ltp::PiecewiseLti::moved`]), exact
-    /// (closed form, no differences). NaN at a pole, as the values.
+    /// (closed form, no differences). NaN at a pole, as the values. On the modal path in
+    /// scalar exponentials and divided differences; on the block-exponential path (state
+    /// matrices that are not safely diagonalisable) from one augmented matrix exponential per
+    /// piece, tangent and point (`tangent_block.rs`).
     ///
     /// # Errors
-    /// A tangent that does not fit the system ([`TheoryError::Ltp`]), or a system on the
-    /// block-exponential path ([`TheoryError::DerivativeNeedsModal`]).
+    /// A tangent that does not fit the system ([`TheoryError::Ltp`]).
     pub fn derivatives(
         &self,
         tangents: &[PiecewiseTangent],
@@ -150,10 +152,9 @@ impl ExactHtf {
         for t in tangents {
             t.check(&self.lti)?;
         }
-        let modal = self
-            .modal
-            .as_ref()
-            .ok_or(TheoryError::DerivativeNeedsModal)?;
+        let Some(modal) = self.modal.as_ref() else {
+            return Ok(self.derivatives_block(tangents, points));
+        };
         let n_pieces = self.pieces.len();
         let next = |i: usize| (i + 1) % n_pieces;
         let handover: Vec<Handover> = (0..n_pieces)
