@@ -126,7 +126,8 @@ pub struct FitPoint {
 pub const FIT_TOLERANCE: f64 = 0.01;
 
 /// Relative step of the forward differences that form the fit's Jacobian when the model gives
-/// no linearisation tangents ([`Parametric::linearisation_tangents`]), `FD_STEP *
+/// no tangents ([`Parametric::linearisation_tangents`], [`Parametric::orbit_derivatives`]),
+/// `FD_STEP *
 /// max(|p|, 1e-3)` per parameter. Each residual carries the orbit's and the HTF's own error, of
 /// the order of the integrator's tolerance (about `1e-10` relative at the default `rtol`), which
 /// a step `h` turns into an error `1e-10 / h` of the Jacobian, while the truncation error
@@ -142,11 +143,13 @@ pub const CLUSTER_POINTS: usize = 10;
 /// starting from the model's current values and its limit cycle `cycle`. Weights are
 /// `1 / stderr`, floored at `1e-6` of the harmonic's largest estimate so that noise-free
 /// estimates do not get infinite weight; parameter bounds come from the model. The Jacobian is
-/// exact where the model gives the tangents of its closed-form linearisation
+/// exact where the model gives its tangents: of its closed-form linearisation
 /// ([`Parametric::linearisation_tangents`], the derivatives then from
-/// [`htfid_theory::ExactHtf::derivatives`]), otherwise a forward difference of step
-/// [`FD_STEP`] ([`HtfFit::jacobian_method`] says which); the fit ends at a step worth less
-/// than [`FIT_TOLERANCE`].
+/// [`htfid_theory::ExactHtf::derivatives`]) or along its orbit
+/// ([`Parametric::orbit_derivatives`], through [`htfid_theory::OrbitHtf::derivatives`]),
+/// whichever its HTF takes; otherwise a forward difference of step [`FD_STEP`]
+/// ([`HtfFit::jacobian_method`] says which). The fit ends at a step worth less than
+/// [`FIT_TOLERANCE`].
 ///
 /// # Errors
 /// [`IdentifyError`].
@@ -255,25 +258,44 @@ pub fn fit_to_htf<S: Parametric>(
         Ok(())
     };
     let m = 2 * rows.len();
-    // The exact Jacobian: the derivatives of every fitted value along the model's tangents.
+    // The exact Jacobian: the derivatives of every fitted value along the model's tangents,
+    // of its closed-form linearisation or of its orbit.
     let jacobian = |p: &[f64], _r: &[f64], jac: &mut [f64]| -> Result<(), String> {
         let (trial, cyc) = trial_at(p)?;
         let htf = LinearisedHtf::new(&trial, &cyc, opts).map_err(|e| e.to_string())?;
-        let lin = htf
-            .linearisation()
-            .ok_or("the model's HTF is no longer the closed form")?;
-        let tangents = trial
-            .linearisation_tangents(&names, &cyc, lin, opts)
-            .ok_or("the model no longer gives its linearisation's tangents")??;
-        for (o, (at, points)) in per_output.iter().enumerate() {
-            let HtfChannel::Exact(exact) = htf.channel(o).map_err(|e| e.to_string())? else {
-                return Err("the model's HTF is no longer the closed form".into());
-            };
-            let channel: Vec<_> = tangents.iter().map(|t| t.channel(o, 0)).collect();
-            let derivatives = exact
-                .derivatives(&channel, points)
-                .map_err(|e| e.to_string())?;
-            for (j, column) in derivatives.iter().enumerate() {
+        let derivatives: Vec<Vec<Vec<Complex64>>> = match htf.linearisation() {
+            Some(lin) => {
+                let tangents = trial
+                    .linearisation_tangents(&names, &cyc, lin, opts)
+                    .ok_or("the model no longer gives its linearisation's tangents")??;
+                per_output
+                    .iter()
+                    .enumerate()
+                    .map(|(o, (_, points))| {
+                        let HtfChannel::Exact(exact) = htf.channel(o).map_err(|e| e.to_string())?
+                        else {
+                            return Err("the model's HTF is no longer the closed form".to_string());
+                        };
+                        let channel: Vec<_> = tangents.iter().map(|t| t.channel(o, 0)).collect();
+                        exact
+                            .derivatives(&channel, points)
+                            .map_err(|e| e.to_string())
+                    })
+                    .collect::<Result<_, _>>()?
+            }
+            None => {
+                let orbit = htf.orbit().ok_or("the model's HTF has no method")?;
+                let points: Vec<Vec<(i32, f64)>> = per_output
+                    .iter()
+                    .map(|(_, points)| points.clone())
+                    .collect();
+                trial
+                    .orbit_derivatives(&names, &cyc, orbit, &points, opts)
+                    .ok_or("the model no longer gives its orbit's tangents")??
+            }
+        };
+        for ((at, _), of_output) in per_output.iter().zip(&derivatives) {
+            for (j, column) in of_output.iter().enumerate() {
                 for (&i, g) in at.iter().zip(column) {
                     let weight = rows[i].4;
                     jac[j * m + 2 * i] = -g.re * weight;
@@ -325,30 +347,32 @@ pub fn fit_to_htf<S: Parametric>(
     })
 }
 
-/// Whether `model` gives the exact tangents of its closed-form linearisation about `cycle`
-/// for every one of `names` (checked on the model as given: the trials are the same model
-/// with other values).
+/// Whether `model` gives the exact tangents of its linearisation about `cycle` (closed form
+/// or along the orbit, whichever its HTF takes) for every one of `names` (checked on the
+/// model as given: the trials are the same model with other values).
 fn exact_tangents_available<S: Parametric>(
     model: &S,
     cycle: &LimitCycle<S::Mode>,
     names: &[&str],
     opts: &Options,
 ) -> bool {
-    if !model.is_piecewise_constant() {
-        return false;
-    }
     let Ok(unforced) = model.unforced_with(&[]) else {
         return false;
     };
     let Ok(htf) = LinearisedHtf::new(&unforced, cycle, opts) else {
         return false;
     };
-    htf.linearisation().is_some_and(|lin| {
-        matches!(
+    match (htf.linearisation(), htf.orbit()) {
+        (Some(lin), _) => matches!(
             unforced.linearisation_tangents(names, cycle, lin, opts),
             Some(Ok(_))
-        )
-    })
+        ),
+        (None, Some(orbit)) => matches!(
+            unforced.orbit_derivatives(names, cycle, orbit, &[], opts),
+            Some(Ok(_))
+        ),
+        (None, None) => false,
+    }
 }
 
 /// The fit's error budget; the known bias is that of the estimates (all must share one source

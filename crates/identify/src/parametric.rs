@@ -6,6 +6,8 @@ use htfid_lang::Model;
 use htfid_ltp::{InputOutput, Linearisation, PiecewiseTangent};
 use htfid_model::{Hopper, HopperParams};
 use htfid_orbit::LimitCycle;
+use htfid_theory::OrbitHtf;
+use num_complex::Complex64;
 
 /// A rhythmic model with named parameters: every model-language [`Model`] and the built-in
 /// [`Hopper`]. Rust users implement it (with [`InputOutput`]) to fit their own models with
@@ -35,6 +37,21 @@ pub trait Parametric: InputOutput + Sized {
         _lin: &Linearisation<Self::Mode>,
         _opts: &Options,
     ) -> Option<Result<Vec<PiecewiseTangent>, String>> {
+        None
+    }
+
+    /// The derivatives of the HTFs along the orbit (`htf`: this model about `cycle`, its input
+    /// off, by the periodic-response method) along each of `names`, at `points[o]` of every
+    /// output `o`: entry `[o][j][i]`, exact up to the integrator's tolerance (through
+    /// [`OrbitHtf::derivatives`]). `None` (the default) when the model does not give them.
+    fn orbit_derivatives(
+        &self,
+        _names: &[&str],
+        _cycle: &LimitCycle<Self::Mode>,
+        _htf: &OrbitHtf<'_, Self>,
+        _points: &[Vec<(i32, f64)>],
+        _opts: &Options,
+    ) -> Option<Result<Vec<Vec<Vec<Complex64>>>, String>> {
         None
     }
 }
@@ -68,6 +85,44 @@ impl Parametric for Model {
         self.piecewise_tangents(names, cycle, lin, opts)
             .map_err(|e| e.to_string())
             .transpose()
+    }
+
+    /// Exact unless one of `names` sets the forcing's period ([`Model::orbit_tangents`]).
+    fn orbit_derivatives(
+        &self,
+        names: &[&str],
+        cycle: &LimitCycle<Self::Mode>,
+        htf: &OrbitHtf<'_, Self>,
+        points: &[Vec<(i32, f64)>],
+        opts: &Options,
+    ) -> Option<Result<Vec<Vec<Vec<Complex64>>>, String>> {
+        let tangents = match self.orbit_tangents(names, cycle, opts) {
+            Ok(Some(tangents)) => tangents,
+            Ok(None) => return None,
+            Err(e) => return Some(Err(e.to_string())),
+        };
+        // One integration for every output: the outputs' points merged.
+        let mut all: Vec<(i32, f64)> = points.iter().flatten().copied().collect();
+        all.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        all.dedup();
+        let derivatives = match htf.derivatives(&tangents, &all) {
+            Ok(d) => d,
+            Err(e) => return Some(Err(e.to_string())),
+        };
+        let at = |point: &(i32, f64)| {
+            all.binary_search_by(|a| a.0.cmp(&point.0).then(a.1.total_cmp(&point.1)))
+                .unwrap_or_default()
+        };
+        Some(Ok(points
+            .iter()
+            .zip(&derivatives)
+            .map(|(of_output, by_direction)| {
+                by_direction
+                    .iter()
+                    .map(|column| of_output.iter().map(|pt| column[at(pt)]).collect())
+                    .collect()
+            })
+            .collect()))
     }
 }
 

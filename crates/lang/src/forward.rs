@@ -63,7 +63,7 @@ pub struct OutputSensitivities {
 
 /// The model and its state with the sensitivities appended, `n (1 + m)` entries:
 /// `[x, S row by row]`.
-struct Augmented<'a> {
+pub(crate) struct Augmented<'a> {
     model: &'a Model,
     sens: ParameterSensitivity,
     /// The derivatives by the input, with the input's directions: a column `k + j` follows a
@@ -82,6 +82,24 @@ struct Scratch {
     a: Vec<f64>,
     fp: Vec<f64>,
     one: Vec<f64>,
+}
+
+impl<'a> Augmented<'a> {
+    /// The model with the sensitivities to the parameters of `sens` beside its state (no input
+    /// directions, no initial state's columns).
+    pub(crate) fn for_parameters(model: &'a Model, sens: ParameterSensitivity) -> Self {
+        let k = sens.parameters().len();
+        Augmented {
+            model,
+            sens,
+            input: None,
+            k,
+            kq: k,
+            m: k,
+            n: model.dim(),
+            scratch: RefCell::new(Scratch::default()),
+        }
+    }
 }
 
 impl Augmented<'_> {
@@ -171,6 +189,21 @@ impl HybridSystem for Augmented<'_> {
     /// (`htfid_orbit::transition_jump`) with the parameter terms:
     /// `S+ = DR S- + jump (h_x S- + h_p) / speed + R_p`.
     fn transition(&self, mode: Mode, index: usize, t: f64, x: &mut [f64]) -> Mode {
+        self.cross(mode, index, t, x, &mut [])
+    }
+}
+
+impl Augmented<'_> {
+    /// [`HybridSystem::transition`] of the state with its sensitivities, and the rate at which
+    /// the crossing's time moves along each of the first `dtau.len()` columns.
+    pub(crate) fn cross(
+        &self,
+        mode: Mode,
+        index: usize,
+        t: f64,
+        x: &mut [f64],
+        dtau: &mut [f64],
+    ) -> Mode {
         let (n, k, m) = (self.n, self.kq, self.m);
         let u = self.u(t);
         let before: Vec<f64> = x[..n].to_vec();
@@ -205,6 +238,9 @@ impl HybridSystem for Augmented<'_> {
                 .sum::<f64>()
                 + if j < k { h_p[j] } else { 0.0 };
             let shift = if moves { hs / jump.speed } else { 0.0 };
+            if let Some(rate) = dtau.get_mut(j) {
+                *rate = -shift;
+            }
             for i in 0..n {
                 let mut acc = jump.jump[i] * shift;
                 if j < k {
@@ -361,28 +397,20 @@ pub fn output_sensitivities_with_input(
 /// The sensitivity `z = dx/dp` of the periodic orbit (the period fixed by the forcing) is the
 /// periodic solution of `z' = A z + df/dp` with the guards' jumps: one period from `z = 0`
 /// gives the particular end `z_T`, and `(I - M) z(t0) = z_T` with `M = cycle.jacobian`, the
-/// monodromy. A second period from that start is the one returned.
+/// monodromy. With `second_period`, a second period from that start is returned; without,
+/// the start alone.
 ///
 /// # Errors
 /// [`ForwardError`]: an unknown name, a failed or sliding simulation, a unit multiplier.
-pub(crate) fn periodic_sensitivity(
+fn periodic(
     model: &Model,
     params: &[&str],
     cycle: &LimitCycle<Mode>,
     opts: &Options,
-) -> Result<Trajectory<Mode>, ForwardError> {
-    let sens = model.parameter_sensitivity(params)?;
+    second_period: bool,
+) -> Result<Periodic, ForwardError> {
+    let sys = Augmented::for_parameters(model, model.parameter_sensitivity(params)?);
     let (n, k) = (model.dim(), params.len());
-    let sys = Augmented {
-        model,
-        sens,
-        input: None,
-        k,
-        kq: k,
-        m: k,
-        n,
-        scratch: RefCell::new(Scratch::default()),
-    };
     let end = cycle.t0 + cycle.period;
     let run = |start: &[f64]| -> Result<Trajectory<Mode>, ForwardError> {
         let traj = simulate(&sys, cycle.mode0, cycle.t0, start, end, &[], opts)
@@ -403,5 +431,42 @@ pub(crate) fn periodic_sensitivity(
             start[n + l * k + j] = periodic[l];
         }
     }
-    run(&start)
+    if !second_period {
+        return Ok(Periodic::Start(start[n..].to_vec()));
+    }
+    run(&start).map(Periodic::Period)
+}
+
+/// What [`periodic`] returns.
+pub(crate) enum Periodic {
+    /// The periodic sensitivity at the cycle's start (`n x k`).
+    Start(Vec<f64>),
+    /// A period of the orbit with its periodic sensitivity.
+    Period(Trajectory<Mode>),
+}
+
+/// [`periodic`]'s period.
+pub(crate) fn periodic_sensitivity(
+    model: &Model,
+    params: &[&str],
+    cycle: &LimitCycle<Mode>,
+    opts: &Options,
+) -> Result<Trajectory<Mode>, ForwardError> {
+    match periodic(model, params, cycle, opts, true)? {
+        Periodic::Period(traj) => Ok(traj),
+        Periodic::Start(_) => unreachable!("a second period was asked for"),
+    }
+}
+
+/// [`periodic`]'s start.
+pub(crate) fn periodic_start(
+    model: &Model,
+    params: &[&str],
+    cycle: &LimitCycle<Mode>,
+    opts: &Options,
+) -> Result<Vec<f64>, ForwardError> {
+    match periodic(model, params, cycle, opts, false)? {
+        Periodic::Start(start) => Ok(start),
+        Periodic::Period(_) => unreachable!("no second period was asked for"),
+    }
 }

@@ -62,6 +62,8 @@ mod model;
 mod read;
 mod tangent;
 
+pub use tangent::ModelOrbitTangents;
+
 pub use build::{Output, Parameter, State};
 pub use error::{Location, ModelError};
 pub use extend::{Extension, Site};

@@ -1,12 +1,13 @@
-//! How a model's piecewise linearisation moves with its parameters, exactly: the tangents
-//! ([`PiecewiseTangent`]) that `htfid_theory::ExactHtf::derivatives` turns into the exact
-//! derivatives of the HTFs, so that HTF fits of model files take an exact Jacobian.
+//! How a model's linearisation about its orbit moves with its parameters, exactly: the
+//! tangents that `htfid_theory::ExactHtf::derivatives` and `htfid_theory::OrbitHtf::derivatives`
+//! turn into the exact derivatives of the HTFs, so that HTF fits of model files take an exact
+//! Jacobian.
 //!
-//! For a model whose `A`, `B`, `C`, `D` are constant within each mode (for every value of the
-//! parameters asked about), a parameter `p` changes three things:
+//! A parameter `p` changes three things:
 //!
-//! - each piece's matrices: `dA/dp = d(df/dx)/dp`, `d(df/du)/dp`, `d(dy/dx)/dp`,
-//!   `d(dy/du)/dp`, second derivatives formed symbolically;
+//! - the matrices: `dA/dp = d(df/dx)/dp` with the state held (plus `A_x z` where `A` varies
+//!   with the state), `d(df/du)/dp`, `d(dy/dx)/dp`, `d(dy/du)/dp`, second derivatives formed
+//!   symbolically;
 //! - when each switch happens: the orbit's own sensitivity `z = dx/dp` (periodic, from
 //!   [`crate::forward`]) moves the crossing of guard `h` by
 //!   `d tau = -(h_x z- + h_p) / (h_x f- + h_t)`;
@@ -16,19 +17,24 @@
 //!   crossing it is evaluated at, which moves in time by `d tau` and in state by
 //!   `z- + f- d tau`: `dS = S_p + S_x (z- + f- d tau) + S_t d tau`.
 //!
-//! Models whose linearisation varies within a mode take their HTFs along the orbit
-//! (`htfid_theory::OrbitHtf`); this module gives them no tangents.
+//! [`Model::piecewise_tangents`] gives these as tangents of the piecewise-LTI model, for a
+//! model whose `A`, `B`, `C`, `D` are constant within each mode. For any model,
+//! [`Model::orbit_tangents`] gives them along the orbit ([`OrbitTangents`]): the orbit's
+//! sensitivity with its dynamics and jumps (those of [`crate::output_sensitivities`]),
+//! `dA = A_p + A_x z` from the field's second derivatives (and the same for `B`, `C`, `D`), and
+//! the saltation's change, for `htfid_theory::OrbitHtf::derivatives`.
 
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use htfid_expr::{Expr, Program};
 use htfid_hybrid::{EventKind, HybridSystem, Options};
-use htfid_ltp::{Linearisation, PiecewiseTangent};
+use htfid_ltp::{Linearisation, OrbitTangents, PiecewiseTangent};
 use htfid_orbit::{transition_jump, LimitCycle};
 use nalgebra::DMatrix;
 
-use crate::forward::{periodic_sensitivity, ForwardError};
+use crate::forward::{periodic_sensitivity, periodic_start, Augmented, ForwardError};
 use crate::model::{constant_in_mode, fold, Mode, Model};
 use crate::ModelError;
 
@@ -56,17 +62,9 @@ impl Model {
         lin: &Linearisation<Mode>,
         opts: &Options,
     ) -> Result<Option<Vec<PiecewiseTangent>>, ForwardError> {
-        for name in names {
-            if self.parameter_index(name).is_none() {
-                return Err(ModelError::Parameter {
-                    name: (*name).to_string(),
-                    message: "the model has no such parameter".into(),
-                }
-                .into());
-            }
-        }
+        self.check_names(names)?;
         let sym = Symbolic::new(self, names);
-        if !sym.piecewise_constant() {
+        if sym.sets_period() || !sym.piecewise_constant() {
             return Ok(None);
         }
         let programs = self.tangent_cache().programs(&sym)?;
@@ -125,9 +123,7 @@ impl Model {
                         self.mode_name(event.from)
                     ))
                 })?;
-            // Per entry (a, b) of S: d/dt, d/dx_1 .. d/dx_n, d/dp_1 .. d/dp_k.
-            let stride = 1 + n + k;
-            let mut ds = vec![0.0; n * n * stride];
+            let mut ds = vec![0.0; salt.len()];
             salt.eval(&self.vars(t, x, u), &mut ds);
             for (j, tangent) in tangents.iter_mut().enumerate() {
                 let moved = (0..n)
@@ -138,28 +134,29 @@ impl Model {
                 let dx: Vec<f64> = (0..n).map(|l| z[l * k + j] + f_minus[l] * dtau).collect();
                 let piece = &mut tangent.pieces_mut()[i];
                 piece.start = dtau;
-                piece.jump = DMatrix::from_fn(n, n, |a, b| {
-                    let d = &ds[(a * n + b) * stride..(a * n + b + 1) * stride];
-                    d[1 + n + j] + d[0] * dtau + (0..n).map(|l| d[1 + l] * dx[l]).sum::<f64>()
-                });
+                let mut dj = vec![0.0; n * n];
+                saltation_change(&ds, n, k, j, &dx, dtau, &mut dj);
+                piece.jump = DMatrix::from_row_slice(n, n, &dj);
             }
         }
 
         // The pieces' matrices: constant within each mode, read anywhere on the orbit.
         let p = self.outputs().len();
         let at = self.vars(cycle.t0, &cycle.state0, self.input_value(cycle.t0));
-        let mut out_d = vec![0.0; (p * n + p) * k];
+        let mut out_d = vec![0.0; programs.outputs.len()];
         programs.outputs.eval(&at, &mut out_d);
         for i in 0..piecewise.pieces().len() {
             let mode = lin.switches.get(i).map_or(cycle.mode0, |s| s.to);
-            let mut flow_d = vec![0.0; (n * n + n) * k];
+            let mut flow_d = vec![0.0; programs.flows[mode.index()].len()];
             programs.flows[mode.index()].eval(&at, &mut flow_d);
+            // Each entry's derivatives by the states (zero here), then by the parameters.
+            let by = |d: &[f64], entry: usize, j: usize| d[entry * (n + k) + n + j];
             for (j, tangent) in tangents.iter_mut().enumerate() {
                 let piece = &mut tangent.pieces_mut()[i];
-                piece.a = DMatrix::from_fn(n, n, |r, c| flow_d[(r * n + c) * k + j]);
-                piece.b = DMatrix::from_fn(n, 1, |r, _| flow_d[(n * n + r) * k + j]);
-                piece.c = DMatrix::from_fn(p, n, |r, c| out_d[(r * n + c) * k + j]);
-                piece.d = DMatrix::from_fn(p, 1, |r, _| out_d[(p * n + r) * k + j]);
+                piece.a = DMatrix::from_fn(n, n, |r, c| by(&flow_d, r * n + c, j));
+                piece.b = DMatrix::from_fn(n, 1, |r, _| by(&flow_d, n * n + r, j));
+                piece.c = DMatrix::from_fn(p, n, |r, c| by(&out_d, r * n + c, j));
+                piece.d = DMatrix::from_fn(p, 1, |r, _| by(&out_d, p * n + r, j));
             }
         }
         for tangent in &tangents {
@@ -171,15 +168,51 @@ impl Model {
     }
 }
 
+/// `dS = S_p + S_x dx + S_t dt` along parameter `j` (of `k`), from a saltation program's
+/// values `ds` (per entry of `S`, row-major: by `t`, by each of the `n` states, by each
+/// parameter), into `out` (`n x n`).
+fn saltation_change(
+    ds: &[f64],
+    n: usize,
+    k: usize,
+    j: usize,
+    dx: &[f64],
+    dt: f64,
+    out: &mut [f64],
+) {
+    let stride = 1 + n + k;
+    for (entry, v) in out.iter_mut().enumerate() {
+        let d = &ds[entry * stride..(entry + 1) * stride];
+        *v = d[1 + n + j] + d[0] * dt + (0..n).map(|l| d[1 + l] * dx[l]).sum::<f64>();
+    }
+}
+
 impl Model {
+    /// [`ModelError::Parameter`] for a name that is not one of the model's parameters.
+    fn check_names(&self, names: &[&str]) -> Result<(), ModelError> {
+        match names.iter().find(|n| self.parameter_index(n).is_none()) {
+            Some(name) => Err(ModelError::Parameter {
+                name: (*name).to_string(),
+                message: "the model has no such parameter".into(),
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// `[t, x, u, parameter values]`: the tangents' programs' variables.
     fn vars(&self, t: f64, x: &[f64], u: f64) -> Vec<f64> {
         let mut v = Vec::with_capacity(x.len() + 2 + self.values().len());
+        self.fill_vars(t, x, u, &mut v);
+        v
+    }
+
+    /// [`Model::vars`] into `v`.
+    fn fill_vars(&self, t: f64, x: &[f64], u: f64, v: &mut Vec<f64>) {
+        v.clear();
         v.push(t);
         v.extend_from_slice(x);
         v.push(u);
         v.extend_from_slice(self.values());
-        v
     }
 }
 
@@ -207,9 +240,10 @@ impl Cache {
 /// What [`Model::piecewise_tangents`] evaluates, for one set of parameters `p`.
 #[derive(Debug)]
 struct Programs {
-    /// Per mode: `d(df/dx)/dp` (`n x n x k`), then `d(df/du)/dp` (`n x k`).
+    /// Per mode, per entry of `df/dx` (`n x n`) then of `df/du` (`n`): its derivatives by
+    /// every state, then by each parameter (`n + k`).
     flows: Vec<Program>,
-    /// `d(dy/dx)/dp` (`p x n x k`), then `d(dy/du)/dp` (`p x k`).
+    /// The same for `dy/dx` (`p x n`) and `dy/du` (`p`).
     outputs: Program,
     /// Per (mode left, guard): the saltation matrix's entries' derivatives (row-major; per
     /// entry by `t`, by every state, by each parameter).
@@ -256,17 +290,18 @@ impl<'a> Symbolic<'a> {
         fold(e, &params, &values)
     }
 
-    /// Whether `A`, `B` of every mode and `C`, `D` are free of time, state and input for
-    /// every value of `names`, and the period does not depend on them.
-    fn piecewise_constant(&self) -> bool {
+    /// Whether one of `names` sets the forcing's period (which the tangents hold fixed).
+    fn sets_period(&self) -> bool {
         let def = self.model.def();
-        if def
-            .period
+        def.period
             .as_ref()
             .is_some_and(|e| self.names.iter().any(|n| e.depends_on(n)))
-        {
-            return false;
-        }
+    }
+
+    /// Whether `A`, `B` of every mode and `C`, `D` are free of time, state and input for
+    /// every value of `names`.
+    fn piecewise_constant(&self) -> bool {
+        let def = self.model.def();
         let (states, input) = (self.states(), self.input());
         let linear = |e: &Expr| -> Vec<Expr> {
             let e = self.partly_folded(e);
@@ -300,20 +335,21 @@ impl<'a> Symbolic<'a> {
         })
     }
 
-    /// `d/dp_j` of `d e_i / d x_l` for every `e_i` and `l`, then of `d e_i / du`, in the
-    /// order `((i, l), j)`.
-    fn linear_by_parameters(&self, exprs: &[Expr]) -> Vec<Expr> {
+    /// For every `e_i`, `d e_i / d x_l` for every `l` then `d e_i / du`, each differentiated
+    /// by every state and then by each of `names`: entry-major, `n + k` per entry.
+    fn linear_by_states_and_parameters(&self, exprs: &[Expr]) -> Vec<Expr> {
         let (states, input) = (self.states(), self.input());
+        let by: Vec<&str> = states.iter().chain(self.names).copied().collect();
         let mut out = Vec::new();
         for e in exprs {
             for s in states {
                 let d = e.derivative(s);
-                out.extend(self.names.iter().map(|p| d.derivative(p)));
+                out.extend(by.iter().map(|v| d.derivative(v)));
             }
         }
         for e in exprs {
             let d = e.derivative(input);
-            out.extend(self.names.iter().map(|p| d.derivative(p)));
+            out.extend(by.iter().map(|v| d.derivative(v)));
         }
         out
     }
@@ -323,7 +359,7 @@ impl<'a> Symbolic<'a> {
         let flows = def
             .flows
             .iter()
-            .map(|f| self.compile(&self.linear_by_parameters(f)))
+            .map(|f| self.compile(&self.linear_by_states_and_parameters(f)))
             .collect::<Result<_, _>>()?;
         let outputs: Vec<Expr> = def.outputs.iter().map(|o| o.expr.clone()).collect();
         let mut saltation = HashMap::new();
@@ -334,7 +370,7 @@ impl<'a> Symbolic<'a> {
         }
         Ok(Programs {
             flows,
-            outputs: self.compile(&self.linear_by_parameters(&outputs))?,
+            outputs: self.compile(&self.linear_by_states_and_parameters(&outputs))?,
             saltation,
         })
     }
@@ -393,5 +429,186 @@ impl<'a> Symbolic<'a> {
             }
         }
         self.compile(&entries)
+    }
+}
+
+/// The directions of change of a model's orbit and linearisation along some of its parameters
+/// ([`OrbitTangents`]), for the derivatives of its HTFs along the orbit
+/// (`htfid_theory::OrbitHtf::derivatives`): made by [`Model::orbit_tangents`].
+pub struct ModelOrbitTangents<'a> {
+    model: &'a Model,
+    programs: Arc<Programs>,
+    /// The orbit's sensitivity and its jumps.
+    sensitivity: Augmented<'a>,
+    start: Vec<f64>,
+    n: usize,
+    k: usize,
+    scratch: RefCell<Vec<f64>>,
+    buffers: RefCell<Buffers>,
+}
+
+/// Reused buffers of [`ModelOrbitTangents`]: the programs' variables and values.
+#[derive(Default)]
+struct Buffers {
+    vars: Vec<f64>,
+    flow: Vec<f64>,
+    outputs: Vec<f64>,
+}
+
+impl std::fmt::Debug for ModelOrbitTangents<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ModelOrbitTangents")
+            .field("model", &self.model.name())
+            .field("directions", &self.k)
+            .field("start", &self.start)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Model {
+    /// The directions of change of this model's orbit `cycle` (its input off) and of its
+    /// linearisation along the parameters `names`, exactly (module docs of `tangent.rs`): for
+    /// `htfid_theory::OrbitHtf::derivatives`, the derivatives of HTFs whose linearisation
+    /// varies along the orbit. `Ok(None)` when one of `names` sets the forcing's period.
+    ///
+    /// # Errors
+    /// [`ForwardError`]: a name the model does not have, a failed or sliding integration of the
+    /// orbit's sensitivity, a unit Floquet multiplier.
+    pub fn orbit_tangents<'a>(
+        &'a self,
+        names: &[&str],
+        cycle: &LimitCycle<Mode>,
+        opts: &Options,
+    ) -> Result<Option<ModelOrbitTangents<'a>>, ForwardError> {
+        self.check_names(names)?;
+        let sym = Symbolic::new(self, names);
+        if sym.sets_period() {
+            return Ok(None);
+        }
+        let programs = self.tangent_cache().programs(&sym)?;
+        let start = periodic_start(self, names, cycle, opts)?;
+        let sensitivity = Augmented::for_parameters(self, self.parameter_sensitivity(names)?);
+        Ok(Some(ModelOrbitTangents {
+            model: self,
+            programs,
+            sensitivity,
+            start,
+            n: self.dim(),
+            k: names.len(),
+            scratch: RefCell::new(Vec::new()),
+            buffers: RefCell::new(Buffers::default()),
+        }))
+    }
+}
+
+impl OrbitTangents for ModelOrbitTangents<'_> {
+    type Mode = Mode;
+
+    fn directions(&self) -> usize {
+        self.k
+    }
+
+    fn start(&self) -> &[f64] {
+        &self.start
+    }
+
+    fn sensitivity_field(&self, mode: Mode, t: f64, x: &[f64], z: &[f64], dz: &mut [f64]) {
+        let n = self.n;
+        let mut buf = self.scratch.borrow_mut();
+        buf.resize(2 * n * (1 + self.k), 0.0);
+        let (state, out) = buf.split_at_mut(n * (1 + self.k));
+        state[..n].copy_from_slice(x);
+        state[n..].copy_from_slice(z);
+        self.sensitivity.vector_field(mode, t, state, out);
+        dz.copy_from_slice(&out[n..]);
+    }
+
+    fn sensitivity_jump(
+        &self,
+        mode: Mode,
+        index: usize,
+        t: f64,
+        x_minus: &[f64],
+        z: &mut [f64],
+        dtau: &mut [f64],
+    ) {
+        let n = self.n;
+        let mut state = Vec::with_capacity(n * (1 + self.k));
+        state.extend_from_slice(x_minus);
+        state.extend_from_slice(z);
+        self.sensitivity.cross(mode, index, t, &mut state, dtau);
+        z.copy_from_slice(&state[n..]);
+    }
+
+    fn linearisation_change(
+        &self,
+        mode: Mode,
+        t: f64,
+        x: &[f64],
+        z: &[f64],
+        da: &mut [f64],
+        db: &mut [f64],
+        dc: &mut [f64],
+        dd: &mut [f64],
+    ) {
+        let (n, k) = (self.n, self.k);
+        let mut guard = self.buffers.borrow_mut();
+        let Buffers {
+            vars,
+            flow,
+            outputs,
+        } = &mut *guard;
+        self.model.fill_vars(t, x, self.model.input_value(t), vars);
+        let program = &self.programs.flows[mode.index()];
+        flow.resize(program.len(), 0.0);
+        program.eval(vars, flow);
+        outputs.resize(self.programs.outputs.len(), 0.0);
+        self.programs.outputs.eval(vars, outputs);
+        // Per entry: its derivatives by the states, then by the parameters (`n + k`).
+        let stride = n + k;
+        let total = |d: &[f64], entry: usize, j: usize| {
+            let e = &d[entry * stride..(entry + 1) * stride];
+            e[n + j] + (0..n).map(|l| e[l] * z[l * k + j]).sum::<f64>()
+        };
+        let (na, pc) = (n * n, dc.len() / k.max(1));
+        for j in 0..k {
+            for e in 0..na {
+                da[j * na + e] = total(flow, e, j);
+            }
+            for e in 0..n {
+                db[j * n + e] = total(flow, na + e, j);
+            }
+            for e in 0..pc {
+                dc[j * pc + e] = total(outputs, e, j);
+            }
+            let p = dd.len() / k.max(1);
+            for e in 0..p {
+                dd[j * p + e] = total(outputs, pc + e, j);
+            }
+        }
+    }
+
+    fn saltation_change(
+        &self,
+        mode: Mode,
+        index: usize,
+        t: f64,
+        x_minus: &[f64],
+        j: usize,
+        dx: &[f64],
+        dt: f64,
+        ds: &mut [f64],
+    ) {
+        let global = self.model.global_guard(mode, index);
+        let Some(program) = self.programs.saltation.get(&(mode.index(), global)) else {
+            ds.iter_mut().for_each(|v| *v = f64::NAN);
+            return;
+        };
+        let mut values = vec![0.0; program.len()];
+        program.eval(
+            &self.model.vars(t, x_minus, self.model.input_value(t)),
+            &mut values,
+        );
+        saltation_change(&values, self.n, self.k, j, dx, dt, ds);
     }
 }

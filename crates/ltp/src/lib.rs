@@ -51,11 +51,13 @@
 mod floquet;
 mod fourier;
 mod linearise;
+mod orbit_tangents;
 mod piecewise;
 mod tangent;
 
 pub use floquet::{expm, Floquet};
 pub use fourier::{fft_fourier, fft_fourier_fn, square_wave_fourier, MatrixFourierSeries};
 pub use linearise::{linearise, refuse_grazes, InputOutput, LinearSample, Linearisation, Switch};
+pub use orbit_tangents::OrbitTangents;
 pub use piecewise::{LtpError, Piece, PiecewiseLti, SystemMatrix};
 pub use tangent::{PieceTangent, PiecewiseTangent};

@@ -104,6 +104,14 @@ impl<'a, S: InputOutput> LinearisedHtf<'a, S> {
         }
     }
 
+    /// The periodic-response HTFs (every output), when that method is in use.
+    pub fn orbit(&self) -> Option<&OrbitHtf<'a, S>> {
+        match &self.inner {
+            Inner::Exact { .. } => None,
+            Inner::Orbit(orbit) => Some(orbit),
+        }
+    }
+
     /// Number of outputs.
     pub fn n_outputs(&self) -> usize {
         match &self.inner {

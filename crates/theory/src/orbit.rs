@@ -34,6 +34,11 @@ const SAME_FREQUENCY_RTOL: f64 = 1e-12;
 
 const NAN: Complex64 = Complex64::new(f64::NAN, f64::NAN);
 
+/// `I - exp(-j w_in T) M`, factorised.
+type Periodicity = nalgebra::linalg::LU<Complex64, nalgebra::Dyn, nalgebra::Dyn>;
+
+mod tangent;
+
 /// The harmonic transfer functions of the linearisation of an [`InputOutput`] system about a
 /// [`LimitCycle`], exact up to the integrator's tolerance: `A(t)`, `B(t)`, `C(t)`, `D(t)` are
 /// evaluated along the orbit as it is integrated (no averaging per chart), and the saltation
@@ -238,21 +243,8 @@ impl<'a, S: InputOutput> OrbitHtf<'a, S> {
             w_in,
             reason: e.to_string(),
         };
-        // Pass 1: the response from q(t0) = 0 over one period.
-        let aug = Augmented::new(self, w_in, &[]);
-        let z0 = aug.initial_state(&self.state0, &DVector::zeros(n));
         let t_end = self.t0 + self.period;
-        let part =
-            simulate(&aug, self.mode0, self.t0, &z0, t_end, &[], &self.opts).map_err(fail)?;
-        let q_part = DVector::from_iterator(
-            n,
-            (0..n).map(|i| Complex64::new(part.final_state[n + i], part.final_state[2 * n + i])),
-        );
-        // Periodicity: q(t0 + T) = exp(-j w T) M q0 + q_part(T) = q0.
-        let phase = Complex64::from_polar(1.0, -(w_in * self.period).rem_euclid(TAU));
-        let lhs = DMatrix::<Complex64>::identity(n, n)
-            - self.monodromy.map(|v| Complex64::new(v, 0.0)) * phase;
-        let Some(q0) = lhs.lu().solve(&q_part) else {
+        let Some((q0, _)) = self.periodic_start(w_in)? else {
             return Ok(DMatrix::from_element(p, harmonics.len(), NAN));
         };
         // Pass 2: the periodic response from q0, with the Fourier integrals.
@@ -270,6 +262,42 @@ impl<'a, S: InputOutput> OrbitHtf<'a, S> {
             );
             Complex64::new(fourier[idx], fourier[idx + 1]) * rotation
         }))
+    }
+
+    /// The periodic response's start `q(t0)` for the input `exp(j w_in t)`, with the
+    /// factorised `I - exp(-j w_in T) M` that gives it (the derivatives solve with it too);
+    /// `None` when that matrix is singular (`exp(j w_in T)` a Floquet multiplier).
+    fn periodic_start(
+        &self,
+        w_in: f64,
+    ) -> Result<Option<(DVector<Complex64>, Periodicity)>, TheoryError> {
+        let n = self.system.dim();
+        // The response from q(t0) = 0 over one period.
+        let aug = Augmented::new(self, w_in, &[]);
+        let z0 = aug.initial_state(&self.state0, &DVector::zeros(n));
+        let part = simulate(
+            &aug,
+            self.mode0,
+            self.t0,
+            &z0,
+            self.t0 + self.period,
+            &[],
+            &self.opts,
+        )
+        .map_err(|e| TheoryError::Integration {
+            w_in,
+            reason: e.to_string(),
+        })?;
+        let q_part = DVector::from_iterator(
+            n,
+            (0..n).map(|i| Complex64::new(part.final_state[n + i], part.final_state[2 * n + i])),
+        );
+        // Periodicity: q(t0 + T) = exp(-j w T) M q0 + q_part(T) = q0.
+        let phase = Complex64::from_polar(1.0, -(w_in * self.period).rem_euclid(TAU));
+        let lu = (DMatrix::<Complex64>::identity(n, n)
+            - self.monodromy.map(|v| Complex64::new(v, 0.0)) * phase)
+            .lu();
+        Ok(lu.solve(&q_part).map(|q0| (q0, lu)))
     }
 
     /// `G_n(jw)` of every output on `omegas x harmonics`, one [`HtfGrid`] per output. Grid
