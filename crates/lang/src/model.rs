@@ -43,6 +43,8 @@ struct Compiled {
     /// Per guard: the reset (n values) and its Jacobian (n x n) followed by its time
     /// derivative (n), or `None` for the identity.
     reset: Vec<Option<(Program, Program)>>,
+    /// Per guard that reads the input (in `h` or its reset): `dh/du` then `dR/du` (n).
+    crossing_input: Vec<Option<Program>>,
     /// Outputs (p values).
     output: Program,
     /// `dy/dx` (p x n row-major) then `dy/du` (p).
@@ -163,8 +165,23 @@ impl Compiled {
             input_gain.push(compile(&gain)?);
         }
         let (mut guard, mut guard_linear, mut reset) = (Vec::new(), Vec::new(), Vec::new());
+        let mut crossing_input = Vec::new();
         for g in &def.guards {
             let h = fold(&g.when, p, values);
+            let reset_exprs: Vec<Expr> = match &g.reset {
+                Some(r) => r.iter().map(|e| fold(e, p, values)).collect(),
+                None => state_names.iter().map(|s| Expr::var(s)).collect(),
+            };
+            let by_input: Vec<Expr> = std::iter::once(&h)
+                .chain(&reset_exprs)
+                .map(|e| e.derivative(&def.input))
+                .collect();
+            crossing_input.push(if by_input.iter().all(|e| e.as_constant() == Some(0.0)) {
+                None
+            } else {
+                piecewise_constant = false;
+                Some(compile(&by_input)?)
+            });
             let mut lin: Vec<Expr> = state_names.iter().map(|s| h.derivative(s)).collect();
             lin.push(h.derivative("t"));
             guard.push(compile(std::slice::from_ref(&h))?);
@@ -222,6 +239,7 @@ impl Compiled {
             guard,
             guard_linear,
             reset,
+            crossing_input,
             output: compile(&outs)?,
             output_linear: compile(&olin)?,
             period,
@@ -755,6 +773,29 @@ impl htfid_ltp::InputOutput for Model {
 
     fn num_outputs(&self) -> usize {
         self.def.outputs.len()
+    }
+
+    fn crossing_input(
+        &self,
+        mode: Mode,
+        index: usize,
+        t: f64,
+        x: &[f64],
+        h_u: &mut f64,
+        r_u: &mut [f64],
+    ) -> bool {
+        let g = self.def.guards_of[mode.index()][index];
+        let Some(program) = &self.compiled.crossing_input[g] else {
+            return false;
+        };
+        let n = x.len();
+        with_vars(t, x, 0.0, |v| {
+            with_outputs(program, v, |out| {
+                *h_u = out[0];
+                r_u.copy_from_slice(&out[1..=n]);
+            })
+        });
+        true
     }
 
     fn output_gain(&self, _mode: Mode, t: f64, x: &[f64], c: &mut [f64]) {

@@ -48,8 +48,9 @@ impl Model {
     /// input off) along each of the parameters `names`: per piece the exact change of its
     /// matrices, of the jump that opens it and of the time it starts (module docs of
     /// `tangent.rs`). `Ok(None)` when the model's linearisation is not constant within each
-    /// mode for every value of those parameters, or when one of them sets the forcing's
-    /// period: the closed-form HTF then does not describe the model's neighbours.
+    /// mode for every value of those parameters, when one of them sets the forcing's period,
+    /// or when a guard or reset reads the input: the closed-form HTF then does not describe
+    /// the model's neighbours.
     ///
     /// # Errors
     /// [`ForwardError`]: a name the model does not have, a failed or sliding integration of the
@@ -64,7 +65,7 @@ impl Model {
     ) -> Result<Option<Vec<PiecewiseTangent>>, ForwardError> {
         self.check_names(names)?;
         let sym = Symbolic::new(self, names);
-        if sym.sets_period() || !sym.piecewise_constant() {
+        if sym.sets_period() || sym.crossings_read_input() || !sym.piecewise_constant() {
             return Ok(None);
         }
         let programs = self.tangent_cache().programs(&sym)?;
@@ -298,6 +299,18 @@ impl<'a> Symbolic<'a> {
             .is_some_and(|e| self.names.iter().any(|n| e.depends_on(n)))
     }
 
+    /// Whether a guard or a reset reads the input: the linearised state then jumps by the
+    /// input too, a term these tangents do not differentiate.
+    fn crossings_read_input(&self) -> bool {
+        let input = self.input();
+        self.model.def().guards.iter().any(|g| {
+            g.when.depends_on(input)
+                || g.reset
+                    .as_ref()
+                    .is_some_and(|r| r.iter().any(|e| e.depends_on(input)))
+        })
+    }
+
     /// Whether `A`, `B` of every mode and `C`, `D` are free of time, state and input for
     /// every value of `names`.
     fn piecewise_constant(&self) -> bool {
@@ -469,7 +482,8 @@ impl Model {
     /// The directions of change of this model's orbit `cycle` (its input off) and of its
     /// linearisation along the parameters `names`, exactly (module docs of `tangent.rs`): for
     /// `htfid_theory::OrbitHtf::derivatives`, the derivatives of HTFs whose linearisation
-    /// varies along the orbit. `Ok(None)` when one of `names` sets the forcing's period.
+    /// varies along the orbit. `Ok(None)` when one of `names` sets the forcing's period, or when
+    /// a guard or reset reads the input.
     ///
     /// # Errors
     /// [`ForwardError`]: a name the model does not have, a failed or sliding integration of the
@@ -482,7 +496,7 @@ impl Model {
     ) -> Result<Option<ModelOrbitTangents<'a>>, ForwardError> {
         self.check_names(names)?;
         let sym = Symbolic::new(self, names);
-        if sym.sets_period() {
+        if sym.sets_period() || sym.crossings_read_input() {
             return Ok(None);
         }
         let programs = self.tangent_cache().programs(&sym)?;

@@ -24,9 +24,28 @@ pub trait InputOutput: HybridSystem {
     fn feedthrough(&self, _mode: Self::Mode, _t: f64, _x: &[f64], d: &mut [f64]) {
         d.iter_mut().for_each(|v| *v = 0.0)
     }
+    /// Whether guard `index` of `mode` or its reset reads the input, and if so, at `(t, x)`
+    /// (the state before the crossing, the input at zero), `dh/du` into `h_u` and `dR/du` into
+    /// `r_u` (length `dim`). A perturbation of the input then moves the crossing and the reset
+    /// directly, and the linearised state jumps by `(dR/du + jump dh/du / speed) du` on top of
+    /// the saltation matrix's `S dx` (`htfid_theory::OrbitHtf` applies it). `false` (the
+    /// default) when neither reads it.
+    fn crossing_input(
+        &self,
+        _mode: Self::Mode,
+        _index: usize,
+        _t: f64,
+        _x: &[f64],
+        _h_u: &mut f64,
+        _r_u: &mut [f64],
+    ) -> bool {
+        false
+    }
     /// Whether `A, B, C, D` are constant within every mode along any orbit, so that the
     /// chart-averaged piecewise-LTI model of [`linearise`] is exact. `false` by default: only
-    /// a system that knows it (for instance from symbolic Jacobians) says `true`.
+    /// a system that knows it (for instance from symbolic Jacobians) says `true`, and never
+    /// one whose guards or resets read the input ([`InputOutput::crossing_input`]: the
+    /// piecewise-LTI model has no input at its jumps).
     fn is_piecewise_constant(&self) -> bool {
         false
     }

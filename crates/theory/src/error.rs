@@ -38,6 +38,9 @@ pub enum TheoryError {
         /// `||A V - V diag(lambda)|| / ||A||` of the computed decomposition.
         residual: f64,
     },
+    /// The derivatives along the orbit do not cover a guard or reset that reads the input.
+    #[error("derivatives of the HTFs along the orbit do not cover a guard or reset that reads the input (its jump per unit input is not differentiated)")]
+    InputAtCrossing,
     /// A Fourier-coefficient provider returned a matrix of the wrong shape.
     #[error("coefficient {matrix:?}_{harmonic} is {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}")]
     CoefficientShape {

@@ -14,7 +14,7 @@ use std::fmt;
 
 use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
 use htfid_ltp::InputOutput;
-use htfid_orbit::{period_map, saltation, vector_field_jacobian, LimitCycle};
+use htfid_orbit::{period_map, saltation, transition_jump, vector_field_jacobian, LimitCycle};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use std::f64::consts::TAU;
@@ -513,15 +513,46 @@ impl<S: InputOutput> HybridSystem for Augmented<'_, '_, S> {
         let n = self.n;
         let sys = self.htf.system;
         let (s, to) = saltation(sys, mode, index, t, &z[..n]);
+        let x_before = z[..n].to_vec();
         let (x, rest) = z.split_at_mut(n);
         let to_check = sys.transition(mode, index, t, x);
         debug_assert_eq!(to_check, to, "transition must be deterministic");
         let (q_re, rest) = rest.split_at_mut(n);
         let q_im = &mut rest[..n];
-        let re = &s * DVector::from_column_slice(q_re);
+        let mut re = &s * DVector::from_column_slice(q_re);
         let im = &s * DVector::from_column_slice(q_im);
+        // A guard or reset that reads the input adds the input's own jump; the input is
+        // `exp(j w t)`, which is 1 in `q`'s frame.
+        if let Some(e) = input_jump(sys, mode, index, t, &x_before) {
+            re += e;
+        }
         q_re.copy_from_slice(re.as_slice());
         q_im.copy_from_slice(im.as_slice());
         to
     }
+}
+
+/// The linearised state's jump per unit input at the crossing of guard `index` of `mode` at
+/// `(t, x_minus)`, `dR/du + jump dh/du / speed` ([`InputOutput::crossing_input`]), or `None`
+/// when neither the guard nor its reset reads the input.
+pub(crate) fn input_jump<S: InputOutput>(
+    sys: &S,
+    mode: S::Mode,
+    index: usize,
+    t: f64,
+    x_minus: &[f64],
+) -> Option<DVector<f64>> {
+    let n = sys.dim();
+    let (mut h_u, mut r_u) = (0.0, vec![0.0; n]);
+    if !sys.crossing_input(mode, index, t, x_minus, &mut h_u, &mut r_u) {
+        return None;
+    }
+    let jump = transition_jump(sys, mode, index, t, x_minus);
+    // A grazing crossing (zero speed) is refused before any HTF is formed.
+    let moved = if jump.speed != 0.0 {
+        h_u / jump.speed
+    } else {
+        0.0
+    };
+    Some(DVector::from_vec(r_u) + jump.jump * moved)
 }

@@ -19,7 +19,7 @@
 //! (`y- - y+`) at its phase. Two integrations per input frequency beside the two of the
 //! response: from `r = 0` for the periodic start, then from that start with the integrals.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 
 use htfid_hybrid::{simulate, Crossing, HybridError, HybridSystem};
 use htfid_ltp::{InputOutput, OrbitTangents};
@@ -37,8 +37,9 @@ impl<S: InputOutput> OrbitHtf<'_, S> {
     /// share an input frequency share one set of integrations. NaN at a pole.
     ///
     /// # Errors
-    /// [`TheoryError::InvalidFrequency`], [`TheoryError::Integration`], or
-    /// [`TheoryError::StateDimension`] when `tangents.start()` is not `n x k`.
+    /// [`TheoryError::InvalidFrequency`], [`TheoryError::Integration`],
+    /// [`TheoryError::StateDimension`] when `tangents.start()` is not `n x k`, or
+    /// [`TheoryError::InputAtCrossing`] when a guard or reset on the orbit reads the input.
     pub fn derivatives<D: OrbitTangents<Mode = S::Mode>>(
         &self,
         tangents: &D,
@@ -111,6 +112,9 @@ impl<S: InputOutput> OrbitHtf<'_, S> {
         let z0 = aug.initial_state(&q0, &vec![Complex64::new(0.0, 0.0); n * k]);
         let part =
             simulate(&aug, self.mode0, self.t0, &z0, t_end, &[], &self.opts).map_err(fail)?;
+        if aug.input_at_crossing.get() {
+            return Err(TheoryError::InputAtCrossing);
+        }
         let mut r0 = vec![Complex64::new(0.0, 0.0); n * k];
         for j in 0..k {
             let end = DVector::from_fn(n, |i, _| aug.read_r(&part.final_state, i, j));
@@ -172,6 +176,8 @@ struct Moving<'h, 'a, S: InputOutput, D> {
     w_in: f64,
     harmonics: &'h [i32],
     scratch: RefCell<Scratch>,
+    /// Set when a crossing's guard or reset reads the input.
+    input_at_crossing: Cell<bool>,
 }
 
 impl<'h, 'a, S: InputOutput, D: OrbitTangents<Mode = S::Mode>> Moving<'h, 'a, S, D> {
@@ -201,6 +207,7 @@ impl<'h, 'a, S: InputOutput, D: OrbitTangents<Mode = S::Mode>> Moving<'h, 'a, S,
                 r: vec![zero; n * k],
                 y: vec![zero; p],
             }),
+            input_at_crossing: Cell::new(false),
         }
     }
 
@@ -404,6 +411,10 @@ impl<S: InputOutput, D: OrbitTangents<Mode = S::Mode>> HybridSystem for Moving<'
         let (mut q_minus, mut r_minus) = (vec![zero; n], vec![zero; n * k]);
         self.read_responses(s, &mut q_minus, &mut r_minus);
         let (salt, to) = saltation(sys, mode, index, t, &x_minus);
+        if super::input_jump(sys, mode, index, t, &x_minus).is_some() {
+            // The derivatives of the input's own jump are not formed: say so after the run.
+            self.input_at_crossing.set(true);
+        }
         let mut f_minus = vec![0.0; n];
         sys.vector_field(mode, t, &x_minus, &mut f_minus);
         let mut guard = self.scratch.borrow_mut();
