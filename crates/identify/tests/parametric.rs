@@ -26,22 +26,11 @@ fn model_file() -> Model {
         .expect("the shipped hopper model reads")
 }
 
-/// `G_-1, G_0, G_1` of `htf` on a grid, as an estimate with a uniform standard error.
+/// `G_-1, G_0, G_1` of `htf` on the hopper's grid, as an estimate with a uniform standard
+/// error.
 fn exact_estimate(htf: &dyn HarmonicTransferFunction) -> HtfEstimate {
-    let harmonics = vec![-1, 0, 1];
     let omegas: Vec<f64> = (0..60).map(|i| 2.0 + 0.5 * f64::from(i)).collect();
-    let values = harmonics
-        .iter()
-        .map(|&n| omegas.iter().map(|&w| htf.g(n, w)).collect())
-        .collect();
-    HtfEstimate::new(
-        Method::Siddiqi,
-        harmonics,
-        vec![omegas.clone(); 3],
-        values,
-        vec![vec![1e-6; omegas.len()]; 3],
-    )
-    .expect("consistent arrays")
+    estimate_at(htf, &omegas)
 }
 
 fn spec() -> HtfFitSpec {
