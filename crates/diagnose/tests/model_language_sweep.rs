@@ -1,0 +1,175 @@
+//! The model-file diagnosis (`diagnose_model` on `models/hopper.toml`, `k` and `c` free) on the
+//! catalogue of the independent truth generator, the records the built-in diagnosis's sweep
+//! (`independent.rs`) reads: a measurement of how the engine for any model does on data from
+//! equations and an integrator it shares no code with.
+//!
+//! Ignored (minutes); run with
+//! `cargo test --release -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture`
+//! (`HTFID_MODEL_SWEEP_N` records, the catalogue's core cells by default). It prints one line
+//! per record and a score per group, and holds the floors measured when it was written.
+//!
+//! The model file's library differs from the built-in one: its terms sit at the sites the file
+//! offers (drag and a stiffness law on `v'`, damping per mode, the moved switching surface) and
+//! on its boundary (input offset, delay and lag; sensor offset and gain, sensor lag). Friction
+//! and hard stops are discontinuities it does not propose, so for this engine they are out of
+//! its library, as are the generator's own out-of-library effects. The judgement:
+//! - clean: `none`;
+//! - effects in its library: each named (as a cause, or among an `ambiguous` answer's names),
+//!   by the engine's name for it or an equivalent on this protocol (a constant shift of the
+//!   position is an input offset, a sensor offset or a parameter error alike);
+//! - anything else: not claimed with confidence (`unexplained` or `ambiguous`).
+
+use std::path::Path;
+
+use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis, ModelFitOptions, TimeSeries};
+use htfid_lang::Model;
+use htfid_truth::{catalogue, generate, EffectLabel, LabelClass, Scenario};
+
+fn hopper() -> Model {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/hopper.toml");
+    Model::from_file(&path)
+        .unwrap()
+        .with_parameters(&[("a", 0.0)])
+        .unwrap()
+}
+
+/// The engine's acceptable names for a labelled effect of a record labelled `all`, or `None`
+/// when the effect is outside the model file's library.
+fn accepted(e: &EffectLabel) -> Option<Vec<&'static str>> {
+    let shift = ["input_offset", "sensor_offset_gain", "parameter_error"];
+    Some(match e.name.as_str() {
+        "cubic_stiffness" => vec!["nonlinear_stiffness"],
+        "flight_damping" => vec!["mode_damping(v, free)"],
+        "quadratic_drag" => vec!["quadratic_drag"],
+        "actuator_lag" => vec!["actuator_lag"],
+        "input_delay" => vec!["input_delay"],
+        "switch_threshold" => vec!["guard_shift"],
+        "sensor_lag" => vec!["sensor_lag"],
+        "input_offset" | "sensor_offset_gain" => shift.to_vec(),
+        "parameter_error" => {
+            // Errors of k and c are the refit's; of g, x0 (a shift) or m (with k and c free,
+            // a scaled force) its boundary's or the refit's.
+            shift.to_vec()
+        }
+        _ => return None,
+    })
+}
+
+/// Every name the diagnosis gives: its causes, its cause, an `ambiguous` answer's names.
+fn names_of(d: &ModelDiagnosis) -> Vec<String> {
+    let mut v = d.causes.clone();
+    match &d.cause {
+        ModelCause::Effect(e) => v.push(e.clone()),
+        ModelCause::ParameterError => v.push("parameter_error".into()),
+        _ => {}
+    }
+    v.extend(d.alternatives.iter().cloned());
+    v
+}
+
+fn judge(s: &Scenario, d: &ModelDiagnosis) -> Result<(), String> {
+    let label = s.label();
+    let named = names_of(d);
+    let cause = d.cause.name();
+    let unsure = matches!(d.cause, ModelCause::Unexplained | ModelCause::Ambiguous);
+    if label.class == LabelClass::Clean {
+        return (cause == "none")
+            .then_some(())
+            .ok_or_else(|| format!("clean record named {cause}"));
+    }
+    let wanted: Option<Vec<Vec<&str>>> = if label.class == LabelClass::InLibrary {
+        label.effects.iter().map(accepted).collect()
+    } else {
+        None
+    };
+    match wanted {
+        Some(wanted) => {
+            let missing: Vec<String> = wanted
+                .iter()
+                .zip(&label.effects)
+                .filter(|(names, _)| !names.iter().any(|w| named.iter().any(|n| n.starts_with(w))))
+                .map(|(_, e)| e.name.clone())
+                .collect();
+            if missing.is_empty() {
+                Ok(())
+            } else {
+                Err(format!("missed {missing:?}: cause {cause} names {named:?}"))
+            }
+        }
+        None if unsure => Ok(()),
+        None => Err(format!("claimed {cause} (names {named:?}) with confidence")),
+    }
+}
+
+fn group(s: &Scenario) -> &'static str {
+    let label = s.label();
+    match label.class {
+        LabelClass::Clean => "clean",
+        LabelClass::InLibrary if label.effects.iter().all(|e| accepted(e).is_some()) => {
+            if label.effects.len() == 1 {
+                "single, in its library"
+            } else {
+                "pair, in its library"
+            }
+        }
+        _ => "outside its library",
+    }
+}
+
+#[test]
+#[ignore = "minutes: a measurement over the independent generator's catalogue"]
+fn the_model_file_diagnosis_on_the_independent_catalogue() {
+    let n = std::env::var("HTFID_MODEL_SWEEP_N")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(htfid_truth::core_size);
+    let options = ModelFitOptions {
+        free: vec!["k".into(), "c".into()],
+        ..ModelFitOptions::default()
+    };
+    let model = hopper();
+    let mut scores: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
+    for s in catalogue(2026, n) {
+        let r = generate(&s).expect("the generator runs");
+        let record = TimeSeries::new(r.t, r.f, r.x, "generator").expect("a record");
+        let verdict = diagnose_model(&model, &record, None, &options)
+            .map_err(|e| format!("diagnose: {e}"))
+            .and_then(|d| judge(&s, &d));
+        let entry = scores.entry(group(&s)).or_default();
+        entry.1 += 1;
+        if verdict.is_ok() {
+            entry.0 += 1;
+        }
+        eprintln!(
+            "{:<40} {:<24} {}",
+            s.name,
+            group(&s),
+            verdict.err().map_or("ok".into(), |e| format!("FAIL {e}"))
+        );
+    }
+    for (g, (ok, all)) in &scores {
+        eprintln!("{g}: {ok} of {all}");
+    }
+    let total: usize = scores.values().map(|s| s.1).sum();
+    assert!(total > 0, "no record was diagnosed");
+    if n == htfid_truth::core_size() {
+        // The floors measured on the core cells at seed 2026 (2026-11-28): a change that
+        // loses a record in any group fails here.
+        for (g, floor) in FLOORS {
+            let (ok, all) = scores.get(g).copied().unwrap_or_default();
+            assert!(
+                ok >= floor,
+                "{g}: {ok} of {all}, below the measured {floor}"
+            );
+        }
+    }
+}
+
+/// Records judged right per group on the core cells (seed 2026), as measured when this was
+/// written: 70 of 77 (1503 s on the project's 2-core machine).
+const FLOORS: [(&str, usize); 4] = [
+    ("clean", 10),
+    ("single, in its library", 38),
+    ("pair, in its library", 3),
+    ("outside its library", 19),
+];
