@@ -368,3 +368,30 @@ fn the_closed_loops_jacobian_along_the_orbit_matches_an_extrapolated_central_dif
         1e-3,
     ));
 }
+
+/// A ball on a table whose height is the forcing plus the input: the guard reads the input,
+/// so the input moves every impact and the state jumps by it there (`OrbitHtf`'s input
+/// jump). Its Jacobian along the orbit includes the change of that jump
+/// (`OrbitTangents::input_jump_change`).
+#[test]
+fn a_guard_that_reads_the_input_has_its_jacobian_along_the_orbit() {
+    let model = Model::parse(
+        r#"
+        states = ["y", "v"]
+        parameters = { g = 9.81, e = 0.8, A = 0.01, T = 0.25 }
+        forcing = { period = "T", signals = { table = "A * sin(2*pi*t/T)", table_v = "A * (2*pi/T) * cos(2*pi*t/T)" } }
+        flow = { y = "v", v = "-g" }
+        initial = { y = 0.01, v = 1.2 }
+
+        [[guards]]
+        when = "y - table - u"
+        direction = "falling"
+        reset = { v = "(1 + e) * table_v - e * v" }
+        "#,
+    )
+    .unwrap();
+    let names = ["e", "g", "A"];
+    let wp = std::f64::consts::TAU / 0.25;
+    let omegas: Vec<f64> = (0..12).map(|i| wp * (0.15 + 0.4 * f64::from(i))).collect();
+    assert_columns(&jacobian_against_differences(&model, &names, &omegas, STEP));
+}

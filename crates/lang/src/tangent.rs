@@ -441,6 +441,29 @@ impl<'a> Symbolic<'a> {
                 entries.extend(self.names.iter().map(|p| s.derivative(p)));
             }
         }
+        // Where the guard or the reset reads the input, the state's jump per unit input,
+        // `R_u + jump h_u / speed`, row by row, after the saltation's entries.
+        let input = self.input();
+        let h_u = g.when.derivative(input);
+        let r_u: Vec<Expr> = reset.iter().map(|r| r.derivative(input)).collect();
+        let reads_input = std::iter::once(&h_u)
+            .chain(&r_u)
+            .any(|e| e.as_constant() != Some(0.0));
+        if reads_input {
+            for a in 0..n {
+                let jump = (0..n).fold(
+                    f_plus[a].clone().minus(reset[a].derivative("t")),
+                    |acc, l| acc.minus(dr(a, l).times(f_minus[l].clone())),
+                );
+                let e = r_u[a]
+                    .clone()
+                    .plus(jump.times(h_u.clone()).over(speed.clone()))
+                    .simplify();
+                entries.push(e.derivative("t"));
+                entries.extend(states.iter().map(|x| e.derivative(x)));
+                entries.extend(self.names.iter().map(|p| e.derivative(p)));
+            }
+        }
         self.compile(&entries)
     }
 }
@@ -482,8 +505,8 @@ impl Model {
     /// The directions of change of this model's orbit `cycle` (its input off) and of its
     /// linearisation along the parameters `names`, exactly (module docs of `tangent.rs`): for
     /// `htfid_theory::OrbitHtf::derivatives`, the derivatives of HTFs whose linearisation
-    /// varies along the orbit. `Ok(None)` when one of `names` sets the forcing's period, or when
-    /// a guard or reset reads the input.
+    /// varies along the orbit (and for guards or resets that read the input). `Ok(None)` when
+    /// one of `names` sets the forcing's period.
     ///
     /// # Errors
     /// [`ForwardError`]: a name the model does not have, a failed or sliding integration of the
@@ -496,7 +519,7 @@ impl Model {
     ) -> Result<Option<ModelOrbitTangents<'a>>, ForwardError> {
         self.check_names(names)?;
         let sym = Symbolic::new(self, names);
-        if sym.sets_period() || sym.crossings_read_input() {
+        if sym.sets_period() {
             return Ok(None);
         }
         let programs = self.tangent_cache().programs(&sym)?;
@@ -624,5 +647,39 @@ impl OrbitTangents for ModelOrbitTangents<'_> {
             &mut values,
         );
         saltation_change(&values, self.n, self.k, j, dx, dt, ds);
+    }
+
+    fn input_jump_change(
+        &self,
+        mode: Mode,
+        index: usize,
+        t: f64,
+        x_minus: &[f64],
+        j: usize,
+        dx: &[f64],
+        dt: f64,
+        de: &mut [f64],
+    ) -> bool {
+        let (n, k) = (self.n, self.k);
+        let global = self.model.global_guard(mode, index);
+        let Some(program) = self.programs.saltation.get(&(mode.index(), global)) else {
+            return false;
+        };
+        let stride = 1 + n + k;
+        if program.len() != (n * n + n) * stride {
+            return false;
+        }
+        let mut values = vec![0.0; program.len()];
+        program.eval(
+            &self.model.vars(t, x_minus, self.model.input_value(t)),
+            &mut values,
+        );
+        // The jump's rows follow the saltation's entries; each row is one `1 x 1` "matrix".
+        let rows = &values[n * n * stride..];
+        for (a, v) in de.iter_mut().enumerate() {
+            let d = &rows[a * stride..(a + 1) * stride];
+            *v = d[1 + n + j] + d[0] * dt + (0..n).map(|l| d[1 + l] * dx[l]).sum::<f64>();
+        }
+        true
     }
 }

@@ -67,4 +67,24 @@ pub trait OrbitTangents {
         dt: f64,
         ds: &mut [f64],
     );
+
+    /// The total change of the state's jump per unit input (`n`) at the crossing of guard
+    /// `index` of `mode` whose guard or reset reads the input
+    /// (`InputOutput::crossing_input`: `dR/du + jump dh/du / speed`), along direction `j`, the
+    /// crossing moved as in [`OrbitTangents::saltation_change`]; `false` (the default) when the
+    /// system does not give it (the derivatives then refuse such a crossing).
+    #[allow(clippy::too_many_arguments)] // reason: the crossing, the direction and its motion
+    fn input_jump_change(
+        &self,
+        _mode: Self::Mode,
+        _index: usize,
+        _t: f64,
+        _x_minus: &[f64],
+        _j: usize,
+        _dx: &[f64],
+        _dt: f64,
+        _de: &mut [f64],
+    ) -> bool {
+        false
+    }
 }

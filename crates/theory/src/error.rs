@@ -38,8 +38,9 @@ pub enum TheoryError {
         /// `||A V - V diag(lambda)|| / ||A||` of the computed decomposition.
         residual: f64,
     },
-    /// The derivatives along the orbit do not cover a guard or reset that reads the input.
-    #[error("derivatives of the HTFs along the orbit do not cover a guard or reset that reads the input (its jump per unit input is not differentiated)")]
+    /// A guard or reset on the orbit reads the input and the tangents do not give the change
+    /// of its jump per unit input.
+    #[error("derivatives of the HTFs along the orbit need the change of the state's jump per unit input where a guard or reset reads the input, and the system's tangents do not give it")]
     InputAtCrossing,
     /// A Fourier-coefficient provider returned a matrix of the wrong shape.
     #[error("coefficient {matrix:?}_{harmonic} is {found_rows}x{found_cols}, expected {expected_rows}x{expected_cols}")]

@@ -39,7 +39,8 @@ impl<S: InputOutput> OrbitHtf<'_, S> {
     /// # Errors
     /// [`TheoryError::InvalidFrequency`], [`TheoryError::Integration`],
     /// [`TheoryError::StateDimension`] when `tangents.start()` is not `n x k`, or
-    /// [`TheoryError::InputAtCrossing`] when a guard or reset on the orbit reads the input.
+    /// [`TheoryError::InputAtCrossing`] when a guard or reset on the orbit reads the input and
+    /// `tangents` do not give the change of its jump ([`OrbitTangents::input_jump_change`]).
     pub fn derivatives<D: OrbitTangents<Mode = S::Mode>>(
         &self,
         tangents: &D,
@@ -176,7 +177,8 @@ struct Moving<'h, 'a, S: InputOutput, D> {
     w_in: f64,
     harmonics: &'h [i32],
     scratch: RefCell<Scratch>,
-    /// Set when a crossing's guard or reset reads the input.
+    /// Set when a crossing's guard or reset reads the input and the tangents do not give the
+    /// change of its jump per unit input.
     input_at_crossing: Cell<bool>,
 }
 
@@ -411,10 +413,7 @@ impl<S: InputOutput, D: OrbitTangents<Mode = S::Mode>> HybridSystem for Moving<'
         let (mut q_minus, mut r_minus) = (vec![zero; n], vec![zero; n * k]);
         self.read_responses(s, &mut q_minus, &mut r_minus);
         let (salt, to) = saltation(sys, mode, index, t, &x_minus);
-        if super::input_jump(sys, mode, index, t, &x_minus).is_some() {
-            // The derivatives of the input's own jump are not formed: say so after the run.
-            self.input_at_crossing.set(true);
-        }
+        let input_jump = super::input_jump(sys, mode, index, t, &x_minus);
         let mut f_minus = vec![0.0; n];
         sys.vector_field(mode, t, &x_minus, &mut f_minus);
         let mut guard = self.scratch.borrow_mut();
@@ -435,7 +434,10 @@ impl<S: InputOutput, D: OrbitTangents<Mode = S::Mode>> HybridSystem for Moving<'
         self.tangents
             .sensitivity_jump(mode, index, t, &x_minus, &mut s[z_at..q_at], &mut dtau);
         let q_plus: Vec<Complex64> = (0..n)
-            .map(|i| (0..n).map(|l| q_minus[l] * salt[(i, l)]).sum())
+            .map(|i| {
+                let own = input_jump.as_ref().map_or(0.0, |e| e[i]);
+                (0..n).map(|l| q_minus[l] * salt[(i, l)]).sum::<Complex64>() + own
+            })
             .collect();
         for i in 0..n {
             s[q_at + i] = q_plus[i].re;
@@ -457,6 +459,7 @@ impl<S: InputOutput, D: OrbitTangents<Mode = S::Mode>> HybridSystem for Moving<'
             .collect();
         let base = Complex64::from_polar(1.0, -self.htf.wp * (t - self.htf.t0));
         let mut ds = vec![0.0; n * n];
+        let mut de = vec![0.0; n];
         let mut dx = vec![0.0; n];
         for j in 0..k {
             for l in 0..n {
@@ -464,8 +467,17 @@ impl<S: InputOutput, D: OrbitTangents<Mode = S::Mode>> HybridSystem for Moving<'
             }
             self.tangents
                 .saltation_change(mode, index, t, &x_minus, j, &dx, dtau[j], &mut ds);
+            // The change of the input's own jump, where the crossing reads the input.
+            de.fill(0.0);
+            if input_jump.is_some()
+                && !self
+                    .tangents
+                    .input_jump_change(mode, index, t, &x_minus, j, &dx, dtau[j], &mut de)
+            {
+                self.input_at_crossing.set(true);
+            }
             for i in 0..n {
-                let mut v = handed[i] * dtau[j];
+                let mut v = handed[i] * dtau[j] + de[i];
                 for l in 0..n {
                     v += r_minus[l * k + j] * salt[(i, l)] + q_minus[l] * ds[i * n + l];
                 }
