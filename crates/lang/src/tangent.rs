@@ -136,7 +136,7 @@ impl Model {
                 let piece = &mut tangent.pieces_mut()[i];
                 piece.start = dtau;
                 let mut dj = vec![0.0; n * n];
-                saltation_change(&ds, n, k, j, &dx, dtau, &mut dj);
+                total_change(&ds, n, k, j, &dx, dtau, &mut dj);
                 piece.jump = DMatrix::from_row_slice(n, n, &dj);
             }
         }
@@ -169,18 +169,10 @@ impl Model {
     }
 }
 
-/// `dS = S_p + S_x dx + S_t dt` along parameter `j` (of `k`), from a saltation program's
-/// values `ds` (per entry of `S`, row-major: by `t`, by each of the `n` states, by each
-/// parameter), into `out` (`n x n`).
-fn saltation_change(
-    ds: &[f64],
-    n: usize,
-    k: usize,
-    j: usize,
-    dx: &[f64],
-    dt: f64,
-    out: &mut [f64],
-) {
+/// The total change `e_p + e_x dx + e_t dt` along parameter `j` (of `k`) of each of `out`'s
+/// entries (the saltation's `n x n`, row-major, or the input jump's `n`), from a crossing
+/// program's values `ds` (per entry: by `t`, by each of the `n` states, by each parameter).
+fn total_change(ds: &[f64], n: usize, k: usize, j: usize, dx: &[f64], dt: f64, out: &mut [f64]) {
     let stride = 1 + n + k;
     for (entry, v) in out.iter_mut().enumerate() {
         let d = &ds[entry * stride..(entry + 1) * stride];
@@ -636,17 +628,10 @@ impl OrbitTangents for ModelOrbitTangents<'_> {
         dt: f64,
         ds: &mut [f64],
     ) {
-        let global = self.model.global_guard(mode, index);
-        let Some(program) = self.programs.saltation.get(&(mode.index(), global)) else {
-            ds.iter_mut().for_each(|v| *v = f64::NAN);
-            return;
-        };
-        let mut values = vec![0.0; program.len()];
-        program.eval(
-            &self.model.vars(t, x_minus, self.model.input_value(t)),
-            &mut values,
-        );
-        saltation_change(&values, self.n, self.k, j, dx, dt, ds);
+        match self.crossing(mode, index, t, x_minus) {
+            Some(values) => total_change(&values, self.n, self.k, j, dx, dt, ds),
+            None => ds.iter_mut().for_each(|v| *v = f64::NAN),
+        }
     }
 
     fn input_jump_change(
@@ -661,25 +646,29 @@ impl OrbitTangents for ModelOrbitTangents<'_> {
         de: &mut [f64],
     ) -> bool {
         let (n, k) = (self.n, self.k);
-        let global = self.model.global_guard(mode, index);
-        let Some(program) = self.programs.saltation.get(&(mode.index(), global)) else {
-            return false;
-        };
         let stride = 1 + n + k;
-        if program.len() != (n * n + n) * stride {
-            return false;
+        match self.crossing(mode, index, t, x_minus) {
+            // The jump's rows follow the saltation's entries.
+            Some(values) if values.len() == (n * n + n) * stride => {
+                total_change(&values[n * n * stride..], n, k, j, dx, dt, de);
+                true
+            }
+            _ => false,
         }
+    }
+}
+
+impl ModelOrbitTangents<'_> {
+    /// The crossing program's values (the saltation's entries, then the input jump's rows
+    /// where the crossing reads the input) for guard `index` of `mode` at `(t, x_minus)`.
+    fn crossing(&self, mode: Mode, index: usize, t: f64, x_minus: &[f64]) -> Option<Vec<f64>> {
+        let global = self.model.global_guard(mode, index);
+        let program = self.programs.saltation.get(&(mode.index(), global))?;
         let mut values = vec![0.0; program.len()];
         program.eval(
             &self.model.vars(t, x_minus, self.model.input_value(t)),
             &mut values,
         );
-        // The jump's rows follow the saltation's entries; each row is one `1 x 1` "matrix".
-        let rows = &values[n * n * stride..];
-        for (a, v) in de.iter_mut().enumerate() {
-            let d = &rows[a * stride..(a + 1) * stride];
-            *v = d[1 + n + j] + d[0] * dt + (0..n).map(|l| d[1 + l] * dx[l]).sum::<f64>();
-        }
-        true
+        Some(values)
     }
 }
