@@ -86,9 +86,10 @@ pub struct HtfFit {
     pub cost: f64,
     /// Why it stopped.
     pub stop: String,
-    /// How its Jacobian was formed: `"exact"` (the model's
-    /// [`Parametric::linearisation_tangents`] through
-    /// [`htfid_theory::ExactHtf::derivatives`]) or `"forward_difference"` (step [`FD_STEP`]).
+    /// How its Jacobian was formed: `"exact"` (the model's tangents through the derivatives
+    /// of its HTFs: [`Parametric::linearisation_tangents`] and
+    /// [`htfid_theory::ExactHtf::derivatives`], or [`Parametric::orbit_derivatives`]) or
+    /// `"forward_difference"` (step [`FD_STEP`]).
     pub jacobian_method: &'static str,
     /// The error budget at 95 % ([`htfid_estimate::uncertainty_budget`]): noise, the
     /// estimates' own known bias ([`HtfEstimate::bias`], the regularised estimators' smoothing

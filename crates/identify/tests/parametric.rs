@@ -375,19 +375,9 @@ fn the_closed_loops_jacobian_along_the_orbit_matches_an_extrapolated_central_dif
 /// (`OrbitTangents::input_jump_change`).
 #[test]
 fn a_guard_that_reads_the_input_has_its_jacobian_along_the_orbit() {
-    let model = Model::parse(
-        r#"
-        states = ["y", "v"]
-        parameters = { g = 9.81, e = 0.8, A = 0.01, T = 0.25 }
-        forcing = { period = "T", signals = { table = "A * sin(2*pi*t/T)", table_v = "A * (2*pi/T) * cos(2*pi*t/T)" } }
-        flow = { y = "v", v = "-g" }
-        initial = { y = 0.01, v = 1.2 }
-
-        [[guards]]
-        when = "y - table - u"
-        direction = "falling"
-        reset = { v = "(1 + e) * table_v - e * v" }
-        "#,
+    let model = Model::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../tests/fixtures/models/ball-moved-by-input.toml"),
     )
     .unwrap();
     let names = ["e", "g", "A"];

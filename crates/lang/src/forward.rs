@@ -390,83 +390,68 @@ pub fn output_sensitivities_with_input(
     Ok(OutputSensitivities { outputs, columns })
 }
 
-/// One period of `cycle` (a limit cycle of `model`, its input off) with the orbit's own
-/// periodic sensitivity to `params` beside it: the state `[x, dx/dp row by row]` (`n (1 + k)`
-/// entries) along the orbit, its events carrying the sensitivities just before each reset.
+/// The orbit's own periodic sensitivity to `params` at the start of `cycle` (a limit cycle of
+/// `model`, its input off): `dx/dp` at `cycle.t0`, `n x k` row by row.
 ///
 /// The sensitivity `z = dx/dp` of the periodic orbit (the period fixed by the forcing) is the
 /// periodic solution of `z' = A z + df/dp` with the guards' jumps: one period from `z = 0`
 /// gives the particular end `z_T`, and `(I - M) z(t0) = z_T` with `M = cycle.jacobian`, the
-/// monodromy. With `second_period`, a second period from that start is returned; without,
-/// the start alone.
+/// monodromy.
 ///
 /// # Errors
 /// [`ForwardError`]: an unknown name, a failed or sliding simulation, a unit multiplier.
-fn periodic(
-    model: &Model,
-    params: &[&str],
-    cycle: &LimitCycle<Mode>,
-    opts: &Options,
-    second_period: bool,
-) -> Result<Periodic, ForwardError> {
-    let sys = Augmented::for_parameters(model, model.parameter_sensitivity(params)?);
-    let (n, k) = (model.dim(), params.len());
-    let end = cycle.t0 + cycle.period;
-    let run = |start: &[f64]| -> Result<Trajectory<Mode>, ForwardError> {
-        let traj = simulate(&sys, cycle.mode0, cycle.t0, start, end, &[], opts)
-            .map_err(|e| ForwardError::Simulation(e.to_string()))?;
-        match traj.sliding.first() {
-            Some(slide) => Err(ForwardError::Sliding(slide.start)),
-            None => Ok(traj),
-        }
-    };
-    let mut start = vec![0.0; n * (1 + k)];
-    start[..n].copy_from_slice(&cycle.state0);
-    let particular = run(&start)?;
-    let lu = (DMatrix::<f64>::identity(n, n) - &cycle.jacobian).lu();
-    for j in 0..k {
-        let column = DVector::from_fn(n, |l, _| particular.final_state[n + l * k + j]);
-        let periodic = lu.solve(&column).ok_or(ForwardError::UnitMultiplier)?;
-        for l in 0..n {
-            start[n + l * k + j] = periodic[l];
-        }
-    }
-    if !second_period {
-        return Ok(Periodic::Start(start[n..].to_vec()));
-    }
-    run(&start).map(Periodic::Period)
-}
-
-/// What [`periodic`] returns.
-pub(crate) enum Periodic {
-    /// The periodic sensitivity at the cycle's start (`n x k`).
-    Start(Vec<f64>),
-    /// A period of the orbit with its periodic sensitivity.
-    Period(Trajectory<Mode>),
-}
-
-/// [`periodic`]'s period.
-pub(crate) fn periodic_sensitivity(
-    model: &Model,
-    params: &[&str],
-    cycle: &LimitCycle<Mode>,
-    opts: &Options,
-) -> Result<Trajectory<Mode>, ForwardError> {
-    match periodic(model, params, cycle, opts, true)? {
-        Periodic::Period(traj) => Ok(traj),
-        Periodic::Start(_) => unreachable!("a second period was asked for"),
-    }
-}
-
-/// [`periodic`]'s start.
 pub(crate) fn periodic_start(
     model: &Model,
     params: &[&str],
     cycle: &LimitCycle<Mode>,
     opts: &Options,
 ) -> Result<Vec<f64>, ForwardError> {
-    match periodic(model, params, cycle, opts, false)? {
-        Periodic::Start(start) => Ok(start),
-        Periodic::Period(_) => unreachable!("no second period was asked for"),
+    let (n, k) = (model.dim(), params.len());
+    let particular = one_period(model, params, cycle, &vec![0.0; n * k], opts)?;
+    let lu = (DMatrix::<f64>::identity(n, n) - &cycle.jacobian).lu();
+    let mut start = vec![0.0; n * k];
+    for j in 0..k {
+        let column = DVector::from_fn(n, |l, _| particular.final_state[n + l * k + j]);
+        let periodic = lu.solve(&column).ok_or(ForwardError::UnitMultiplier)?;
+        for l in 0..n {
+            start[l * k + j] = periodic[l];
+        }
+    }
+    Ok(start)
+}
+
+/// One period of `cycle` with the orbit's periodic sensitivity to `params` beside it
+/// ([`periodic_start`]): the state `[x, dx/dp row by row]` (`n (1 + k)` entries) along the
+/// orbit, its events carrying the sensitivities just before each reset.
+///
+/// # Errors
+/// As [`periodic_start`].
+pub(crate) fn periodic_sensitivity(
+    model: &Model,
+    params: &[&str],
+    cycle: &LimitCycle<Mode>,
+    opts: &Options,
+) -> Result<Trajectory<Mode>, ForwardError> {
+    let start = periodic_start(model, params, cycle, opts)?;
+    one_period(model, params, cycle, &start, opts)
+}
+
+/// One period of `cycle` from its start with the sensitivities `z0` (`n x k`) beside it.
+fn one_period(
+    model: &Model,
+    params: &[&str],
+    cycle: &LimitCycle<Mode>,
+    z0: &[f64],
+    opts: &Options,
+) -> Result<Trajectory<Mode>, ForwardError> {
+    let sys = Augmented::for_parameters(model, model.parameter_sensitivity(params)?);
+    let mut start = cycle.state0.clone();
+    start.extend_from_slice(z0);
+    let end = cycle.t0 + cycle.period;
+    let traj = simulate(&sys, cycle.mode0, cycle.t0, &start, end, &[], opts)
+        .map_err(|e| ForwardError::Simulation(e.to_string()))?;
+    match traj.sliding.first() {
+        Some(slide) => Err(ForwardError::Sliding(slide.start)),
+        None => Ok(traj),
     }
 }

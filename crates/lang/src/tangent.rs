@@ -471,13 +471,14 @@ pub struct ModelOrbitTangents<'a> {
     start: Vec<f64>,
     n: usize,
     k: usize,
-    scratch: RefCell<Vec<f64>>,
     buffers: RefCell<Buffers>,
 }
 
-/// Reused buffers of [`ModelOrbitTangents`]: the programs' variables and values.
+/// Reused buffers of [`ModelOrbitTangents`]: the state with its sensitivities and their
+/// rates, the programs' variables and values.
 #[derive(Default)]
 struct Buffers {
+    augmented: Vec<f64>,
     vars: Vec<f64>,
     flow: Vec<f64>,
     outputs: Vec<f64>,
@@ -524,7 +525,6 @@ impl Model {
             start,
             n: self.dim(),
             k: names.len(),
-            scratch: RefCell::new(Vec::new()),
             buffers: RefCell::new(Buffers::default()),
         }))
     }
@@ -543,7 +543,8 @@ impl OrbitTangents for ModelOrbitTangents<'_> {
 
     fn sensitivity_field(&self, mode: Mode, t: f64, x: &[f64], z: &[f64], dz: &mut [f64]) {
         let n = self.n;
-        let mut buf = self.scratch.borrow_mut();
+        let mut guard = self.buffers.borrow_mut();
+        let buf = &mut guard.augmented;
         buf.resize(2 * n * (1 + self.k), 0.0);
         let (state, out) = buf.split_at_mut(n * (1 + self.k));
         state[..n].copy_from_slice(x);
@@ -586,6 +587,7 @@ impl OrbitTangents for ModelOrbitTangents<'_> {
             vars,
             flow,
             outputs,
+            ..
         } = &mut *guard;
         self.model.fill_vars(t, x, self.model.input_value(t), vars);
         let program = &self.programs.flows[mode.index()];

@@ -447,14 +447,7 @@ impl<S: InputOutput> HybridSystem for Augmented<'_, '_, S> {
         sys.vector_field(mode, t, x, &mut dz[..n]);
         let mut guard = self.scratch.borrow_mut();
         let s = &mut *guard;
-        if !sys.jacobian(mode, t, x, &mut s.jac) {
-            let a = vector_field_jacobian(sys, mode, t, x);
-            for i in 0..n {
-                for j in 0..n {
-                    s.jac[i * n + j] = a[(i, j)];
-                }
-            }
-        }
+        state_jacobian(sys, mode, t, x, &mut s.jac);
         sys.input_gain(mode, t, x, &mut s.b);
         let (q_re, q_im) = (&z[n..2 * n], &z[2 * n..3 * n]);
         let w = self.w_in;
@@ -555,4 +548,18 @@ pub(crate) fn input_jump<S: InputOutput>(
         0.0
     };
     Some(DVector::from_vec(r_u) + jump.jump * moved)
+}
+
+/// `A = df/dx` at `(mode, t, x)` into `jac` (row-major): the system's own Jacobian, or
+/// [`vector_field_jacobian`]'s differences where it gives none.
+fn state_jacobian<S: HybridSystem>(sys: &S, mode: S::Mode, t: f64, x: &[f64], jac: &mut [f64]) {
+    if !sys.jacobian(mode, t, x, jac) {
+        let n = x.len();
+        let a = vector_field_jacobian(sys, mode, t, x);
+        for i in 0..n {
+            for j in 0..n {
+                jac[i * n + j] = a[(i, j)];
+            }
+        }
+    }
 }

@@ -171,16 +171,11 @@ fn derivatives_match_extrapolated_differences() {
 /// What a test keeps of a piece's tangent.
 type Keep = fn(&mut PieceTangent);
 
-#[test]
-fn each_kind_of_change_alone_matches_differences() {
-    // One kind at a time, so a term that cancels against another in the combined tangent
-    // cannot hide: the matrices, the jumps, and the moved starts (which carry the output's
-    // jumps and the stretch of flow handed from piece to piece). Tolerance as above.
-    let lti = rich();
-    let htf = ExactHtf::new(&lti).unwrap();
-    let pts = points();
-    let full = everything(&lti, 7);
-    let kinds: [(&str, Keep); 4] = [
+/// Each kind of change alone: the matrices `A`, the matrices `B`, `C`, `D`, the jumps, and the
+/// moved starts (which carry the output's jumps and the stretch of flow handed from piece to
+/// piece).
+fn kinds() -> [(&'static str, Keep); 4] {
+    [
         ("dA", |p| {
             p.b.fill(0.0);
             p.c.fill(0.0);
@@ -207,17 +202,31 @@ fn each_kind_of_change_alone_matches_differences() {
             p.d.fill(0.0);
             p.jump.fill(0.0);
         }),
-    ];
-    let tangents: Vec<PiecewiseTangent> = kinds
+    ]
+}
+
+/// `full` cut to each of [`kinds`].
+fn each_kind(full: &PiecewiseTangent) -> Vec<PiecewiseTangent> {
+    kinds()
         .iter()
         .map(|(_, keep)| {
             let mut t = full.clone();
             t.pieces_mut().iter_mut().for_each(keep);
             t
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn each_kind_of_change_alone_matches_differences() {
+    // One kind at a time, so a term that cancels against another in the combined tangent
+    // cannot hide. Tolerance as above.
+    let lti = rich();
+    let htf = ExactHtf::new(&lti).unwrap();
+    let pts = points();
+    let tangents = each_kind(&everything(&lti, 7));
     let got = htf.derivatives(&tangents, &pts).unwrap();
-    for ((name, _), (t, got)) in kinds.iter().zip(tangents.iter().zip(&got)) {
+    for ((name, _), (t, got)) in kinds().iter().zip(tangents.iter().zip(&got)) {
         let want = extrapolated(&lti, t, 1e-4, &pts);
         let err = relative_error(got, &want);
         eprintln!("{name}: {err:e}");
@@ -331,7 +340,8 @@ fn the_block_path_matches_the_modal_path() {
 /// at `1e-4` and 2e-8 at `1e-3` (measured), while its truncation, `O(h^4)` along tangents of
 /// order one, stays near 1e-12 at `1e-3`. So the step is `1e-3` and the tolerance 1e-6, fifty
 /// times the reference's measured error and far below a wrong term's (of the size of the
-/// derivative). The jumps' and the starts' changes alone agree to 1e-11.
+/// derivative). Measured at 1e-3: 2e-8 for every kind at once, 7e-8 for `dA` alone, 1e-13
+/// to 4e-12 for the other kinds alone.
 #[test]
 fn a_defective_system_matches_differences() {
     let lti = flight();
@@ -343,35 +353,10 @@ fn a_defective_system_matches_differences() {
         .collect();
     let full = everything(&lti, 11);
     let mut tangents = vec![full.clone()];
-    for keep in [
-        |p: &mut PieceTangent| {
-            p.jump.fill(0.0);
-            p.start = 0.0;
-        },
-        |p: &mut PieceTangent| {
-            p.a.fill(0.0);
-            p.b.fill(0.0);
-            p.c.fill(0.0);
-            p.d.fill(0.0);
-            p.start = 0.0;
-        },
-        |p: &mut PieceTangent| {
-            p.a.fill(0.0);
-            p.b.fill(0.0);
-            p.c.fill(0.0);
-            p.d.fill(0.0);
-            p.jump.fill(0.0);
-        },
-    ] {
-        let mut t = full.clone();
-        t.pieces_mut().iter_mut().for_each(keep);
-        tangents.push(t);
-    }
+    tangents.extend(each_kind(&full));
     let got = htf.derivatives(&tangents, &pts).unwrap();
-    for (name, (t, got)) in ["all", "matrices", "dJ", "d tau"]
-        .iter()
-        .zip(tangents.iter().zip(&got))
-    {
+    let names = std::iter::once("all").chain(kinds().map(|(name, _)| name));
+    for (name, (t, got)) in names.zip(tangents.iter().zip(&got)) {
         let want = extrapolated(&lti, t, 1e-3, &pts);
         let err = relative_error(got, &want);
         eprintln!("flight, {name}: {err:e}");

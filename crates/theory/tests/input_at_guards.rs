@@ -5,31 +5,25 @@
 //! matrix. `OrbitHtf` (which `LinearisedHtf` takes for such a model) against small-signal
 //! simulation of the nonlinear model, as in `orbit_htf.rs`.
 
+mod small_signal;
+
 use std::f64::consts::TAU;
+use std::path::Path;
 use std::sync::Arc;
 
-use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
+use htfid_hybrid::{simulate, HybridSystem, Options};
 use htfid_lang::{Mode, Model};
 use htfid_orbit::{LimitCycle, ShootingOptions};
 use htfid_theory::{HtfMethod, LinearisedHtf, OrbitHtf};
 use num_complex::Complex64;
+use small_signal::Projected;
 
 const PERIOD: f64 = 0.25;
 
 fn ball() -> Model {
-    Model::parse(
-        r#"
-        states = ["y", "v"]
-        parameters = { g = 9.81, e = 0.8, A = 0.01, T = 0.25 }
-        forcing = { period = "T", signals = { table = "A * sin(2*pi*t/T)", table_v = "A * (2*pi/T) * cos(2*pi*t/T)" } }
-        flow = { y = "v", v = "-g" }
-        initial = { y = 0.01, v = 1.2 }
-
-        [[guards]]
-        when = "y - table - u"
-        direction = "falling"
-        reset = { v = "(1 + e) * table_v - e * v" }
-        "#,
+    Model::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../tests/fixtures/models/ball-moved-by-input.toml"),
     )
     .expect("the model reads")
 }
@@ -39,41 +33,6 @@ fn tight() -> Options {
         rtol: 1e-12,
         atol: 1e-14,
         ..Options::default()
-    }
-}
-
-/// The model driven by `eps cos(w0 t)` with the projections `(1/W) int y(t) exp(-j w t) dt`
-/// on `omegas` integrated beside it.
-struct Projected<'a> {
-    inner: &'a Model,
-    omegas: &'a [f64],
-    window: f64,
-}
-
-impl HybridSystem for Projected<'_> {
-    type Mode = Mode;
-    fn dim(&self) -> usize {
-        2 + 2 * self.omegas.len()
-    }
-    fn vector_field(&self, mode: Mode, t: f64, z: &[f64], dz: &mut [f64]) {
-        self.inner.vector_field(mode, t, &z[..2], &mut dz[..2]);
-        for (i, &w) in self.omegas.iter().enumerate() {
-            let v = Complex64::from_polar(1.0 / self.window, -(w * t).rem_euclid(TAU)) * z[0];
-            dz[2 + 2 * i] = v.re;
-            dz[3 + 2 * i] = v.im;
-        }
-    }
-    fn num_guards(&self, mode: Mode) -> usize {
-        self.inner.num_guards(mode)
-    }
-    fn guard(&self, mode: Mode, i: usize, t: f64, z: &[f64]) -> f64 {
-        self.inner.guard(mode, i, t, &z[..2])
-    }
-    fn guard_direction(&self, mode: Mode, i: usize) -> Crossing {
-        self.inner.guard_direction(mode, i)
-    }
-    fn transition(&self, mode: Mode, i: usize, t: f64, z: &mut [f64]) -> Mode {
-        self.inner.transition(mode, i, t, &mut z[..2])
     }
 }
 
@@ -96,6 +55,7 @@ fn projections(
     let settled = simulate(&driven, cycle.mode0, 0.0, &cycle.state0, settle, &[], &opts).unwrap();
     let proj = Projected {
         inner: &driven,
+        projected: 1,
         omegas,
         window,
     };

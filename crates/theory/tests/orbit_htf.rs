@@ -4,6 +4,8 @@
 //! `A(t)`), and small-signal simulation of a nonlinear hybrid oscillator whose switches have
 //! non-identity saltation matrices on a guard that moves in time.
 
+mod small_signal;
+
 use htfid_hybrid::{simulate, Crossing, HybridSystem, Options};
 use htfid_ltp::{fft_fourier_fn, linearise, InputOutput};
 use htfid_model::{Hopper, HopperParams};
@@ -13,6 +15,7 @@ use htfid_theory::{
 };
 use nalgebra::dmatrix;
 use num_complex::Complex64;
+use small_signal::Projected;
 use std::f64::consts::TAU;
 
 fn tight() -> Options {
@@ -303,44 +306,6 @@ impl InputOutput for Threshold {
     }
 }
 
-/// The driven nonlinear system plus the projections `(1/W) int y_o(t) exp(-j w t) dt` of both
-/// outputs on the frequencies `omegas`, integrated as extra states from `t_start`.
-struct Projected<'a> {
-    inner: &'a Threshold,
-    omegas: &'a [f64],
-    window: f64,
-}
-
-impl HybridSystem for Projected<'_> {
-    type Mode = Damper;
-    fn dim(&self) -> usize {
-        2 + 4 * self.omegas.len()
-    }
-    fn vector_field(&self, mode: Damper, t: f64, z: &[f64], dz: &mut [f64]) {
-        self.inner.vector_field(mode, t, &z[..2], &mut dz[..2]);
-        for (i, &w) in self.omegas.iter().enumerate() {
-            let e = Complex64::from_polar(1.0 / self.window, -(w * t).rem_euclid(TAU));
-            for o in 0..2 {
-                let v = e * z[o];
-                dz[2 + 4 * i + 2 * o] = v.re;
-                dz[3 + 4 * i + 2 * o] = v.im;
-            }
-        }
-    }
-    fn num_guards(&self, mode: Damper) -> usize {
-        self.inner.num_guards(mode)
-    }
-    fn guard(&self, mode: Damper, i: usize, t: f64, z: &[f64]) -> f64 {
-        self.inner.guard(mode, i, t, &z[..2])
-    }
-    fn guard_direction(&self, mode: Damper, i: usize) -> Crossing {
-        self.inner.guard_direction(mode, i)
-    }
-    fn transition(&self, mode: Damper, i: usize, t: f64, z: &mut [f64]) -> Damper {
-        self.inner.transition(mode, i, t, &mut z[..2])
-    }
-}
-
 /// Fourier coefficients of both outputs at `omegas` in the steady state driven by
 /// `eps cos(w0 t)`: settle `settle` periods from the orbit, then project over `window`.
 fn projections(
@@ -363,6 +328,7 @@ fn projections(
     let settled = simulate(&driven, cycle.mode0, 0.0, &cycle.state0, settle, &[], &opts).unwrap();
     let proj = Projected {
         inner: &driven,
+        projected: 2,
         omegas,
         window,
     };

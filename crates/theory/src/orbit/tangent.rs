@@ -23,7 +23,7 @@ use std::cell::{Cell, RefCell};
 
 use htfid_hybrid::{simulate, Crossing, HybridError, HybridSystem};
 use htfid_ltp::{InputOutput, OrbitTangents};
-use htfid_orbit::{saltation, vector_field_jacobian};
+use htfid_orbit::saltation;
 use nalgebra::DVector;
 use num_complex::Complex64;
 
@@ -269,15 +269,8 @@ impl<'h, 'a, S: InputOutput, D: OrbitTangents<Mode = S::Mode>> Moving<'h, 'a, S,
 
     /// `A` (into `jac`) and `B` (into `b`) at `(mode, t, x)`.
     fn linear(&self, mode: S::Mode, t: f64, x: &[f64], sc: &mut Scratch) {
-        let (sys, n) = (self.htf.system, self.n);
-        if !sys.jacobian(mode, t, x, &mut sc.jac) {
-            let a = vector_field_jacobian(sys, mode, t, x);
-            for i in 0..n {
-                for l in 0..n {
-                    sc.jac[i * n + l] = a[(i, l)];
-                }
-            }
-        }
+        let sys = self.htf.system;
+        super::state_jacobian(sys, mode, t, x, &mut sc.jac);
         sys.input_gain(mode, t, x, &mut sc.b);
     }
 
