@@ -1611,17 +1611,60 @@ fn an_outsiders_drag_beside_a_sensor_gain_error_is_named() {
 
 /// An outside tester's forced oscillator with a one-sided soft stop (a model file of theirs),
 /// recorded by their own simulator with the stop's stiffness 1.5 times the model's, which is
-/// not refitted (`tests/fixtures/outsider/p4-contact-stiffness`). No library effect is that,
-/// so none may be named; the term search outside the library proposes terms up to its cap of
-/// three and says so (it said "stopped because ." before), and the advice names the parameters
-/// held at their configured values, `kc` among them.
+/// not refitted (`tests/fixtures/outsider/p4-contact-stiffness`: `kc` 1500 N/m against the
+/// model's 1000, the stop at `x = -d = -0.02` m, `m` = 1 kg). The library's hard stop below `x`
+/// is exactly the missing stiffness: a second contact spring at the same place. It is named,
+/// with its position within 0.1 mm of the model's contact (5 % of `d`, the depth scale of the
+/// contact) and its stiffness within 10 % of the missing `(1500 - 1000) / m` = 500 (the
+/// promise for a single effect), and `k` and `c` stay within 1 % of the model's values, which
+/// the record shares.
 #[test]
-fn an_outsiders_stiffer_stop_is_not_claimed_and_the_term_search_says_why_it_stopped() {
+fn an_outsiders_stiffer_stop_is_named_as_the_missing_contact_stiffness() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("d");
     htfid_ok(&[
         "diagnose",
         "tests/fixtures/outsider/p4-contact-stiffness/diagnose.toml",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let d = diagnosis(&out);
+    assert_eq!(d["cause"], "hard_stop(x, below)", "{}", d["candidates"]);
+    let fitted = &d["extended"]["parameters"];
+    let value = |name: &str| fitted[name].as_f64().unwrap();
+    assert!((value("floor_x") + 0.02).abs() < 1e-4, "{fitted}");
+    assert!((value("k_floor_x") / 500.0 - 1.0).abs() < 0.1, "{fitted}");
+    assert!((value("k") / 100.0 - 1.0).abs() < 0.01, "{fitted}");
+    assert!((value("c") / 2.0 - 1.0).abs() < 0.01, "{fitted}");
+}
+
+/// The same record with the hard stop left out of the library (`[diagnose] effects`): no
+/// library effect is then that stop, so none may be named; the term search outside the
+/// library proposes terms up to its cap of three and says so (it said "stopped because ."
+/// once), and the advice names the parameters held at their configured values, `kc` among
+/// them.
+#[test]
+fn an_outsiders_stiffer_stop_outside_the_library_is_not_claimed_and_the_term_search_says_why_it_stopped(
+) {
+    let tmp = tempfile::tempdir().unwrap();
+    let fixture = root().join("tests/fixtures/outsider/p4-contact-stiffness");
+    for file in ["contact.toml", "record.csv"] {
+        fs::copy(fixture.join(file), tmp.path().join(file)).unwrap();
+    }
+    let config = fs::read_to_string(fixture.join("diagnose.toml")).unwrap();
+    let config = config.replace(
+        "[diagnose]\n",
+        "[diagnose]\neffects = [\"input_offset\", \"input_delay\", \"actuator_lag\", \
+         \"sensor_offset_gain\", \"sensor_lag\", \"quadratic_drag\", \"nonlinear_stiffness\", \
+         \"mode_damping\", \"guard_shift\", \"coulomb_friction\"]\n",
+    );
+    assert!(config.contains("effects = ["), "{config}");
+    fs::write(tmp.path().join("diagnose.toml"), config).unwrap();
+    let out = tmp.path().join("d");
+    htfid_ok(&[
+        "diagnose",
+        tmp.path().join("diagnose.toml").to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "--quiet",

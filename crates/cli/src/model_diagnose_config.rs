@@ -476,10 +476,15 @@ fn user_term(
         return Err(src.error(span.as_ref(), &key(k), message));
     }
     // A moved guard's cost is not convex in the shift: try both signs.
-    let multistart = r.guard.is_some();
+    let start = if r.guard.is_some() {
+        htfid_diagnose::TermStart::BothSigns
+    } else {
+        htfid_diagnose::TermStart::Given
+    };
     Ok(htfid_diagnose::TermEffect {
         name,
         extension,
-        multistart,
+        start,
+        placed: None,
     })
 }

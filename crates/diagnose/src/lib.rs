@@ -259,4 +259,7 @@ pub use nominal::NominalModel;
 pub use options::DiagnoseOptions;
 pub use sensor::Sensor;
 pub use sim::SimMethod;
-pub use term::{term_library, velocity_pairs, TermEffect, TermKind};
+pub use term::{
+    term_library, velocity_pairs, Placement, StateStats, TermEffect, TermKind, TermStart,
+    FRICTION_SMOOTHING,
+};

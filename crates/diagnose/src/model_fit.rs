@@ -395,8 +395,9 @@ pub fn diagnose_model(
     // the refit. On the boundary, and inside the model: the library's terms at every site the
     // model offers, and the user's own.
     let samples = est.state_samples(&refit.model, &refit.base.state)?;
-    let means = samples.means(model.states().len());
-    let terms: Vec<TermEffect> = term_library(model, &opts.terms, &means)
+    let stats = samples.stats(&refit.model, &est.signal);
+    let means: Vec<f64> = stats.iter().map(|s| s.mean).collect();
+    let terms: Vec<TermEffect> = term_library(model, &opts.terms, &stats)
         .into_iter()
         .chain(opts.user_terms.iter().cloned())
         .collect();

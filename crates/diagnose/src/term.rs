@@ -1,9 +1,10 @@
 //! Effects inside a model's equations: a term added to a named state equation or guard of any
 //! model written in the model language, with new parameters (`htfid_lang::Extension`). The
 //! library finds its sites in the model itself: every state pair `q' = v` (a position and its
-//! velocity) gets drag and a stiffness law on `v`'s equation, every mode of a model with
-//! several gets its own extra damping, and every switching surface may sit elsewhere. A user
-//! writes any other suspected effect as a formula in the config (`[[diagnose.terms]]`).
+//! velocity) gets drag, Coulomb friction, a stiffness law and a hard stop on either side on
+//! `v`'s equation, every mode of a model with several gets its own extra damping, and every
+//! switching surface may sit elsewhere. A user writes any other suspected effect as a formula
+//! in the config (`[[diagnose.terms]]`).
 
 use htfid_expr::Expr;
 use htfid_lang::{Extension, Model, Parameter, Site};
@@ -23,15 +24,36 @@ pub enum TermKind {
     /// `-shift_i` added to every guard whose expression is the `i`-th distinct one: the
     /// switching surface `h = 0` moves to `h = shift_i`.
     GuardShift,
+    /// `-friction_V tanh(V / eps)` added to `V'` for each velocity state `V`: Coulomb friction
+    /// of size `friction_V` (a force over the mass, `>= 0`), its sign change smoothed over
+    /// `eps`, a thousandth of `V`'s spread on the record (see [`FRICTION_SMOOTHING`]).
+    CoulombFriction,
+    /// `k_floor_Q max(0, floor_Q - Q)` (below) and `-k_ceiling_Q max(0, Q - ceiling_Q)`
+    /// (above) added to `V'` for each pair `Q' = V`: a one-sided contact spring that pushes
+    /// back beyond a position. Its stiffness (over the mass) is at least the model's own
+    /// ([`StateStats::stiffness`]): a softer one-sided spring is a stiffness law, which it
+    /// would otherwise mimic. Started from the best of a grid of positions touched by 1 to
+    /// 30 % of the motion and stiffnesses 2 to 100 times the model's own; named only with its
+    /// position inside the motion ([`Placement`]).
+    HardStop,
 }
+
+/// The velocity, as a fraction of the velocity's spread on the record, over which the
+/// library's Coulomb friction changes sign (`tanh(V / eps)`). Within `|V| < eps` the friction
+/// is a viscous damping `friction_V / eps`: a stick of true Coulomb friction becomes a creep
+/// at about `eps`, whose displacement over a stick of a tenth of a period is under a
+/// thousandth of the motion's; a smaller `eps` makes the field stiffer for the integrator.
+pub const FRICTION_SMOOTHING: f64 = 1e-3;
 
 impl TermKind {
     /// Every kind, in the order tried.
-    pub const ALL: [TermKind; 4] = [
+    pub const ALL: [TermKind; 6] = [
         TermKind::QuadraticDrag,
         TermKind::NonlinearStiffness,
         TermKind::ModeDamping,
         TermKind::GuardShift,
+        TermKind::CoulombFriction,
+        TermKind::HardStop,
     ];
 
     /// The name in configs (`diagnose.effects`).
@@ -41,6 +63,8 @@ impl TermKind {
             TermKind::NonlinearStiffness => "nonlinear_stiffness",
             TermKind::ModeDamping => "mode_damping",
             TermKind::GuardShift => "guard_shift",
+            TermKind::CoulombFriction => "coulomb_friction",
+            TermKind::HardStop => "hard_stop",
         }
     }
 
@@ -58,9 +82,52 @@ pub struct TermEffect {
     pub name: String,
     /// The terms and their parameters (at their starting values).
     pub extension: Extension,
-    /// Whether to try both signs of the first parameter at a few sizes before fitting (a
-    /// moved surface: the cost is not convex in the shift).
-    pub multistart: bool,
+    /// Where its fit starts.
+    pub start: TermStart,
+    /// The parameter that places it on the motion, if one does.
+    pub placed: Option<Placement>,
+}
+
+/// A parameter that places a term on the motion: the term acts only beyond the parameter's
+/// value along a state. Outside the state's range on the record it acts everywhere or nowhere,
+/// and only mimics the model's own structure (a contact touched everywhere is a stiffer spring
+/// and a constant force), so the diagnosis names it only with its value inside that range.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Placement {
+    /// The term's parameter.
+    pub parameter: String,
+    /// The state it is a value of.
+    pub state: String,
+}
+
+/// Where the fit of a term's parameters starts.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TermStart {
+    /// From the extension's values (zero: the model as it was). Beside effects chosen before
+    /// it, the first parameter starts from the best of zero and a few sizes of either sign.
+    Given,
+    /// From the best of both signs of the first parameter at a few sizes, never zero: a moved
+    /// switching surface, whose cost is not convex in the shift and whose derivative may
+    /// vanish at zero.
+    BothSigns,
+    /// From the best of these points, each a value of every one of the term's parameters in
+    /// order (a contact: nothing moves while it lies beyond the motion).
+    Points(Vec<Vec<f64>>),
+}
+
+/// What the library reads of one of a model's states along its simulation on a record: where
+/// a stiffness law is centred, where a stop may sit, how fast a velocity changes sign.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StateStats {
+    /// The mean.
+    pub mean: f64,
+    /// The RMS about the mean.
+    pub spread: f64,
+    /// The quantiles at 1, 3, 10, 30, 70, 90, 97 and 99 %.
+    pub quantiles: [f64; 8],
+    /// For a position `Q` with `Q' = V`: the RMS of `-d(V')/dQ` (the model's own stiffness
+    /// over its mass), else 0.
+    pub stiffness: f64,
 }
 
 impl TermEffect {
@@ -93,6 +160,27 @@ fn zero(name: String) -> Parameter {
         min: f64::NEG_INFINITY,
         max: f64::INFINITY,
         free: true,
+    }
+}
+
+/// A parameter starting at zero, bounded below by zero, with no unit.
+fn nonnegative(name: String) -> Parameter {
+    Parameter {
+        min: 0.0,
+        ..zero(name)
+    }
+}
+
+/// `name` less `value` (to six significant digits: a centre only needs to be near) as an
+/// expression: `(q - 0.15)`, `(q + 0.15)`, or `q` for zero.
+fn offset(name: &str, value: f64) -> String {
+    let value: f64 = format!("{value:.5e}").parse().unwrap_or(0.0);
+    if value == 0.0 {
+        name.to_string()
+    } else if value < 0.0 {
+        format!("({name} + {})", -value)
+    } else {
+        format!("({name} - {value})")
     }
 }
 
@@ -132,15 +220,17 @@ pub fn velocity_pairs(model: &Model) -> Vec<(usize, usize)> {
     pairs
 }
 
-/// The library's candidates of `kinds` for `model`; `means` are the states' means on the
-/// record (the centre of a stiffness law).
-pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<TermEffect> {
-    let states = model.states();
+/// The library's candidates of `kinds` for `model`; `states` is what the model's states do on
+/// the record (one per state: the centre of a stiffness law, where a stop may sit, the
+/// smoothing of friction).
+pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) -> Vec<TermEffect> {
+    let names = model.states();
     let pairs = velocity_pairs(model);
     // Each velocity state once, even when several positions integrate it.
     let mut velocities: Vec<usize> = pairs.iter().map(|&(_, v)| v).collect();
     velocities.sort_unstable();
     velocities.dedup();
+    let stats = |i: usize| states.get(i).copied().unwrap_or_default();
     let mut out = Vec::new();
     let flow = |state: &str, mode: Option<&str>| Site::Flow {
         state: state.to_string(),
@@ -150,7 +240,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<Ter
         match kind {
             TermKind::QuadraticDrag => {
                 for &v in &velocities {
-                    let vn = &states[v].name;
+                    let vn = &names[v].name;
                     let p = fresh(model, &[], &format!("drag_{vn}"));
                     out.push(TermEffect {
                         name: format!("quadratic_drag({vn})"),
@@ -158,36 +248,31 @@ pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<Ter
                             terms: vec![(flow(vn, None), format!("-{p}*abs({vn})*{vn}"))],
                             parameters: vec![zero(p)],
                         },
-                        multistart: false,
+                        start: TermStart::Given,
+                        placed: None,
                     });
                 }
             }
             TermKind::NonlinearStiffness => {
                 for &(q, v) in &pairs {
-                    let (qn, vn) = (&states[q].name, &states[v].name);
+                    let (qn, vn) = (&names[q].name, &names[v].name);
                     let k2 = fresh(model, &[], &format!("k2_{qn}"));
                     let k3 = fresh(model, std::slice::from_ref(&k2), &format!("k3_{qn}"));
-                    let centre = means.get(q).copied().unwrap_or(0.0);
-                    // Six significant digits: the centre only needs to be near the mean.
-                    let centre: f64 = format!("{centre:.5e}").parse().unwrap_or(0.0);
-                    let d = if centre < 0.0 {
-                        format!("({qn} + {})", -centre)
-                    } else {
-                        format!("({qn} - {centre})")
-                    };
+                    let d = offset(qn, stats(q).mean);
                     out.push(TermEffect {
                         name: format!("nonlinear_stiffness({qn})"),
                         extension: Extension {
                             terms: vec![(flow(vn, None), format!("-({k2}*{d}^2 + {k3}*{d}^3)"))],
                             parameters: vec![zero(k2), zero(k3)],
                         },
-                        multistart: false,
+                        start: TermStart::Given,
+                        placed: None,
                     });
                 }
             }
             TermKind::ModeDamping if model.modes().len() > 1 => {
                 for &v in &velocities {
-                    let vn = &states[v].name;
+                    let vn = &names[v].name;
                     for mode in model.modes() {
                         let p = fresh(model, &[], &format!("damping_{vn}_{mode}"));
                         out.push(TermEffect {
@@ -196,16 +281,17 @@ pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<Ter
                                 terms: vec![(flow(vn, Some(mode)), format!("-{p}*{vn}"))],
                                 parameters: vec![zero(p)],
                             },
-                            multistart: false,
+                            start: TermStart::Given,
+                            placed: None,
                         });
                     }
                 }
             }
             TermKind::ModeDamping => {}
             TermKind::GuardShift => {
-                let names = model.guard_names();
+                let guards = model.guard_names();
                 let mut groups: Vec<(Expr, Vec<String>)> = Vec::new();
-                for (i, name) in names.iter().enumerate() {
+                for (i, name) in guards.iter().enumerate() {
                     let e = model.guard_expr(i);
                     match groups.iter_mut().find(|(g, _)| g == e) {
                         Some((_, members)) => members.push((*name).to_string()),
@@ -223,8 +309,96 @@ pub fn term_library(model: &Model, kinds: &[TermKind], means: &[f64]) -> Vec<Ter
                                 .collect(),
                             parameters: vec![zero(p)],
                         },
-                        multistart: true,
+                        start: TermStart::BothSigns,
+                        placed: None,
                     });
+                }
+            }
+            TermKind::CoulombFriction => {
+                for &v in &velocities {
+                    let vn = &names[v].name;
+                    let eps = FRICTION_SMOOTHING * stats(v).spread;
+                    if !(eps.is_finite() && eps > 0.0) {
+                        // A velocity that does not move on the record shows no friction.
+                        continue;
+                    }
+                    let eps: f64 = format!("{eps:.3e}").parse().unwrap_or(eps);
+                    let p = fresh(model, &[], &format!("friction_{vn}"));
+                    out.push(TermEffect {
+                        name: format!("coulomb_friction({vn})"),
+                        extension: Extension {
+                            terms: vec![(flow(vn, None), format!("-{p}*tanh({vn} / {eps:e})"))],
+                            parameters: vec![nonnegative(p)],
+                        },
+                        start: TermStart::Given,
+                        placed: None,
+                    });
+                }
+            }
+            TermKind::HardStop => {
+                for &(q, v) in &pairs {
+                    let (qn, vn) = (&names[q].name, &names[v].name);
+                    let s = stats(q);
+                    // Without a restoring force of its own (a free mass), the motion's own
+                    // rate squared, `(spread of V / spread of Q)^2`.
+                    let stiffness = if s.stiffness > 0.0 {
+                        s.stiffness
+                    } else {
+                        (stats(v).spread / s.spread).powi(2)
+                    };
+                    if !(stiffness.is_finite() && stiffness > 0.0) {
+                        // A position that does not move on the record touches no stop.
+                        continue;
+                    }
+                    for (side, at, beyond) in [
+                        ("below", &s.quantiles[..4], "floor"),
+                        ("above", &s.quantiles[4..], "ceiling"),
+                    ] {
+                        let position = fresh(model, &[], &format!("{beyond}_{qn}"));
+                        let k = fresh(
+                            model,
+                            std::slice::from_ref(&position),
+                            &format!("k_{beyond}_{qn}"),
+                        );
+                        let term = if side == "below" {
+                            format!("{k}*max(0, {position} - {qn})")
+                        } else {
+                            format!("-{k}*max(0, {qn} - {position})")
+                        };
+                        // Positions touched by 1, 3, 10 and 30 % of the motion, stiffnesses 2, 10 and
+                        // 100 times the model's own: a contact beyond the motion moves nothing,
+                        // so a fit could not start there.
+                        let points = at
+                            .iter()
+                            .flat_map(|&x| [2.0, 10.0, 100.0].map(|f| vec![x, f * stiffness]))
+                            .collect();
+                        let placed = Some(Placement {
+                            parameter: position.clone(),
+                            state: qn.clone(),
+                        });
+                        let mut position = zero(position);
+                        position.value = if side == "below" {
+                            s.mean - 1e3 * s.spread.max(f64::MIN_POSITIVE)
+                        } else {
+                            s.mean + 1e3 * s.spread.max(f64::MIN_POSITIVE)
+                        };
+                        out.push(TermEffect {
+                            name: format!("hard_stop({qn}, {side})"),
+                            extension: Extension {
+                                terms: vec![(flow(vn, None), term)],
+                                parameters: vec![
+                                    position,
+                                    Parameter {
+                                        min: stiffness,
+                                        value: stiffness,
+                                        ..zero(k)
+                                    },
+                                ],
+                            },
+                            start: TermStart::Points(points),
+                            placed,
+                        });
+                    }
                 }
             }
         }
@@ -255,18 +429,7 @@ pub(crate) fn term_dictionary(model: &Model, means: &[f64]) -> Vec<DictionaryTer
     let centred: Vec<String> = states
         .iter()
         .enumerate()
-        .map(|(i, s)| {
-            let c: f64 = format!("{:.5e}", means.get(i).copied().unwrap_or(0.0))
-                .parse()
-                .unwrap_or(0.0);
-            if c == 0.0 {
-                s.name.clone()
-            } else if c < 0.0 {
-                format!("({} + {})", s.name, -c)
-            } else {
-                format!("({} - {c})", s.name)
-            }
-        })
+        .map(|(i, s)| offset(&s.name, means.get(i).copied().unwrap_or(0.0)))
         .collect();
     let n = states.len();
     let mut functions = Vec::new();

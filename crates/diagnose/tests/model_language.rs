@@ -253,6 +253,66 @@ fn effects_inside_the_equations_of_a_model_file_are_named_with_their_parameters(
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
 }
 
+/// The library's discontinuous effects on the same records: Coulomb friction of 0.1 N (the
+/// truth sticks at the switch; the library's friction is smoothed over a thousandth of the
+/// velocity's spread) and a contact spring of 5000 N/m below 0.147 m (the truth's own contact,
+/// located exactly by its integrator). Each is named with its parameters: the friction and the
+/// contact's stiffness within 10 % of the truth (the promise for a single effect), the
+/// contact's position within 0.1 mm, 2.5 % of the motion's spread (4 mm RMS): a position is
+/// judged against how far the motion reaches, not against its distance from zero.
+#[test]
+fn friction_and_a_hard_stop_in_a_model_file_are_named_with_their_parameters() {
+    use htfid_truth::Effect;
+    let mut failures = Vec::new();
+    let d = diagnose_single(Effect::CoulombFriction { mu: 0.1 });
+    let fitted = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == "coulomb_friction(v)")
+        .map_or(f64::NAN, |c| c.parameters["friction_v"]);
+    eprintln!(
+        "friction: cause {} friction_v {fitted}\n{}",
+        d.cause.name(),
+        candidate_table(&d)
+    );
+    if !names(&d, "coulomb_friction(v)") || (fitted / 0.1 - 1.0).abs() >= 0.1 {
+        failures.push(format!(
+            "friction: cause {} ({:?}), friction_v = {fitted} (true 0.1)\n{}",
+            d.cause.name(),
+            d.alternatives,
+            candidate_table(&d)
+        ));
+    }
+    let d = diagnose_single(Effect::HardStop {
+        k_stop: 5000.0,
+        x_stop: 0.147,
+    });
+    let stop = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == "hard_stop(x, below)");
+    let (floor, k) = stop.map_or((f64::NAN, f64::NAN), |c| {
+        (c.parameters["floor_x"], c.parameters["k_floor_x"])
+    });
+    eprintln!(
+        "stop: cause {} floor {floor} k {k}\n{}",
+        d.cause.name(),
+        candidate_table(&d)
+    );
+    if !names(&d, "hard_stop(x, below)")
+        || (k / 5000.0 - 1.0).abs() >= 0.1
+        || (floor - 0.147).abs() >= 1e-4
+    {
+        failures.push(format!(
+            "hard stop: cause {} ({:?}), floor_x = {floor}, k_floor_x = {k} (true 0.147, 5000)\n{}",
+            d.cause.name(),
+            d.alternatives,
+            candidate_table(&d)
+        ));
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+}
+
 /// A model parameter that has the name of a boundary effect's parameter (here the hopper's
 /// damping renamed `tau`, as the actuator lag's time constant is called) keeps its name; the
 /// effect's parameter takes the next free one, `tau_2`. Both are fitted and reported apart:

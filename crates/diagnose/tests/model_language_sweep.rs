@@ -9,10 +9,11 @@
 //! per record and a score per group, and holds the floors measured when it was written.
 //!
 //! The model file's library differs from the built-in one: its terms sit at the sites the file
-//! offers (drag and a stiffness law on `v'`, damping per mode, the moved switching surface) and
-//! on its boundary (input offset, delay and lag; sensor offset and gain, sensor lag). Friction
-//! and hard stops are discontinuities it does not propose, so for this engine they are out of
-//! its library, as are the generator's own out-of-library effects. The judgement:
+//! offers (drag, Coulomb friction, a stiffness law and a hard stop on either side on `v'`,
+//! damping per mode, the moved switching surface) and on its boundary (input offset, delay and
+//! lag; sensor offset and gain, sensor lag). Asymmetric friction is its Coulomb friction beside
+//! a constant force (the same force law). The generator's own out-of-library effects are out of
+//! its library too. The judgement:
 //! - clean: `none`;
 //! - effects in its library: each named (as a cause, or among an `ambiguous` answer's names),
 //!   by the engine's name for it or an equivalent on this protocol (a constant shift of the
@@ -44,6 +45,8 @@ fn accepted(e: &EffectLabel) -> Option<Vec<&'static str>> {
         "actuator_lag" => vec!["actuator_lag"],
         "input_delay" => vec!["input_delay"],
         "switch_threshold" => vec!["guard_shift"],
+        "coulomb_friction" | "asymmetric_friction" => vec!["coulomb_friction"],
+        "hard_stop" => vec!["hard_stop"],
         "sensor_lag" => vec!["sensor_lag"],
         "input_offset" | "sensor_offset_gain" => shift.to_vec(),
         "parameter_error" => {

@@ -14,7 +14,7 @@ use crate::boundary::{Boundary, BoundaryEffect};
 use crate::interp::{Interpolation, SampledSignal};
 use crate::noise::{input_noise_level, with_white_noise};
 use crate::sensor::Sensor;
-use crate::term::TermEffect;
+use crate::term::{StateStats, TermEffect};
 use crate::{DiagnoseError, TimeSeries};
 
 fn sim_failure(reason: impl ToString) -> DiagnoseError {
@@ -324,6 +324,37 @@ impl<'a> Prepared<'a> {
         };
         for &step in steps {
             let Ok(m) = model.with_parameters(&[(name, step * scale)]) else {
+                continue;
+            };
+            if let Ok(sim) = self.simulate(&m, x0, &Boundary::default()) {
+                self.fill(&sim, &mut r);
+                let cost: f64 = r.iter().map(|v| v * v).sum();
+                if cost < best.0 {
+                    best = (cost, m);
+                }
+            }
+        }
+        best.1
+    }
+
+    /// `model` with its parameters `names` at the best of `points` (each a value per name), by
+    /// the output error from `x0`; `model` itself when none simulates.
+    pub(super) fn best_point(
+        &self,
+        model: &Model,
+        names: &[String],
+        points: &[Vec<f64>],
+        x0: &[f64],
+    ) -> Model {
+        let mut r = vec![0.0; self.residual_len()];
+        let mut best = (f64::INFINITY, model.clone());
+        for point in points {
+            let values: Vec<(&str, f64)> = names
+                .iter()
+                .map(String::as_str)
+                .zip(point.iter().copied())
+                .collect();
+            let Ok(m) = model.with_parameters(&values) else {
                 continue;
             };
             if let Ok(sim) = self.simulate(&m, x0, &Boundary::default()) {
@@ -667,11 +698,52 @@ pub(super) struct StateSamples {
 }
 
 impl StateSamples {
-    /// Each state's mean.
-    pub(super) fn means(&self, n: usize) -> Vec<f64> {
+    /// The smallest and the largest value of state `j` on these samples.
+    pub(super) fn range(&self, j: usize) -> (f64, f64) {
+        self.x
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x[j]), hi.max(x[j]))
+            })
+    }
+
+    /// What each of `model`'s states does on these samples (the library's [`StateStats`]).
+    pub(super) fn stats(&self, model: &Model, signal: &Arc<SampledSignal>) -> Vec<StateStats> {
+        let n = model.states().len();
+        let driven = model.with_input(Some(Boundary::default().input(signal)));
         let count = self.x.len().max(1) as f64;
+        let pairs = crate::term::velocity_pairs(model);
+        let mut jac = vec![0.0; n * n];
+        // The RMS of -d(V')/dQ for every pair, from the model's exact Jacobian.
+        let mut stiffness = vec![0.0; n];
+        for i in 0..self.x.len() {
+            if !driven.jacobian(self.modes[i], self.t[i], &self.x[i], &mut jac) {
+                continue;
+            }
+            for &(q, v) in &pairs {
+                stiffness[q] += jac[v * n + q].powi(2) / count;
+            }
+        }
         (0..n)
-            .map(|j| self.x.iter().map(|x| x[j]).sum::<f64>() / count)
+            .map(|j| {
+                let mut values: Vec<f64> = self.x.iter().map(|x| x[j]).collect();
+                let mean = values.iter().sum::<f64>() / count;
+                let spread =
+                    (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / count).sqrt();
+                values.sort_by(f64::total_cmp);
+                let at = |p: f64| {
+                    values
+                        .get(((values.len().max(1) - 1) as f64 * p).round() as usize)
+                        .copied()
+                        .unwrap_or(mean)
+                };
+                StateStats {
+                    mean,
+                    spread,
+                    quantiles: [0.01, 0.03, 0.1, 0.3, 0.7, 0.9, 0.97, 0.99].map(at),
+                    stiffness: stiffness[j].sqrt(),
+                }
+            })
             .collect()
     }
 

@@ -329,7 +329,8 @@ impl Search<'_, '_> {
         let term = TermEffect {
             name: "term search".into(),
             extension: extension.clone(),
-            multistart: false,
+            start: crate::term::TermStart::Given,
+            placed: None,
         };
         let mut scales = self.scales.to_vec();
         scales.extend(self.samples.term_scales(&extended, &self.est.signal, &term));

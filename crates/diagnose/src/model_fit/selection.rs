@@ -11,7 +11,7 @@ use super::joint::{Joint, JointFit, SetFit, Trial, Tried};
 use super::prepared::{Prepared, StateSamples};
 use super::{ModelCandidate, ModelFitOptions, ModelScore};
 use crate::boundary::{Boundary, BoundaryEffect};
-use crate::term::TermEffect;
+use crate::term::{TermEffect, TermStart};
 use crate::DiagnoseError;
 
 /// The likelihood ratio of a fit (sum of squares `big_rss`, residuals `big_residuals`) against
@@ -183,10 +183,13 @@ impl Selection<'_, '_> {
                         .iter()
                         .filter_map(|n| extended.parameter_index(n))
                         .collect();
+                    let mut extended = extended;
+                    if let TermStart::Points(points) = &term.start {
+                        extended = est.best_point(&extended, &added, points, &base.state);
+                    }
                     let mut scales = joint.scales.clone();
                     scales.extend(self.samples.term_scales(&extended, &est.signal, term));
-                    let mut extended = extended;
-                    if term.multistart {
+                    if term.start == TermStart::BothSigns {
                         extended =
                             est.best_shift(&extended, &added[0], scales[k], &base.state, true);
                     }
@@ -228,7 +231,7 @@ impl Selection<'_, '_> {
             let critical = crate::select::chi2_quantile(names_e.len(), opts.alpha);
             let gain_e = 1.0 - score.validation() / self.refitted.validation();
             // Nothing is left to explain once the refit is within the resolution.
-            let significant = lr >= critical
+            let mut significant = lr >= critical
                 && gain_e >= opts.min_gain
                 && self.refitted.validation() > opts.resolution;
             let infl = kappa.sqrt();
@@ -255,6 +258,10 @@ impl Selection<'_, '_> {
                     opts.candidate_max_iterations
                 ));
             }
+            if let Some(reason) = self.outside_the_motion(trial, &parameters) {
+                significant = false;
+                note.push_str(&format!("; not significant: {reason}"));
+            }
             candidates.push(Tried {
                 candidate: ModelCandidate {
                     effect: trial.name(),
@@ -280,6 +287,36 @@ impl Selection<'_, '_> {
             (a.candidate.nrmse_validation).total_cmp(&b.candidate.nrmse_validation)
         });
         candidates
+    }
+
+    /// Why `trial`, fitted to `parameters`, does not act where the motion is, if it is a term
+    /// placed on the motion ([`Placement`](crate::term::Placement)) whose position lies outside its state's range
+    /// along the refitted model's motion on the record.
+    fn outside_the_motion(
+        &self,
+        trial: &Trial,
+        parameters: &BTreeMap<String, f64>,
+    ) -> Option<String> {
+        let Trial::Term(TermEffect {
+            placed: Some(p), ..
+        }) = trial
+        else {
+            return None;
+        };
+        let state = self
+            .refitted_model
+            .states()
+            .iter()
+            .position(|s| s.name == p.state)?;
+        let (lo, hi) = self.samples.range(state);
+        let v = *parameters.get(&p.parameter)?;
+        (!(v > lo && v < hi)).then(|| {
+            format!(
+                "{} = {v:.6} lies outside the motion of {} on the record [{lo:.6}, {hi:.6}]: \
+                 acting everywhere or nowhere there, it only mimics the model's own terms",
+                p.parameter, p.state
+            )
+        })
     }
 
     /// The joint fit of the trials `set`: all their parameters, the free ones and the start
@@ -323,19 +360,32 @@ impl Selection<'_, '_> {
             .filter_map(|n| known.get(n).map(|v| (n.as_str(), *v)))
             .collect();
         m = m.with_parameters(&values).map_err(to_err)?;
+        // A contact not fitted before starts from the best of its grid.
+        for term in &terms {
+            let names = term.parameter_names();
+            if let (TermStart::Points(points), false) = (&term.start, known.contains_key(&names[0]))
+            {
+                m = est.best_point(&m, &names, points, x0);
+            }
+        }
         let mut scales = joint.scales.clone();
         for term in &terms {
             scales.extend(self.samples.term_scales(&m, &est.signal, term));
         }
-        // A term not fitted before starts its first parameter from the best of a grid across
-        // its scale, zero included: beside the chosen effects the free parameters have
+        // Any other term not fitted before starts its first parameter from the best of a grid
+        // across its scale, zero included: beside the chosen effects the free parameters have
         // compensated for them, and from zero its fit can stay in that basin (drag beside a
         // sensor lag, taken up by the linear dampers).
         for term in &terms {
             let name = &term.parameter_names()[0];
+            let surface = match term.start {
+                TermStart::Given => false,
+                TermStart::BothSigns => true,
+                TermStart::Points(_) => continue,
+            };
             if !known.contains_key(name) {
                 if let Some(j) = all.iter().position(|a| a == name) {
-                    m = est.best_shift(&m, name, scales[j], x0, term.multistart);
+                    m = est.best_shift(&m, name, scales[j], x0, surface);
                 }
             }
         }
@@ -417,9 +467,20 @@ impl Selection<'_, '_> {
         let (lr, kappa) = nested_ratio(rss, f.rss, &f.residuals, self.n());
         let critical = crate::select::chi2_quantile(t2.parameter_names().len(), opts.alpha);
         let gain_e = 1.0 - score.validation() / score_without;
-        let significant = lr >= critical && gain_e >= opts.min_gain;
+        let mut significant = lr >= critical && gain_e >= opts.min_gain;
         let infl = kappa.sqrt();
-        let parameters = all.iter().cloned().zip(f.params.iter().copied()).collect();
+        let parameters: BTreeMap<String, f64> =
+            all.iter().cloned().zip(f.params.iter().copied()).collect();
+        let mut note = format!(
+            "beside {without}: likelihood ratio {lr:.1} (critical {critical:.1}), held-out gain \
+             {:.1} % over {without} alone (at least {:.1} %)",
+            100.0 * gain_e,
+            100.0 * opts.min_gain
+        );
+        if let Some(reason) = self.outside_the_motion(t2, &parameters) {
+            significant = false;
+            note.push_str(&format!("; not significant: {reason}"));
+        }
         let stderr = all
             .iter()
             .cloned()
@@ -437,12 +498,7 @@ impl Selection<'_, '_> {
                 critical,
                 significant,
                 iterations: f.iterations,
-                note: format!(
-                    "beside {without}: likelihood ratio {lr:.1} (critical {critical:.1}), \
-                     held-out gain {:.1} % over {without} alone (at least {:.1} %)",
-                    100.0 * gain_e,
-                    100.0 * opts.min_gain
-                ),
+                note,
             },
             simulated: Some(sim),
             residuals: f.residuals,
