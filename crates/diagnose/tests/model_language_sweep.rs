@@ -156,8 +156,8 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
     let total: usize = scores.values().map(|s| s.1).sum();
     assert!(total > 0, "no record was diagnosed");
     if n == htfid_truth::core_size() {
-        // The floors measured on the core cells at seed 2026 (2026-11-28): a change that
-        // loses a record in any group fails here.
+        // The floors measured on the core cells at seed 2026 (2026-11-28, evening): a change
+        // that loses a record in any group fails here.
         for (g, floor) in FLOORS {
             let (ok, all) = scores.get(g).copied().unwrap_or_default();
             assert!(
@@ -168,11 +168,13 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
     }
 }
 
-/// Records judged right per group on the core cells (seed 2026), as measured when this was
-/// written: 70 of 77 (1503 s on the project's 2-core machine).
+/// Records judged right per group on the core cells (seed 2026), as measured with friction and
+/// hard stops in the library (2026-11-28, evening): 71 of 77 (2144 s on the project's 2-core
+/// machine). Before them, with 39 single, 5 paired and 23 outside records in those groups: 70
+/// of 77 (38, 3, 19).
 const FLOORS: [(&str, usize); 4] = [
     ("clean", 10),
-    ("single, in its library", 38),
-    ("pair, in its library", 3),
-    ("outside its library", 19),
+    ("single, in its library", 46),
+    ("pair, in its library", 5),
+    ("outside its library", 10),
 ];
