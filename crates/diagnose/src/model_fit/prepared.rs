@@ -315,26 +315,13 @@ impl<'a> Prepared<'a> {
         x0: &[f64],
         surface: bool,
     ) -> Model {
-        let mut r = vec![0.0; self.residual_len()];
-        let mut best = (f64::INFINITY, model.clone());
         let steps: &[f64] = if surface {
             &[0.03, -0.03, 0.1, -0.1, 0.3, -0.3, 1.0, -1.0, 3.0, -3.0]
         } else {
             &[0.0, 0.03, -0.03, 0.1, -0.1, 0.3, -0.3, 1.0, -1.0, 3.0, -3.0]
         };
-        for &step in steps {
-            let Ok(m) = model.with_parameters(&[(name, step * scale)]) else {
-                continue;
-            };
-            if let Ok(sim) = self.simulate(&m, x0, &Boundary::default()) {
-                self.fill(&sim, &mut r);
-                let cost: f64 = r.iter().map(|v| v * v).sum();
-                if cost < best.0 {
-                    best = (cost, m);
-                }
-            }
-        }
-        best.1
+        let points: Vec<Vec<f64>> = steps.iter().map(|&step| vec![step * scale]).collect();
+        self.best_point(model, &[name.to_string()], &points, x0)
     }
 
     /// `model` with its parameters `names` at the best of `points` (each a value per name), by
