@@ -346,13 +346,13 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                     } else {
                         (stats(v).spread / s.spread).powi(2)
                     };
-                    if !(stiffness.is_finite() && stiffness > 0.0) {
+                    if !(stiffness.is_finite() && stiffness > 0.0 && s.spread > 0.0) {
                         // A position that does not move on the record touches no stop.
                         continue;
                     }
-                    for (side, at, beyond) in [
-                        ("below", &s.quantiles[..4], "floor"),
-                        ("above", &s.quantiles[4..], "ceiling"),
+                    for (below, at, beyond) in [
+                        (true, &s.quantiles[..4], "floor"),
+                        (false, &s.quantiles[4..], "ceiling"),
                     ] {
                         let position = fresh(model, &[], &format!("{beyond}_{qn}"));
                         let k = fresh(
@@ -360,14 +360,17 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                             std::slice::from_ref(&position),
                             &format!("k_{beyond}_{qn}"),
                         );
-                        let term = if side == "below" {
-                            format!("{k}*max(0, {position} - {qn})")
+                        // The term, and a start beyond the motion (the model as it was).
+                        let (side, term, beyond_motion) = if below {
+                            let term = format!("{k}*max(0, {position} - {qn})");
+                            ("below", term, s.mean - 1e3 * s.spread)
                         } else {
-                            format!("-{k}*max(0, {qn} - {position})")
+                            let term = format!("-{k}*max(0, {qn} - {position})");
+                            ("above", term, s.mean + 1e3 * s.spread)
                         };
-                        // Positions touched by 1, 3, 10 and 30 % of the motion, stiffnesses 2, 10 and
-                        // 100 times the model's own: a contact beyond the motion moves nothing,
-                        // so a fit could not start there.
+                        // Positions touched by 1, 3, 10 and 30 % of the motion, stiffnesses 2, 10
+                        // and 100 times the model's own: a contact beyond the motion moves
+                        // nothing, so a fit could not start there.
                         let points = at
                             .iter()
                             .flat_map(|&x| [2.0, 10.0, 100.0].map(|f| vec![x, f * stiffness]))
@@ -376,11 +379,9 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                             parameter: position.clone(),
                             state: qn.clone(),
                         });
-                        let mut position = zero(position);
-                        position.value = if side == "below" {
-                            s.mean - 1e3 * s.spread.max(f64::MIN_POSITIVE)
-                        } else {
-                            s.mean + 1e3 * s.spread.max(f64::MIN_POSITIVE)
+                        let position = Parameter {
+                            value: beyond_motion,
+                            ..zero(position)
                         };
                         out.push(TermEffect {
                             name: format!("hard_stop({qn}, {side})"),

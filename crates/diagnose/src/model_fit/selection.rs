@@ -290,8 +290,8 @@ impl Selection<'_, '_> {
     }
 
     /// Why `trial`, fitted to `parameters`, does not act where the motion is, if it is a term
-    /// placed on the motion ([`Placement`](crate::term::Placement)) whose position lies outside its state's range
-    /// along the refitted model's motion on the record.
+    /// placed on the motion ([`Placement`](crate::term::Placement)) whose position lies
+    /// outside its state's range along the refitted model's motion on the record.
     fn outside_the_motion(
         &self,
         trial: &Trial,
