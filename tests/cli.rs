@@ -1639,6 +1639,80 @@ fn an_outsiders_stiffer_stop_is_named_as_the_missing_contact_stiffness() {
     assert!((value("c") / 2.0 - 1.0).abs() < 0.01, "{fitted}");
 }
 
+/// A record of the independent truth generator (90 s of the paper's protocol, 2e-6 m of noise)
+/// whose damper is 11.5 % stronger than configured and whose switch sits at -0.0346 m/s, through
+/// `htfid diagnose` with the hopper's model file: the moved switch and, beside it, the
+/// parameter error are named in `causes`, with `c` as fitted beside the switch within 1 % of
+/// the truth's 2.2305 in `parameters_beside`, and the terminal and the report say so.
+#[test]
+fn a_parameter_error_beside_an_effect_is_named_with_it_through_the_command() {
+    use htfid_truth::{generate, Effect, Noise, ParameterErrors, Scenario};
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = Scenario {
+        effects: vec![Effect::SwitchThreshold { v_th: -0.03457 }],
+        parameter_errors: ParameterErrors {
+            c: 0.11524,
+            ..ParameterErrors::default()
+        },
+        noise: Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.0,
+        },
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    let r = generate(&scenario).unwrap();
+    let mut csv = String::from("t,f,x\n");
+    for ((t, f), x) in r.t.iter().zip(&r.f).zip(&r.x) {
+        csv.push_str(&format!("{t},{f},{x}\n"));
+    }
+    fs::write(tmp.path().join("record.csv"), csv).unwrap();
+    let config = fs::read_to_string(root().join("configs/diagnose-hopper-model.toml"))
+        .unwrap()
+        .replace("../data/hopper-protocol.csv", "record.csv")
+        .replace(
+            "../models/hopper.toml",
+            &root().join("models/hopper.toml").display().to_string(),
+        );
+    assert!(config.contains("file = \"record.csv\""), "{config}");
+    fs::write(tmp.path().join("diagnose.toml"), config).unwrap();
+    let out = tmp.path().join("d");
+    let o = htfid(&[
+        "diagnose",
+        tmp.path().join("diagnose.toml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let d = diagnosis(&out);
+    assert_eq!(
+        d["causes"],
+        serde_json::json!(["guard_shift(v)", "parameter_error"]),
+        "{}",
+        d["candidates"]
+    );
+    let beside = &d["parameters_beside"];
+    assert_eq!(beside["named"], true, "{beside}");
+    let c = beside["moved"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "c")
+        .unwrap_or_else(|| panic!("c not moved: {beside}"));
+    let c = c["fitted"].as_f64().unwrap();
+    assert!((c / 2.23048 - 1.0).abs() < 0.01, "c = {c}");
+    let terminal = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        terminal.contains("parameter error") && terminal.contains("beside the effects"),
+        "{terminal}"
+    );
+    let report = fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains("**The configured parameters are off as well** (`parameter_error`)"),
+        "{report}"
+    );
+}
+
 /// The same record with the hard stop left out of the library (`[diagnose] effects`): no
 /// library effect is then that stop, so none may be named; the term search outside the
 /// library proposes terms up to its cap of three and says so (it said "stopped because ."

@@ -486,5 +486,6 @@ fn user_term(
         extension,
         start,
         placed: None,
+        linear_part: None,
     })
 }

@@ -566,6 +566,24 @@ pub fn diagnose_model(
         })
         .collect();
     t.rows("parameters", lines);
+    let beside = &d["parameters_beside"];
+    if beside["named"].as_bool() == Some(true) {
+        let lines = beside["moved"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|p| {
+                let name = p["name"].as_str().unwrap_or("?");
+                format!(
+                    "{name} = {} beside the effects (configured {}, z = {})",
+                    pm(f(&p["fitted"]), f(&p["stderr"]), unit(name).as_deref()),
+                    sig(f(&p["configured"]), 4),
+                    sig(f(&p["z"]), 3)
+                )
+            })
+            .collect();
+        t.rows("parameter error", lines);
+    }
     for (label, key) in [("configured", "configured"), ("refitted", "refitted")] {
         let per_output: Vec<String> = d[key]["nrmse_validation"]
             .as_array()

@@ -253,7 +253,7 @@ pub use htfid_data::TimeSeries;
 pub use interp::Interpolation;
 pub use model_fit::{
     diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelDiscovered,
-    ModelDiscoveredTerm, ModelFitOptions, ModelScore, ParameterChange,
+    ModelDiscoveredTerm, ModelFitOptions, ModelScore, ParameterChange, ParametersBeside,
 };
 pub use nominal::NominalModel;
 pub use options::DiagnoseOptions;

@@ -168,6 +168,25 @@ pub struct ParameterChange {
     pub z: f64,
 }
 
+/// The free parameters that the chosen effects leave off their configured values (the
+/// extended fit's, `significance_sigma` standard errors or more away), and what setting them
+/// back costs held out with the effects kept as fitted. When that costs `min_gain` or more,
+/// `parameter_error` is named beside the effects (in `causes`).
+#[derive(Debug, Clone, Serialize)]
+pub struct ParametersBeside {
+    /// The moved parameters, as fitted beside the effects.
+    pub moved: Vec<ParameterChange>,
+    /// Moved parameters that set the slope a chosen stiffness law leaves to the model: the
+    /// law's linear part, not an error of theirs (not set back).
+    pub excused: Vec<ParameterChange>,
+    /// Held-out NRMSE (mean over the outputs) of the extended model with `moved` set back.
+    pub nrmse_reset: f64,
+    /// `1 - NRMSE_extended / nrmse_reset`.
+    pub gain: f64,
+    /// Whether it names a parameter error: some parameter moved and `gain >= min_gain`.
+    pub named: bool,
+}
+
 /// What a model-file diagnosis names (in JSON, its [`ModelCause::name`]).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ModelCause {
@@ -273,8 +292,9 @@ pub struct ModelDiagnosis {
     pub stop: String,
     /// Every effect tried (on the boundary and inside the model), best held-out score first.
     pub candidates: Vec<ModelCandidate>,
-    /// Every effect named, strongest first: the best single effect, then a second one that
-    /// passes beside it (empty when no effect is named).
+    /// Every effect named, in the order chosen: the best single effect, then each one that
+    /// passes beside those before it (empty when no effect is named); last `parameter_error`
+    /// when the free parameters beside them are off too ([`ParametersBeside`]).
     pub causes: Vec<String>,
     /// Every other candidate refitted jointly with the best one (named `first + second`),
     /// best held-out score first; empty when nothing passes or the best one leaves the
@@ -290,6 +310,9 @@ pub struct ModelDiagnosis {
     /// The chosen effects' fit, when the cause is an effect: the pair's when a second effect
     /// passed.
     pub extended: Option<ModelCandidate>,
+    /// The free parameters beside the chosen effects, when some moved significantly: a
+    /// `parameter_error` in `causes` when setting them back costs `min_gain` held out.
+    pub parameters_beside: Option<ParametersBeside>,
     /// With `ambiguous`: the effects that fit equally well, the best first.
     pub alternatives: Vec<String>,
     /// Noise floor of the best model's residual on the fit data, in NRMSE units (the white
@@ -520,10 +543,20 @@ pub fn diagnose_model(
     } else {
         (None, None)
     };
-    let causes: Vec<String> = current
+    // A parameter error beside the effects: the refit's test, on the final fit.
+    let parameters_beside = match &current {
+        Some(c) if !matches!(decision.cause, ModelCause::Unexplained) => {
+            sel.parameters_beside(c, &refit.parameters)?
+        }
+        _ => None,
+    };
+    let mut causes: Vec<String> = current
         .as_ref()
         .map(|c| c.set.iter().map(|&i| trials[i].name()).collect())
         .unwrap_or_default();
+    if parameters_beside.as_ref().is_some_and(|p| p.named) {
+        causes.push("parameter_error".into());
+    }
     let (extended, simulated_extended) = match current {
         Some(mut c) => {
             let sim = c.simulated.take();
@@ -550,6 +583,7 @@ pub fn diagnose_model(
             .collect(),
         backward,
         extended,
+        parameters_beside,
         alternatives: decision.alternatives,
         noise_floor,
         input_noise,
@@ -749,9 +783,10 @@ struct Forward {
 
 /// Further effects beside the best one (forward selection), while the chosen effects leave
 /// the held-out residual clearly above the noise floor (`second_effect_floor_ratio` times
-/// it). In the second round the best effect's rivals (within `rival_margin` held out) are
-/// tried as the first effect too: beside a second effect, the right one of two look-alikes
-/// fits clearly better.
+/// it). In the second round the best effect's rivals, and every significant effect within
+/// `rival_margin` of it held out however their fits compare, are tried as the first effect
+/// too: beside a second effect, the right one of two look-alikes fits clearly better (an
+/// actuator lag beside a constant force, where a sensor lag alone fits a little better).
 fn forward(
     sel: &Selection<'_, '_>,
     candidates: &[Tried],
@@ -773,10 +808,13 @@ fn forward(
     let mut pairs: Vec<Tried> = Vec::new();
     let firsts: Vec<usize> = match best {
         Some(b) if room(best_score) && opts.max_effects >= 2 => std::iter::once(b)
-            .chain(
-                (0..candidates.len())
-                    .filter(|&i| i != b && alternatives.contains(&candidates[i].candidate.effect)),
-            )
+            .chain((0..candidates.len()).filter(|&i| {
+                let c = &candidates[i].candidate;
+                i != b
+                    && (alternatives.contains(&c.effect)
+                        || (c.significant
+                            && c.nrmse_validation <= best_score * (1.0 + opts.rival_margin)))
+            }))
             .collect(),
         _ => Vec::new(),
     };

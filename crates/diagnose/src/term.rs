@@ -16,8 +16,11 @@ use serde::{Deserialize, Serialize};
 pub enum TermKind {
     /// `-drag_V |V| V` added to `V'` for each velocity state `V`.
     QuadraticDrag,
-    /// `-(k2_Q (Q - Qm)^2 + k3_Q (Q - Qm)^3)` added to `V'` for each pair `Q' = V`, about the
-    /// mean `Qm` of `Q` on the record.
+    /// `-(k0_Q + k2_Q (Q - Qm)^2 + k3_Q (Q - Qm)^3)` added to `V'` for each pair `Q' = V`,
+    /// about the mean `Qm` of `Q` on the record: a spring force's polynomial to third order,
+    /// its linear part left to the model's own stiffness. The constant is the law's own: a
+    /// cubic or quadratic spring about any other point (its rest length) carries one about
+    /// the motion's mean, which a sensor's offset would otherwise take first.
     NonlinearStiffness,
     /// `-damping_V_M V` added to `V'` in mode `M` only, for each mode of a model with several.
     ModeDamping,
@@ -86,6 +89,11 @@ pub struct TermEffect {
     pub start: TermStart,
     /// The parameter that places it on the motion, if one does.
     pub placed: Option<Placement>,
+    /// For a law written about the motion's mean without its linear part (the stiffness
+    /// law): the position whose slope on the equation the term joins is the model's own. A
+    /// free parameter that sets that slope takes the law's linear part, so beside the law its
+    /// change is not a parameter error.
+    pub linear_part: Option<String>,
 }
 
 /// A parameter that places a term on the motion: the term acts only beyond the parameter's
@@ -250,23 +258,29 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                         },
                         start: TermStart::Given,
                         placed: None,
+                        linear_part: None,
                     });
                 }
             }
             TermKind::NonlinearStiffness => {
                 for &(q, v) in &pairs {
                     let (qn, vn) = (&names[q].name, &names[v].name);
-                    let k2 = fresh(model, &[], &format!("k2_{qn}"));
-                    let k3 = fresh(model, std::slice::from_ref(&k2), &format!("k3_{qn}"));
+                    let k0 = fresh(model, &[], &format!("k0_{qn}"));
+                    let k2 = fresh(model, std::slice::from_ref(&k0), &format!("k2_{qn}"));
+                    let k3 = fresh(model, &[k0.clone(), k2.clone()], &format!("k3_{qn}"));
                     let d = offset(qn, stats(q).mean);
                     out.push(TermEffect {
                         name: format!("nonlinear_stiffness({qn})"),
                         extension: Extension {
-                            terms: vec![(flow(vn, None), format!("-({k2}*{d}^2 + {k3}*{d}^3)"))],
-                            parameters: vec![zero(k2), zero(k3)],
+                            terms: vec![(
+                                flow(vn, None),
+                                format!("-({k0} + {k2}*{d}^2 + {k3}*{d}^3)"),
+                            )],
+                            parameters: vec![zero(k0), zero(k2), zero(k3)],
                         },
                         start: TermStart::Given,
                         placed: None,
+                        linear_part: Some(qn.clone()),
                     });
                 }
             }
@@ -283,6 +297,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                             },
                             start: TermStart::Given,
                             placed: None,
+                            linear_part: None,
                         });
                     }
                 }
@@ -311,6 +326,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                         },
                         start: TermStart::BothSigns,
                         placed: None,
+                        linear_part: None,
                     });
                 }
             }
@@ -332,6 +348,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                         },
                         start: TermStart::Given,
                         placed: None,
+                        linear_part: None,
                     });
                 }
             }
@@ -398,6 +415,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                             },
                             start: TermStart::Points(points),
                             placed,
+                            linear_part: None,
                         });
                     }
                 }

@@ -313,6 +313,164 @@ fn friction_and_a_hard_stop_in_a_model_file_are_named_with_their_parameters() {
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
 }
 
+/// A small cubic spring about the rest length, `-k3 (x - x0)^3` with `k3` = -230.8 N/m^3 (the
+/// catalogue's `004` on this protocol), is named as the stiffness law, not as a sensor's
+/// offset and gain. About the motion's mean `xm` (`x - x0 = e + d`, `d = xm - x0`) the truth's
+/// force is `-k3 (e^3 + 3 d e^2 + 3 d^2 e + d^3)`: beside the refitted `k` (which takes the
+/// linear part, `k + 3 k3 d^2`, and with it moves the constant force `k d` by `3 k3 d^3`) the
+/// law's `k2_x` is `3 k3 d`, its `k3_x` is `k3` and its constant `k0_x` is
+/// `k3 d^3 - 3 k3 d^3 = -2 k3 d^3`. Each is checked within 10 %, `d` from the record's mean position (0.05 m below the rest length;
+/// the mean of the measured position is within the noise's 1e-7 m of the motion's).
+#[test]
+fn a_small_cubic_spring_is_named_with_the_constant_force_it_carries() {
+    let k3 = -230.8;
+    let scenario = Scenario {
+        effects: vec![htfid_truth::Effect::CubicStiffness { k3 }],
+        noise: htfid_truth::Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.0,
+        },
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    let rec = record(&scenario);
+    let xs = &rec.outputs()[0];
+    let d = xs.iter().sum::<f64>() / xs.len() as f64 - htfid_truth::X0;
+    let d_ = diagnose_model(&hopper(), &rec, None, &options()).unwrap();
+    let law = d_
+        .candidates
+        .iter()
+        .find(|c| c.effect == "nonlinear_stiffness(x)");
+    let (k0, k2, k3_fit) = law.map_or((f64::NAN, f64::NAN, f64::NAN), |c| {
+        (
+            c.parameters["k0_x"],
+            c.parameters["k2_x"],
+            c.parameters["k3_x"],
+        )
+    });
+    let (k0_true, k2_true) = (-2.0 * k3 * d.powi(3), 3.0 * k3 * d);
+    let table = candidate_table(&d_);
+    eprintln!(
+        "cause {} causes {:?}: k0_x {k0} ({k0_true}), k2_x {k2} ({k2_true}), k3_x {k3_fit} ({k3}), d {d}\n{table}",
+        d_.cause.name(),
+        d_.causes
+    );
+    // The refitted `k` carries the law's linear part: excused, not named a parameter error.
+    let beside = d_.parameters_beside.as_ref();
+    assert!(
+        !d_.causes.iter().any(|c| c == "parameter_error")
+            && beside
+                .is_some_and(|p| p.moved.is_empty() && p.excused.iter().any(|c| c.name == "k")),
+        "the stiffness law's linear part was taken for a parameter error: causes {:?}, beside \
+         {beside:?}",
+        d_.causes
+    );
+    assert!(
+        names(&d_, "nonlinear_stiffness(x)")
+            && (k0 / k0_true - 1.0).abs() < 0.1
+            && (k2 / k2_true - 1.0).abs() < 0.1
+            && (k3_fit / k3 - 1.0).abs() < 0.1,
+        "cause {} ({:?}): k0_x = {k0} (true {k0_true}), k2_x = {k2} (true {k2_true}), k3_x = \
+         {k3_fit} (true {k3})\n{table}",
+        d_.cause.name(),
+        d_.alternatives
+    );
+}
+
+/// An actuator lag of 20.3 ms beside a constant force of -0.122 N (the catalogue's `005` on
+/// this protocol). Alone, a sensor lag fits the record a little better than the actuator lag
+/// (a near tie of look-alikes); beside a sensor lag, the stiffness law's constant and shape
+/// take the force and the lags' difference. Both lags are tried first in the second round, so
+/// the pair that reaches the noise floor is named: the actuator lag and the input offset, each
+/// within 10 % of the truth.
+#[test]
+fn an_actuator_lag_beside_a_constant_force_is_named_as_such() {
+    use htfid_truth::Effect;
+    let (tau, offset) = (0.0203, -0.122);
+    let scenario = Scenario {
+        effects: vec![Effect::ActuatorLag { tau }, Effect::InputOffset { offset }],
+        noise: htfid_truth::Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.0,
+        },
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
+    let fitted = d.extended.as_ref().map(|e| &e.parameters);
+    let value = |k: &str| fitted.and_then(|p| p.get(k)).copied().unwrap_or(f64::NAN);
+    let (tau_fit, offset_fit) = (value("tau"), value("input_offset"));
+    let pairs: Vec<String> = d
+        .pairs
+        .iter()
+        .map(|c| format!("{} {:.4e}", c.effect, c.nrmse_validation))
+        .collect();
+    eprintln!(
+        "cause {} causes {:?}: tau {tau_fit} ({tau}), input_offset {offset_fit} ({offset})\n{}",
+        d.cause.name(),
+        d.causes,
+        pairs.join("\n")
+    );
+    assert!(
+        d.causes == ["actuator_lag", "input_offset"]
+            && (tau_fit / tau - 1.0).abs() < 0.1
+            && (offset_fit / offset - 1.0).abs() < 0.1,
+        "cause {} causes {:?}: tau = {tau_fit} (true {tau}), input_offset = {offset_fit} (true \
+         {offset})\npairs:\n{}",
+        d.cause.name(),
+        d.causes,
+        pairs.join("\n")
+    );
+}
+
+/// A damper 11.5 % stronger than configured beside a switch moved to -0.0346 m/s (the
+/// catalogue's `029` on this protocol). The moved switch is named, and beside it the
+/// parameter error: `c` as fitted with the switch is 2.2305 (the truth's 2 x 1.1152), and set
+/// back to its configured 2 it costs most of the held-out accuracy. In the first round the
+/// switch's fit alone stalled; beside the stiffness law it was found, and the backward pass,
+/// refitting the switch alone from that fit, drops the law, which then does nothing.
+#[test]
+fn a_damping_error_beside_a_moved_switch_is_named_with_it() {
+    use htfid_truth::Effect;
+    let (v_th, c_error) = (-0.03457, 0.11524);
+    let scenario = Scenario {
+        effects: vec![Effect::SwitchThreshold { v_th }],
+        parameter_errors: ParameterErrors {
+            c: c_error,
+            ..ParameterErrors::default()
+        },
+        noise: htfid_truth::Noise {
+            sigma_x: 2e-6,
+            sigma_f: 0.0,
+        },
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
+    let fitted = d.extended.as_ref().map(|e| &e.parameters);
+    let value = |k: &str| fitted.and_then(|p| p.get(k)).copied().unwrap_or(f64::NAN);
+    let (shift, c) = (value("shift_1"), value("c"));
+    let c_true = 2.0 * (1.0 + c_error);
+    let beside = d.parameters_beside.as_ref();
+    eprintln!(
+        "cause {} causes {:?}: shift_1 {shift} ({v_th}), c {c} ({c_true}); beside {beside:?}\n{}",
+        d.cause.name(),
+        d.causes,
+        candidate_table(&d)
+    );
+    assert!(
+        d.causes == ["guard_shift(v)", "parameter_error"]
+            && (shift / v_th - 1.0).abs() < 0.1
+            && (c / c_true - 1.0).abs() < 0.01
+            && beside.is_some_and(|p| p.named && p.moved.iter().any(|m| m.name == "c")),
+        "cause {} causes {:?}: shift_1 = {shift} (true {v_th}), c = {c} (true {c_true}); \
+         beside {beside:?}\n{}",
+        d.cause.name(),
+        d.causes,
+        candidate_table(&d)
+    );
+}
+
 /// A model parameter that has the name of a boundary effect's parameter (here the hopper's
 /// damping renamed `tau`, as the actuator lag's time constant is called) keeps its name; the
 /// effect's parameter takes the next free one, `tau_2`. Both are fitted and reported apart:

@@ -5,7 +5,8 @@
 //!
 //! Ignored (minutes); run with
 //! `cargo test --release -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture`
-//! (`HTFID_MODEL_SWEEP_N` records, the catalogue's core cells by default). It prints one line
+//! (`HTFID_MODEL_SWEEP_N` records, the catalogue's core cells by default; from record
+//! `HTFID_MODEL_SWEEP_FROM`, 0 by default). It prints one line
 //! per record and a score per group, and holds the floors measured when it was written.
 //!
 //! The model file's library differs from the built-in one: its terms sit at the sites the file
@@ -126,13 +127,19 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(htfid_truth::core_size);
+    // `HTFID_MODEL_SWEEP_FROM` skips the records before it (the random pairs after the core
+    // cells: `HTFID_MODEL_SWEEP_N=200 HTFID_MODEL_SWEEP_FROM=77`).
+    let from: usize = std::env::var("HTFID_MODEL_SWEEP_FROM")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0);
     let options = ModelFitOptions {
         free: vec!["k".into(), "c".into()],
         ..ModelFitOptions::default()
     };
     let model = hopper();
     let mut scores: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
-    for s in catalogue(2026, n) {
+    for s in catalogue(2026, n).into_iter().skip(from) {
         let r = generate(&s).expect("the generator runs");
         let record = TimeSeries::new(r.t, r.f, r.x, "generator").expect("a record");
         let verdict = diagnose_model(&model, &record, None, &options)
@@ -155,7 +162,7 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
     }
     let total: usize = scores.values().map(|s| s.1).sum();
     assert!(total > 0, "no record was diagnosed");
-    if n == htfid_truth::core_size() {
+    if n == htfid_truth::core_size() && from == 0 {
         // The floors measured on the core cells at seed 2026 (2026-11-28, evening): a change
         // that loses a record in any group fails here.
         for (g, floor) in FLOORS {
@@ -168,13 +175,13 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
     }
 }
 
-/// Records judged right per group on the core cells (seed 2026), as measured with friction and
-/// hard stops in the library (2026-11-28, evening): 71 of 77 (2144 s on the project's 2-core
-/// machine). Before them, with 39 single, 5 paired and 23 outside records in those groups: 70
-/// of 77 (38, 3, 19).
+/// Records judged right per group on the core cells (seed 2026), as measured with the stiffness
+/// law's constant, the second round's wider first effects, the backward pass's refits and the
+/// parameter error beside effects (2026-11-28, night): 74 of 77 (2014 s on the project's 2-core
+/// machine, other work beside it). Before them: 71 of 77 (10, 46, 5, 10).
 const FLOORS: [(&str, usize); 4] = [
     ("clean", 10),
-    ("single, in its library", 46),
-    ("pair, in its library", 5),
+    ("single, in its library", 47),
+    ("pair, in its library", 7),
     ("outside its library", 10),
 ];

@@ -166,6 +166,7 @@ pub fn run(
         "later_rounds": d.later_rounds,
         "backward": d.backward,
         "extended": d.extended,
+        "parameters_beside": d.parameters_beside,
         "alternatives": d.alternatives,
         "noise_floor": d.noise_floor,
         "explained": d.explained,
@@ -291,6 +292,69 @@ pub fn run(
     let unit = |name: &str| parameter_unit(&s, name);
     crate::results::diagnose_model(&json, &unit, &dir, &written);
     Ok(())
+}
+
+/// The free parameters beside the named effects, when some moved: a parameter error when
+/// setting them back costs held-out accuracy, else a note; and any the stiffness law's
+/// linear part moved. Empty when none moved.
+fn beside_sentence(
+    d: &ModelDiagnosis,
+    min_gain: f64,
+    unit: &dyn Fn(&str) -> Option<String>,
+) -> String {
+    let Some(p) = &d.parameters_beside else {
+        return String::new();
+    };
+    let list = |changes: &[htfid_diagnose::ParameterChange]| {
+        changes
+            .iter()
+            .map(|c| {
+                format!(
+                    "`{}` to {} (configured {}, {} standard errors)",
+                    c.name,
+                    Quantity::new(c.fitted)
+                        .stderr(c.stderr)
+                        .unit(unit(&c.name).as_deref()),
+                    sig(c.configured, 4),
+                    sig(c.z.abs(), 2)
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut out = String::new();
+    if !p.moved.is_empty() {
+        out.push_str(&if p.named {
+            format!(
+                " **The configured parameters are off as well** (`parameter_error`): beside \
+                 the effects the fit moves {}; set back, the held-out NRMSE rises from {} to \
+                 {} ({} lower with them as fitted).",
+                list(&p.moved),
+                percent(
+                    d.extended.as_ref().map_or(f64::NAN, |c| c.nrmse_validation),
+                    3
+                ),
+                percent(p.nrmse_reset, 3),
+                percent(p.gain, 3)
+            )
+        } else {
+            format!(
+                " Beside the effects the fit moves {}, but setting them back costs only {} of \
+                 the held-out NRMSE (under {}): not a finding.",
+                list(&p.moved),
+                percent(p.gain, 3),
+                percent(min_gain, 2)
+            )
+        });
+    }
+    if !p.excused.is_empty() {
+        out.push_str(&format!(
+            " The stiffness law leaves its linear part to the model, which moves {}: that is \
+             the law's slope about the motion's mean, not an error of the configured value.",
+            list(&p.excused)
+        ));
+    }
+    out
 }
 
 /// The model's parameters a diagnosis holds at their configured values (not in `free`), as
@@ -510,18 +574,23 @@ fn decision(
                 })
                 .unwrap_or_default();
             let overall = 1.0 - c.map_or(f64::NAN, |c| c.nrmse_validation) / after;
-            match d.causes.as_slice() {
-                [.., last] if d.causes.len() >= 2 => {
-                    let named: Vec<String> = d
-                        .causes
+            // The effects named (a parameter error beside them has its own sentence).
+            let effects: Vec<&String> = d
+                .causes
+                .iter()
+                .filter(|n| *n != "parameter_error")
+                .collect();
+            let text = match effects.as_slice() {
+                [.., last] if effects.len() >= 2 => {
+                    let named: Vec<String> = effects
                         .iter()
                         .map(|n| format!("`{n}` {}", site(n)))
                         .collect();
-                    let before: Vec<String> = d.causes[..d.causes.len() - 1]
+                    let before: Vec<String> = effects[..effects.len() - 1]
                         .iter()
                         .map(|n| format!("`{n}`"))
                         .collect();
-                    let count = match d.causes.len() {
+                    let count = match effects.len() {
                         2 => "two".to_string(),
                         3 => "three".to_string(),
                         k => k.to_string(),
@@ -550,7 +619,8 @@ fn decision(
                     c.map_or(f64::NAN, |c| c.likelihood_ratio),
                     c.map_or(f64::NAN, |c| c.critical)
                 ),
-            }
+            };
+            text + &beside_sentence(d, s.options.min_gain, &unit)
         }
         ModelCause::Ambiguous => format!(
             "**Several effects explain the data of `{}` equally well:** {}. \

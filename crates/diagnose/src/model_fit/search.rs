@@ -331,6 +331,7 @@ impl Search<'_, '_> {
             extension: extension.clone(),
             start: crate::term::TermStart::Given,
             placed: None,
+            linear_part: None,
         };
         let mut scales = self.scales.to_vec();
         scales.extend(self.samples.term_scales(&extended, &self.est.signal, &term));

@@ -4,12 +4,12 @@
 
 use std::collections::BTreeMap;
 
-use htfid_lang::Model;
+use htfid_lang::{Model, Site};
 use rayon::prelude::*;
 
 use super::joint::{Joint, JointFit, SetFit, Trial, Tried};
 use super::prepared::{Prepared, StateSamples};
-use super::{ModelCandidate, ModelFitOptions, ModelScore};
+use super::{ModelCandidate, ModelFitOptions, ModelScore, ParameterChange, ParametersBeside};
 use crate::boundary::{Boundary, BoundaryEffect};
 use crate::term::{TermEffect, TermStart};
 use crate::DiagnoseError;
@@ -508,6 +508,113 @@ impl Selection<'_, '_> {
         }
     }
 
+    /// The free parameters that the chosen effects of `current` leave `significance_sigma`
+    /// standard errors or more from their configured values (`configured`, the refit's
+    /// parameters), and the held-out cost of setting them back with the effects kept as
+    /// fitted: a parameter error beside the effects when that costs `min_gain` or more. A
+    /// parameter that sets the slope a chosen stiffness law leaves to the model
+    /// ([`TermEffect::linear_part`]) is excused: it moves with the law.
+    pub(super) fn parameters_beside(
+        &self,
+        current: &Tried,
+        configured: &[ParameterChange],
+    ) -> Result<Option<ParametersBeside>, DiagnoseError> {
+        let to_err = |e: htfid_lang::ModelError| DiagnoseError::NominalFit {
+            reason: e.to_string(),
+        };
+        let model = self.refitted_model;
+        let chosen: Vec<&Trial> = current.set.iter().map(|&i| &self.trials[i]).collect();
+        // Whether a chosen law's linear part on its equation depends on `p`.
+        let sets_law_slope = |p: &str| {
+            chosen.iter().any(|t| {
+                let Trial::Term(term) = t else {
+                    return false;
+                };
+                let Some(q) = &term.linear_part else {
+                    return false;
+                };
+                term.extension.terms.iter().any(|(site, _)| {
+                    let Site::Flow { state, .. } = site else {
+                        return false;
+                    };
+                    let Some(v) = model.states().iter().position(|s| s.name == *state) else {
+                        return false;
+                    };
+                    (0..model.modes().len()).any(|m| {
+                        let mode = model.mode(&model.modes()[m]).expect("a mode of the model");
+                        model.equation(mode, v).derivative(q).depends_on(p)
+                    })
+                })
+            })
+        };
+        let fitted = &current.candidate;
+        let (mut moved, mut excused) = (Vec::new(), Vec::new());
+        for c in configured {
+            let (Some(&v), Some(&se)) =
+                (fitted.parameters.get(&c.name), fitted.stderr.get(&c.name))
+            else {
+                continue;
+            };
+            let change = ParameterChange {
+                name: c.name.clone(),
+                configured: c.configured,
+                fitted: v,
+                stderr: se,
+                z: (v - c.configured) / se,
+            };
+            if change.z.abs() < self.opts.significance_sigma {
+                continue;
+            }
+            if sets_law_slope(&c.name) {
+                excused.push(change);
+            } else {
+                moved.push(change);
+            }
+        }
+        if moved.is_empty() && excused.is_empty() {
+            return Ok(None);
+        }
+        // The extended model at its fitted values, the moved parameters set back.
+        let mut m = model.clone();
+        let mut boundary = Vec::new();
+        let mut boundary_values = Vec::new();
+        for t in &chosen {
+            match t {
+                Trial::Term(term) => m = m.with_extension(&term.extension).map_err(to_err)?,
+                Trial::Boundary(e, names) => {
+                    boundary.push(*e);
+                    for n in names {
+                        boundary_values.push(fitted.parameters.get(n).copied().unwrap_or(f64::NAN));
+                    }
+                }
+            }
+        }
+        let values: Vec<(&str, f64)> = fitted
+            .parameters
+            .iter()
+            .filter(|(n, _)| m.parameter_index(n).is_some())
+            .map(|(n, &v)| {
+                let reset = moved.iter().find(|c: &&ParameterChange| c.name == *n);
+                (n.as_str(), reset.map_or(v, |c| c.configured))
+            })
+            .collect();
+        let m = m.with_parameters(&values).map_err(to_err)?;
+        let bd = Boundary::with_all(&boundary, &boundary_values, self.outputs.len());
+        let nrmse_reset = if moved.is_empty() {
+            fitted.nrmse_validation
+        } else {
+            self.score(&m, &current.state, &bd)?.0.validation()
+        };
+        let gain = 1.0 - fitted.nrmse_validation / nrmse_reset;
+        Ok(Some(ParametersBeside {
+            named: !moved.is_empty() && gain >= self.opts.min_gain,
+            moved,
+            excused,
+            nrmse_reset,
+            gain,
+        }))
+    }
+
     /// One round: every trial outside the effects of `current` fitted beside them (all their
     /// parameters, the free ones and the start together, the chosen ones' from their fit),
     /// each tested against `current`'s fit.
@@ -531,8 +638,9 @@ impl Selection<'_, '_> {
 
     /// The backward pass over the chosen effects of `current` (two or more): each tested
     /// against the fit without it; the weakest that no longer passes is dropped, and the pass
-    /// repeats. A set fitted before (in `earlier`, the same effects in any order) is taken as
-    /// it was fitted. Returns every test made.
+    /// repeats. The fit without an effect starts from the chosen set's values; a set fitted
+    /// before (in `earlier`, the same effects in any order) is taken as it was fitted when
+    /// that fit is the better one. Returns every test made.
     pub(super) fn backward(
         &self,
         current: &mut Option<Tried>,
@@ -557,13 +665,32 @@ impl Selection<'_, '_> {
                         b.sort_unstable();
                         a == b && c.rss.is_finite()
                     };
-                    if let Some(earlier) = earlier.iter().find(same) {
-                        return Ok((*earlier).clone());
+                    // It starts from the chosen set's fit; a fit of the same set made before
+                    // (in an earlier round, from its own start) is kept when it fits better.
+                    // Should it become the chosen set, its last effect is tested against the
+                    // set before it as every round's is: the refit for a single effect, else
+                    // that set's earlier fit (none: tested against nothing).
+                    let before: Option<(f64, f64)> = match r.split_last() {
+                        Some((_, [])) => Some((self.base.rss, self.refitted.validation())),
+                        Some((_, rest)) => earlier
+                            .iter()
+                            .find(|c| c.set.as_slice() == rest && c.rss.is_finite())
+                            .map(|c| (c.rss, c.candidate.nrmse_validation)),
+                        None => None,
+                    };
+                    let refit = self
+                        .fit_set(r, &cur.candidate.parameters, &cur.state)
+                        .map(|f| {
+                            let (rss, score) = before.unwrap_or((f64::NAN, f.1.validation()));
+                            self.judge(r, Ok(f), rss, score)
+                        });
+                    match (earlier.iter().find(same), refit) {
+                        (Some(e), Ok(f)) if e.rss <= f.rss || !f.rss.is_finite() => {
+                            Ok((*e).clone())
+                        }
+                        (Some(e), Err(_)) => Ok((*e).clone()),
+                        (_, refit) => refit,
                     }
-                    // Only its fit is used: tested against nothing.
-                    let f = self.fit_set(r, &cur.candidate.parameters, &cur.state)?;
-                    let score = f.1.validation();
-                    Ok(self.judge(r, Ok(f), f64::NAN, score))
                 })
                 .collect();
             // The test of each effect: the chosen set against the set without it.
