@@ -551,38 +551,29 @@ pub fn diagnose_model(
             )
         },
     );
-    let lines = d["parameters"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .map(|p| {
-            let name = p["name"].as_str().unwrap_or("?");
-            format!(
-                "{name} = {} (configured {}, z = {})",
-                pm(f(&p["fitted"]), f(&p["stderr"]), unit(name).as_deref()),
-                sig(f(&p["configured"]), 4),
-                sig(f(&p["z"]), 3)
-            )
-        })
-        .collect();
-    t.rows("parameters", lines);
-    let beside = &d["parameters_beside"];
-    if beside["named"].as_bool() == Some(true) {
-        let lines = beside["moved"]
-            .as_array()
+    // Each refitted parameter against its configured value (`context` after the value).
+    let changes = |list: &Value, context: &str| -> Vec<String> {
+        list.as_array()
             .into_iter()
             .flatten()
             .map(|p| {
                 let name = p["name"].as_str().unwrap_or("?");
                 format!(
-                    "{name} = {} beside the effects (configured {}, z = {})",
+                    "{name} = {}{context} (configured {}, z = {})",
                     pm(f(&p["fitted"]), f(&p["stderr"]), unit(name).as_deref()),
                     sig(f(&p["configured"]), 4),
                     sig(f(&p["z"]), 3)
                 )
             })
-            .collect();
-        t.rows("parameter error", lines);
+            .collect()
+    };
+    t.rows("parameters", changes(&d["parameters"], ""));
+    let beside = &d["parameters_beside"];
+    if beside["named"].as_bool() == Some(true) {
+        t.rows(
+            "parameter error",
+            changes(&beside["moved"], " beside the effects"),
+        );
     }
     for (label, key) in [("configured", "configured"), ("refitted", "refitted")] {
         let per_output: Vec<String> = d[key]["nrmse_validation"]

@@ -29,18 +29,24 @@ fn options() -> ModelFitOptions {
     }
 }
 
-/// The diagnosis of a 90 s record of the paper's protocol from the truth generator with one
-/// `effect` and 2e-6 m of position noise.
-fn diagnose_single(effect: htfid_truth::Effect) -> htfid_diagnose::ModelDiagnosis {
-    let scenario = Scenario {
-        effects: vec![effect],
+/// 90 s of the paper's protocol from the truth generator with `effects` and parameter
+/// `errors`, and 2e-6 m of position noise.
+fn protocol(effects: Vec<htfid_truth::Effect>, errors: ParameterErrors) -> Scenario {
+    Scenario {
+        effects,
+        parameter_errors: errors,
         noise: htfid_truth::Noise {
             sigma_x: 2e-6,
             sigma_f: 0.0,
         },
         record_s: 90.0,
         ..Scenario::default()
-    };
+    }
+}
+
+/// The diagnosis of a record of [`protocol`] with one `effect`.
+fn diagnose_single(effect: htfid_truth::Effect) -> htfid_diagnose::ModelDiagnosis {
+    let scenario = protocol(vec![effect], ParameterErrors::default());
     diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap()
 }
 
@@ -324,15 +330,10 @@ fn friction_and_a_hard_stop_in_a_model_file_are_named_with_their_parameters() {
 #[test]
 fn a_small_cubic_spring_is_named_with_the_constant_force_it_carries() {
     let k3 = -230.8;
-    let scenario = Scenario {
-        effects: vec![htfid_truth::Effect::CubicStiffness { k3 }],
-        noise: htfid_truth::Noise {
-            sigma_x: 2e-6,
-            sigma_f: 0.0,
-        },
-        record_s: 90.0,
-        ..Scenario::default()
-    };
+    let scenario = protocol(
+        vec![htfid_truth::Effect::CubicStiffness { k3 }],
+        ParameterErrors::default(),
+    );
     let rec = record(&scenario);
     let xs = &rec.outputs()[0];
     let d = xs.iter().sum::<f64>() / xs.len() as f64 - htfid_truth::X0;
@@ -387,15 +388,10 @@ fn a_small_cubic_spring_is_named_with_the_constant_force_it_carries() {
 fn an_actuator_lag_beside_a_constant_force_is_named_as_such() {
     use htfid_truth::Effect;
     let (tau, offset) = (0.0203, -0.122);
-    let scenario = Scenario {
-        effects: vec![Effect::ActuatorLag { tau }, Effect::InputOffset { offset }],
-        noise: htfid_truth::Noise {
-            sigma_x: 2e-6,
-            sigma_f: 0.0,
-        },
-        record_s: 90.0,
-        ..Scenario::default()
-    };
+    let scenario = protocol(
+        vec![Effect::ActuatorLag { tau }, Effect::InputOffset { offset }],
+        ParameterErrors::default(),
+    );
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
     let fitted = d.extended.as_ref().map(|e| &e.parameters);
     let value = |k: &str| fitted.and_then(|p| p.get(k)).copied().unwrap_or(f64::NAN);
@@ -433,19 +429,13 @@ fn an_actuator_lag_beside_a_constant_force_is_named_as_such() {
 fn a_damping_error_beside_a_moved_switch_is_named_with_it() {
     use htfid_truth::Effect;
     let (v_th, c_error) = (-0.03457, 0.11524);
-    let scenario = Scenario {
-        effects: vec![Effect::SwitchThreshold { v_th }],
-        parameter_errors: ParameterErrors {
+    let scenario = protocol(
+        vec![Effect::SwitchThreshold { v_th }],
+        ParameterErrors {
             c: c_error,
             ..ParameterErrors::default()
         },
-        noise: htfid_truth::Noise {
-            sigma_x: 2e-6,
-            sigma_f: 0.0,
-        },
-        record_s: 90.0,
-        ..Scenario::default()
-    };
+    );
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
     let fitted = d.extended.as_ref().map(|e| &e.parameters);
     let value = |k: &str| fitted.and_then(|p| p.get(k)).copied().unwrap_or(f64::NAN);
