@@ -16,11 +16,10 @@ use serde::{Deserialize, Serialize};
 pub enum TermKind {
     /// `-drag_V |V| V` added to `V'` for each velocity state `V`.
     QuadraticDrag,
-    /// `-(k0_Q + k2_Q (Q - Qm)^2 + k3_Q (Q - Qm)^3)` added to `V'` for each pair `Q' = V`,
-    /// about the mean `Qm` of `Q` on the record: a spring force's polynomial to third order,
-    /// its linear part left to the model's own stiffness. The constant is the law's own: a
-    /// cubic or quadratic spring about any other point (its rest length) carries one about
-    /// the motion's mean, which a sensor's offset would otherwise take first.
+    /// `-(k2_Q (Q - Qm)^2 + k3_Q (Q - Qm)^3)` added to `V'` for each pair `Q' = V`, about the
+    /// mean `Qm` of `Q` on the record, its linear part left to the model's own stiffness. It
+    /// has no constant: with one, it took the constant force or the sensor offset beside
+    /// it in records of two effects (see `docs/diagnosis.md`).
     NonlinearStiffness,
     /// `-damping_V_M V` added to `V'` in mode `M` only, for each mode of a model with several.
     ModeDamping,
@@ -265,18 +264,14 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
             TermKind::NonlinearStiffness => {
                 for &(q, v) in &pairs {
                     let (qn, vn) = (&names[q].name, &names[v].name);
-                    let k0 = fresh(model, &[], &format!("k0_{qn}"));
-                    let k2 = fresh(model, std::slice::from_ref(&k0), &format!("k2_{qn}"));
-                    let k3 = fresh(model, &[k0.clone(), k2.clone()], &format!("k3_{qn}"));
+                    let k2 = fresh(model, &[], &format!("k2_{qn}"));
+                    let k3 = fresh(model, std::slice::from_ref(&k2), &format!("k3_{qn}"));
                     let d = offset(qn, stats(q).mean);
                     out.push(TermEffect {
                         name: format!("nonlinear_stiffness({qn})"),
                         extension: Extension {
-                            terms: vec![(
-                                flow(vn, None),
-                                format!("-({k0} + {k2}*{d}^2 + {k3}*{d}^3)"),
-                            )],
-                            parameters: vec![zero(k0), zero(k2), zero(k3)],
+                            terms: vec![(flow(vn, None), format!("-({k2}*{d}^2 + {k3}*{d}^3)"))],
+                            parameters: vec![zero(k2), zero(k3)],
                         },
                         start: TermStart::Given,
                         placed: None,
