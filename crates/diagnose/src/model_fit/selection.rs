@@ -91,6 +91,13 @@ pub(super) fn correlation_inflation(r: &[f64]) -> f64 {
     s.max(1.0).sqrt()
 }
 
+/// A model that does not take an effect's terms or values, as the fits' error.
+fn model_error(e: htfid_lang::ModelError) -> DiagnoseError {
+    DiagnoseError::NominalFit {
+        reason: e.to_string(),
+    }
+}
+
 /// Where the selection runs: the records, the refitted nominal model and its fit, and the
 /// candidates.
 pub(super) struct Selection<'a, 'r> {
@@ -170,9 +177,7 @@ impl Selection<'_, '_> {
                     let extended = self
                         .refitted_model
                         .with_extension(&term.extension)
-                        .map_err(|e| DiagnoseError::NominalFit {
-                            reason: e.to_string(),
-                        })?;
+                        .map_err(model_error)?;
                     let added = term.parameter_names();
                     let all: Vec<&str> = names
                         .iter()
@@ -319,6 +324,31 @@ impl Selection<'_, '_> {
         })
     }
 
+    /// The refitted model with the terms of the trials `set` added (at their starting
+    /// values), those terms, and the set's effects on the boundary with their parameters'
+    /// names.
+    #[allow(clippy::type_complexity)]
+    fn set_model(
+        &self,
+        set: &[usize],
+    ) -> Result<(Model, Vec<&TermEffect>, Vec<BoundaryEffect>, Vec<&[String]>), DiagnoseError> {
+        let mut m = self.refitted_model.clone();
+        let (mut terms, mut boundary, mut names) = (Vec::new(), Vec::new(), Vec::new());
+        for &i in set {
+            match &self.trials[i] {
+                Trial::Term(term) => {
+                    m = m.with_extension(&term.extension).map_err(model_error)?;
+                    terms.push(term);
+                }
+                Trial::Boundary(e, n) => {
+                    boundary.push(*e);
+                    names.push(n.as_slice());
+                }
+            }
+        }
+        Ok((m, terms, boundary, names))
+    }
+
     /// The joint fit of the trials `set`: all their parameters, the free ones and the start
     /// together, those in `known` (fitted before) from their values, from the start `x0`.
     fn fit_set(
@@ -328,28 +358,7 @@ impl Selection<'_, '_> {
         x0: &[f64],
     ) -> Result<SetFit, DiagnoseError> {
         let (est, joint, base, outputs) = (self.est, self.joint, self.base, self.outputs);
-        let to_err = |e: htfid_lang::ModelError| DiagnoseError::NominalFit {
-            reason: e.to_string(),
-        };
-        let chosen: Vec<&Trial> = set.iter().map(|&i| &self.trials[i]).collect();
-        let terms: Vec<&TermEffect> = chosen
-            .iter()
-            .filter_map(|t| match t {
-                Trial::Term(term) => Some(term),
-                Trial::Boundary(..) => None,
-            })
-            .collect();
-        let (boundary, boundary_names): (Vec<BoundaryEffect>, Vec<&[String]>) = chosen
-            .iter()
-            .filter_map(|t| match t {
-                Trial::Boundary(e, names) => Some((*e, names.as_slice())),
-                Trial::Term(_) => None,
-            })
-            .unzip();
-        let mut m = self.refitted_model.clone();
-        for term in &terms {
-            m = m.with_extension(&term.extension).map_err(to_err)?;
-        }
+        let (mut m, terms, boundary, boundary_names) = self.set_model(set)?;
         // The free parameters and the terms' parameters, those fitted before at their values.
         let mut all: Vec<String> = joint.names.iter().map(|n| (*n).to_string()).collect();
         for term in &terms {
@@ -359,7 +368,7 @@ impl Selection<'_, '_> {
             .iter()
             .filter_map(|n| known.get(n).map(|v| (n.as_str(), *v)))
             .collect();
-        m = m.with_parameters(&values).map_err(to_err)?;
+        m = m.with_parameters(&values).map_err(model_error)?;
         // A contact not fitted before starts from the best of its grid.
         for term in &terms {
             let names = term.parameter_names();
@@ -519,17 +528,11 @@ impl Selection<'_, '_> {
         current: &Tried,
         configured: &[ParameterChange],
     ) -> Result<Option<ParametersBeside>, DiagnoseError> {
-        let to_err = |e: htfid_lang::ModelError| DiagnoseError::NominalFit {
-            reason: e.to_string(),
-        };
         let model = self.refitted_model;
-        let chosen: Vec<&Trial> = current.set.iter().map(|&i| &self.trials[i]).collect();
+        let (m, terms, boundary, boundary_names) = self.set_model(&current.set)?;
         // Whether a chosen law's linear part on its equation depends on `p`.
         let sets_law_slope = |p: &str| {
-            chosen.iter().any(|t| {
-                let Trial::Term(term) = t else {
-                    return false;
-                };
+            terms.iter().any(|term| {
                 let Some(q) = &term.linear_part else {
                     return false;
                 };
@@ -540,10 +543,11 @@ impl Selection<'_, '_> {
                     let Some(v) = model.states().iter().position(|s| s.name == *state) else {
                         return false;
                     };
-                    (0..model.modes().len()).any(|m| {
-                        let mode = model.mode(&model.modes()[m]).expect("a mode of the model");
-                        model.equation(mode, v).derivative(q).depends_on(p)
-                    })
+                    model
+                        .modes()
+                        .iter()
+                        .filter_map(|name| model.mode(name))
+                        .any(|mode| model.equation(mode, v).derivative(q).depends_on(p))
                 })
             })
         };
@@ -575,20 +579,11 @@ impl Selection<'_, '_> {
             return Ok(None);
         }
         // The extended model at its fitted values, the moved parameters set back.
-        let mut m = model.clone();
-        let mut boundary = Vec::new();
-        let mut boundary_values = Vec::new();
-        for t in &chosen {
-            match t {
-                Trial::Term(term) => m = m.with_extension(&term.extension).map_err(to_err)?,
-                Trial::Boundary(e, names) => {
-                    boundary.push(*e);
-                    for n in names {
-                        boundary_values.push(fitted.parameters.get(n).copied().unwrap_or(f64::NAN));
-                    }
-                }
-            }
-        }
+        let boundary_values: Vec<f64> = boundary_names
+            .iter()
+            .flat_map(|names| names.iter())
+            .map(|n| fitted.parameters.get(n).copied().unwrap_or(f64::NAN))
+            .collect();
         let values: Vec<(&str, f64)> = fitted
             .parameters
             .iter()
@@ -598,7 +593,7 @@ impl Selection<'_, '_> {
                 (n.as_str(), reset.map_or(v, |c| c.configured))
             })
             .collect();
-        let m = m.with_parameters(&values).map_err(to_err)?;
+        let m = m.with_parameters(&values).map_err(model_error)?;
         let bd = Boundary::with_all(&boundary, &boundary_values, self.outputs.len());
         let nrmse_reset = if moved.is_empty() {
             fitted.nrmse_validation
