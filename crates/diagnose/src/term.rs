@@ -16,10 +16,13 @@ use serde::{Deserialize, Serialize};
 pub enum TermKind {
     /// `-drag_V |V| V` added to `V'` for each velocity state `V`.
     QuadraticDrag,
-    /// `-(k2_Q (Q - Qm)^2 + k3_Q (Q - Qm)^3)` added to `V'` for each pair `Q' = V`, about the
-    /// mean `Qm` of `Q` on the record, its linear part left to the model's own stiffness. It
-    /// has no constant: with one, it took the constant force or the sensor offset beside
-    /// it in records of two effects (see `docs/diagnosis.md`).
+    /// `-(k2_Q (Q - Qr)^2 + k3_Q (Q - Qr)^3)` added to `V'` for each pair `Q' = V`, about the
+    /// rest point `Qr` of the model's own linear spring on `Q` ([`rest_point`]), else about the
+    /// mean of `Q` on the record. Its slope on the motion adds to the model's own stiffness.
+    /// About the rest point its constant force is tied to its shape, as a real spring's is; a
+    /// free constant took the constant force or the sensor offset beside it in records of two
+    /// effects, and a law about the mean left a cubic spring's constant to them (see
+    /// `docs/diagnosis.md`).
     NonlinearStiffness,
     /// `-damping_V_M V` added to `V'` in mode `M` only, for each mode of a model with several.
     ModeDamping,
@@ -88,9 +91,9 @@ pub struct TermEffect {
     pub start: TermStart,
     /// The parameter that places it on the motion, if one does.
     pub placed: Option<Placement>,
-    /// For a law written about the motion's mean without its linear part (the stiffness
-    /// law): the position whose slope on the equation the term joins is the model's own. A
-    /// free parameter that sets that slope takes the law's linear part, so beside the law its
+    /// For a law whose slope on the motion adds to the model's own stiffness (the stiffness
+    /// law): the position whose slope on the equation the term joins it changes. A free
+    /// parameter that sets that slope takes up the law's linear part, so beside the law its
     /// change is not a parameter error.
     pub linear_part: Option<String>,
 }
@@ -208,6 +211,49 @@ pub(crate) fn fresh(model: &Model, taken: &[String], base: &str) -> String {
         .unwrap_or_default()
 }
 
+/// Where the model's own linear spring on `q` rests: the zero of the terms of `v`'s equation
+/// that depend on `q` and on nothing but the parameters ([`Expr::terms`]), if in every mode
+/// that has such terms they are linear in `q` and vanish at the same point. On the hopper,
+/// whose `v' = (-m*g - k*(x - x0) - c*v + f0 + u)/m`, it is `x0`. `None` when no mode has such
+/// a term, one is not linear, or the modes disagree.
+pub fn rest_point(model: &Model, q: usize, v: usize) -> Option<f64> {
+    let states = model.states();
+    let qn = states[q].name.as_str();
+    let known = |n: &str| model.parameter(n);
+    let mut rest: Option<f64> = None;
+    for mode in model.modes().iter().filter_map(|m| model.mode(m)) {
+        let own: Vec<Expr> = model
+            .equation(mode, v)
+            .terms()
+            .into_iter()
+            .filter(|t| {
+                let vars = t.variables();
+                vars.contains(qn) && vars.iter().all(|n| n == qn || known(n).is_some())
+            })
+            .collect();
+        let Some(spring) = own.into_iter().reduce(Expr::plus) else {
+            continue;
+        };
+        let slope = spring.derivative(qn);
+        if slope.derivative(qn).as_constant() != Some(0.0) {
+            return None;
+        }
+        let at = |x: f64| spring.eval_with(&|n| if n == qn { Some(x) } else { known(n) });
+        let (Ok(s0), Ok(a)) = (at(0.0), slope.eval_with(&|n| known(n))) else {
+            return None;
+        };
+        let here = -s0 / a;
+        if !here.is_finite() || a == 0.0 {
+            return None;
+        }
+        match rest {
+            Some(r) if (r - here).abs() > 1e-9 * r.abs().max(1.0) => return None,
+            _ => rest = Some(here),
+        }
+    }
+    rest
+}
+
 /// The state pairs `(q, v)` with `q' = v` in every mode.
 pub fn velocity_pairs(model: &Model) -> Vec<(usize, usize)> {
     let states = model.states();
@@ -266,7 +312,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                     let (qn, vn) = (&names[q].name, &names[v].name);
                     let k2 = fresh(model, &[], &format!("k2_{qn}"));
                     let k3 = fresh(model, std::slice::from_ref(&k2), &format!("k3_{qn}"));
-                    let d = offset(qn, stats(q).mean);
+                    let d = offset(qn, rest_point(model, q, v).unwrap_or(stats(q).mean));
                     out.push(TermEffect {
                         name: format!("nonlinear_stiffness({qn})"),
                         extension: Extension {
@@ -494,5 +540,52 @@ pub(crate) fn dictionary_extension(
     Extension {
         parameters: names.into_iter().map(zero).collect(),
         terms,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn shipped(name: &str) -> Model {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../models/{name}.toml"));
+        Model::from_file(&path).unwrap()
+    }
+
+    fn rest(model: &Model, q: &str, v: &str) -> Option<f64> {
+        let at = |n: &str| model.states().iter().position(|s| s.name == n).unwrap();
+        rest_point(model, at(q), at(v))
+    }
+
+    /// The rest points read from the shipped models' equations, against their files: the
+    /// hopper's `x0` (0.2 m), the flight hopper's leg length `L0` (0.5 m, from its stance mode;
+    /// its flight mode has no spring). None where the own spring is not linear (the two-dof's
+    /// first mass, a cubic spring), where the position's only force also depends on another
+    /// state (the second mass's coupling) or on the input (the closed loop's controller).
+    #[test]
+    fn the_rest_point_of_a_models_own_spring_is_read_from_its_equations() {
+        assert_eq!(rest(&shipped("hopper"), "x", "v"), Some(0.2));
+        assert_eq!(rest(&shipped("flight-hopper"), "y", "v"), Some(0.5));
+        let two = shipped("two-dof");
+        assert_eq!(rest(&two, "x1", "v1"), None);
+        assert_eq!(rest(&two, "x2", "v2"), None);
+        assert_eq!(rest(&shipped("closed-loop-friction"), "x", "v"), None);
+        // A second spring on x joins the first (m = 1): -200 (x - 0.2) - 50 (x - 0.1) rests at
+        // (40 + 5) / 250. A term of the parameters alone (gravity) is not a spring's.
+        let two_springs = shipped("hopper")
+            .with_extension(&Extension {
+                terms: vec![(
+                    Site::Flow {
+                        state: "v".into(),
+                        mode: None,
+                    },
+                    "-50 * (x - 0.1) - 3 * k".into(),
+                )],
+                parameters: vec![],
+            })
+            .unwrap();
+        let r = rest(&two_springs, "x", "v").unwrap();
+        assert!((r - 45.0 / 250.0).abs() < 1e-12, "{r}");
     }
 }

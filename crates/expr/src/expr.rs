@@ -110,6 +110,33 @@ impl Expr {
         names
     }
 
+    /// The additive terms of the expression: a sum or difference is split into its operands'
+    /// terms (the subtracted ones negated), a negation negates each term, and a quotient splits
+    /// its numerator's terms, each over the same denominator; anything else is one term.
+    /// Products are not multiplied out, so `-k*(x - x0)` stays one term. The terms add up to
+    /// the expression: `(-m*g + s - c*v)/m` gives `-m*g/m`, `s/m` and `-(c*v)/m`.
+    pub fn terms(&self) -> Vec<Expr> {
+        match &self.0 {
+            Node::Bin(BinOp::Add, a, b) => {
+                let mut t = a.terms();
+                t.extend(b.terms());
+                t
+            }
+            Node::Bin(BinOp::Sub, a, b) => {
+                let mut t = a.terms();
+                t.extend(b.terms().into_iter().map(Expr::neg));
+                t
+            }
+            Node::Neg(a) => a.terms().into_iter().map(Expr::neg).collect(),
+            Node::Bin(BinOp::Div, a, b) => a
+                .terms()
+                .into_iter()
+                .map(|t| Expr::bin(BinOp::Div, t, (**b).clone()))
+                .collect(),
+            _ => vec![self.clone()],
+        }
+    }
+
     /// Whether the expression uses the variable `name`.
     pub fn depends_on(&self, name: &str) -> bool {
         match &self.0 {
