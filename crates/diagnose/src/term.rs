@@ -16,12 +16,14 @@ use serde::{Deserialize, Serialize};
 pub enum TermKind {
     /// `-drag_V |V| V` added to `V'` for each velocity state `V`.
     QuadraticDrag,
-    /// `-(k2_Q (Q - Qr)^2 + k3_Q (Q - Qr)^3)` added to `V'` for each pair `Q' = V`, about the
-    /// rest point `Qr` of the model's own linear spring on `Q` ([`rest_point`]), else about the
-    /// mean of `Q` on the record. Its slope on the motion adds to the model's own stiffness.
-    /// About the rest point its constant force is tied to its shape, as a real spring's is; a
-    /// free constant took the constant force or the sensor offset beside it in records of two
-    /// effects, and a law about the mean left a cubic spring's constant to them (see
+    /// A spring law added to `V'` for each pair `Q' = V`. About the rest point `Qr` of the
+    /// model's own linear spring on `Q` ([`rest_point`]), a cubic spring, `-k3_Q (Q - Qr)^3`:
+    /// one coefficient, so its constant force, its curvature and its slope on the motion are
+    /// tied to each other as a real spring's are. Without a rest point, `-(k2_Q (Q - Qm)^2 +
+    /// k3_Q (Q - Qm)^3)` about the mean `Qm` of `Q` on the record, its linear part left to the
+    /// model's own stiffness. A free constant, or a second coefficient about the rest point,
+    /// took the constant force or the sensor offset beside another effect in records of two
+    /// effects; a law about the mean left a cubic spring's constant to them (see
     /// `docs/diagnosis.md`).
     NonlinearStiffness,
     /// `-damping_V_M V` added to `V'` in mode `M` only, for each mode of a model with several.
@@ -310,15 +312,31 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
             TermKind::NonlinearStiffness => {
                 for &(q, v) in &pairs {
                     let (qn, vn) = (&names[q].name, &names[v].name);
-                    let k2 = fresh(model, &[], &format!("k2_{qn}"));
-                    let k3 = fresh(model, std::slice::from_ref(&k2), &format!("k3_{qn}"));
-                    let d = offset(qn, rest_point(model, q, v).unwrap_or(stats(q).mean));
+                    let extension = match rest_point(model, q, v) {
+                        Some(rest) => {
+                            let k3 = fresh(model, &[], &format!("k3_{qn}"));
+                            let d = offset(qn, rest);
+                            Extension {
+                                terms: vec![(flow(vn, None), format!("-{k3}*{d}^3"))],
+                                parameters: vec![zero(k3)],
+                            }
+                        }
+                        None => {
+                            let k2 = fresh(model, &[], &format!("k2_{qn}"));
+                            let k3 = fresh(model, std::slice::from_ref(&k2), &format!("k3_{qn}"));
+                            let d = offset(qn, stats(q).mean);
+                            Extension {
+                                terms: vec![(
+                                    flow(vn, None),
+                                    format!("-({k2}*{d}^2 + {k3}*{d}^3)"),
+                                )],
+                                parameters: vec![zero(k2), zero(k3)],
+                            }
+                        }
+                    };
                     out.push(TermEffect {
                         name: format!("nonlinear_stiffness({qn})"),
-                        extension: Extension {
-                            terms: vec![(flow(vn, None), format!("-({k2}*{d}^2 + {k3}*{d}^3)"))],
-                            parameters: vec![zero(k2), zero(k3)],
-                        },
+                        extension,
                         start: TermStart::Given,
                         placed: None,
                         linear_part: Some(qn.clone()),
