@@ -93,10 +93,11 @@ pub struct TermEffect {
     pub start: TermStart,
     /// The parameter that places it on the motion, if one does.
     pub placed: Option<Placement>,
-    /// For a law whose slope on the motion adds to the model's own stiffness (the stiffness
-    /// law): the position whose slope on the equation the term joins it changes. A free
-    /// parameter that sets that slope takes up the law's linear part, so beside the law its
-    /// change is not a parameter error.
+    /// For a law written without its linear part (the stiffness law about the motion's mean):
+    /// the position whose slope on the equation the term joins it changes. A free parameter
+    /// that sets that slope takes up the law's linear part, so beside the law its change is
+    /// not a parameter error. `None` for the cubic spring about the model's rest point, whose
+    /// slope is its own.
     pub linear_part: Option<String>,
 }
 
@@ -312,7 +313,11 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
             TermKind::NonlinearStiffness => {
                 for &(q, v) in &pairs {
                     let (qn, vn) = (&names[q].name, &names[v].name);
-                    let extension = match rest_point(model, q, v) {
+                    // About the rest point the law is a whole spring, its slope on the
+                    // motion its own: a refitted stiffness beside it is the model's error.
+                    let rest = rest_point(model, q, v);
+                    let linear_part = rest.is_none().then(|| qn.clone());
+                    let extension = match rest {
                         Some(rest) => {
                             let k3 = fresh(model, &[], &format!("k3_{qn}"));
                             let d = offset(qn, rest);
@@ -339,7 +344,7 @@ pub fn term_library(model: &Model, kinds: &[TermKind], states: &[StateStats]) ->
                         extension,
                         start: TermStart::Given,
                         placed: None,
-                        linear_part: Some(qn.clone()),
+                        linear_part,
                     });
                 }
             }

@@ -355,6 +355,39 @@ fn a_cubic_spring_is_named_alone_with_its_coefficient_about_the_rest_point() {
     );
 }
 
+/// A cubic spring beside a spring 3 % softer than configured (the catalogue's `124` on
+/// [`protocol`]): about the rest point the law's slope on the motion is its own, so the
+/// refitted `k` beside it is the model's error and is named: the law and `parameter_error`,
+/// `k3_x` within 10 % of -2000 and `k` within 0.5 % of 193.4.
+#[test]
+fn a_stiffness_error_beside_a_cubic_spring_is_named_with_it() {
+    let scenario = protocol(
+        vec![htfid_truth::Effect::CubicStiffness { k3: -2000.0 }],
+        ParameterErrors {
+            k: -0.033,
+            ..ParameterErrors::default()
+        },
+    );
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
+    let fitted = |name: &str| {
+        d.extended
+            .as_ref()
+            .and_then(|e| e.parameters.get(name).copied())
+            .unwrap_or(f64::NAN)
+    };
+    let (k3, k) = (fitted("k3_x"), fitted("k"));
+    eprintln!("causes {:?}: k3_x {k3}, k {k}", d.causes);
+    assert!(
+        d.causes == ["nonlinear_stiffness(x)", "parameter_error"]
+            && (k3 / -2000.0 - 1.0).abs() < 0.1
+            && (k / (200.0 * 0.967) - 1.0).abs() < 5e-3,
+        "causes {:?}, k3_x {k3}, k {k}, beside {:?}\n{}",
+        d.causes,
+        d.parameters_beside,
+        candidate_table(&d)
+    );
+}
+
 /// A model whose own spring is not linear in the position (here the hopper with a quadratic
 /// term of zero size) has no rest point to read, and the stiffness law is written about the
 /// motion's mean. On the same large cubic the law is named, and the refitted `k`, which then
