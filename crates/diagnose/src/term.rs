@@ -17,14 +17,14 @@ pub enum TermKind {
     /// `-drag_V |V| V` added to `V'` for each velocity state `V`.
     QuadraticDrag,
     /// A spring law added to `V'` for each pair `Q' = V`. About the rest point `Qr` of the
-    /// model's own linear spring on `Q` ([`rest_point`]), a cubic spring, `-k3_Q (Q - Qr)^3`:
-    /// one coefficient, so its constant force, its curvature and its slope on the motion are
-    /// tied to each other as a real spring's are. Without a rest point, `-(k2_Q (Q - Qm)^2 +
-    /// k3_Q (Q - Qm)^3)` about the mean `Qm` of `Q` on the record, its linear part left to the
-    /// model's own stiffness. A free constant, or a second coefficient about the rest point,
-    /// took the constant force or the sensor offset beside another effect in records of two
-    /// effects; a law about the mean left a cubic spring's constant to them (see
-    /// `docs/diagnosis.md`).
+    /// model's own linear spring on `Q` (read from its equations: `rest_point`), a cubic
+    /// spring, `-k3_Q (Q - Qr)^3`: one coefficient, so its constant force, its curvature and
+    /// its slope on the motion are tied to each other as a real spring's are. Without a rest
+    /// point, `-(k2_Q (Q - Qm)^2 + k3_Q (Q - Qm)^3)` about the mean `Qm` of `Q` on the record,
+    /// its linear part left to the model's own stiffness. A free constant, or a second
+    /// coefficient about the rest point, took the constant force or the sensor offset beside
+    /// another effect in records of two effects; a law about the mean left a cubic spring's
+    /// constant to them (see `docs/diagnosis.md`).
     NonlinearStiffness,
     /// `-damping_V_M V` added to `V'` in mode `M` only, for each mode of a model with several.
     ModeDamping,
