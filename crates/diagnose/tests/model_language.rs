@@ -59,6 +59,14 @@ fn names(d: &htfid_diagnose::ModelDiagnosis, effect: &str) -> bool {
     }
 }
 
+/// A parameter of the final fit (`extended`), NaN when there is none or it lacks it.
+fn final_value(d: &htfid_diagnose::ModelDiagnosis, name: &str) -> f64 {
+    d.extended
+        .as_ref()
+        .and_then(|e| e.parameters.get(name).copied())
+        .unwrap_or(f64::NAN)
+}
+
 /// Every candidate's name, score, parameters and note, a line each (for failure messages).
 fn candidate_table(d: &htfid_diagnose::ModelDiagnosis) -> String {
     d.candidates
@@ -337,13 +345,7 @@ fn large_cubic() -> TimeSeries {
 #[test]
 fn a_cubic_spring_is_named_alone_with_its_coefficient_about_the_rest_point() {
     let d = diagnose_model(&hopper(), &large_cubic(), None, &options()).unwrap();
-    let fitted = |name: &str| {
-        d.extended
-            .as_ref()
-            .and_then(|e| e.parameters.get(name).copied())
-            .unwrap_or(f64::NAN)
-    };
-    let (k3, k) = (fitted("k3_x"), fitted("k"));
+    let (k3, k) = (final_value(&d, "k3_x"), final_value(&d, "k"));
     eprintln!("causes {:?}: k3_x {k3}, k {k}", d.causes);
     assert!(
         d.causes == ["nonlinear_stiffness(x)"]
@@ -369,13 +371,7 @@ fn a_stiffness_error_beside_a_cubic_spring_is_named_with_it() {
         },
     );
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
-    let fitted = |name: &str| {
-        d.extended
-            .as_ref()
-            .and_then(|e| e.parameters.get(name).copied())
-            .unwrap_or(f64::NAN)
-    };
-    let (k3, k) = (fitted("k3_x"), fitted("k"));
+    let (k3, k) = (final_value(&d, "k3_x"), final_value(&d, "k"));
     eprintln!("causes {:?}: k3_x {k3}, k {k}", d.causes);
     assert!(
         d.causes == ["nonlinear_stiffness(x)", "parameter_error"]
