@@ -242,11 +242,12 @@ pub fn rest_point(model: &Model, q: usize, v: usize) -> Option<f64> {
             return None;
         }
         let at = |x: f64| spring.eval_with(&|n| if n == qn { Some(x) } else { known(n) });
-        let (Ok(s0), Ok(a)) = (at(0.0), slope.eval_with(&|n| known(n))) else {
+        let (Ok(s0), Ok(a)) = (at(0.0), slope.eval_with(&known)) else {
             return None;
         };
+        // Not finite for a spring of no stiffness.
         let here = -s0 / a;
-        if !here.is_finite() || a == 0.0 {
+        if !here.is_finite() {
             return None;
         }
         match rest {
