@@ -91,4 +91,4 @@ mod simplify;
 pub use error::ExprError;
 pub use expr::Expr;
 pub use parse::parse;
-pub use program::Program;
+pub use program::{Program, Variables};

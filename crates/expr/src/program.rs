@@ -28,11 +28,21 @@ const MAX_INT_POWER: f64 = 32.0;
 #[derive(Clone, Debug)]
 pub struct Program {
     code: Vec<Instr>,
+    /// The constants, padded with zeros to whole chunks of [`CHUNK`] registers; they are
+    /// loaded from register `const_base` on.
     consts: Vec<f64>,
     outputs: Vec<u32>,
     num_vars: usize,
+    /// First register of the constants: `num_vars` rounded up to a whole chunk.
+    const_base: usize,
     num_regs: usize,
 }
+
+/// Registers are loaded in chunks of this many: a copy whose length is known when the code is
+/// compiled becomes a few vector moves, where a loop over a length known only at run time
+/// becomes a call to `memcpy`, which for a handful of values costs as much as evaluating a
+/// small vector field.
+const CHUNK: usize = 8;
 
 /// One instruction: destination register first, then operands.
 #[derive(Clone, Copy, Debug)]
@@ -324,17 +334,18 @@ impl Program {
     }
 
     /// Evaluates every expression at once: `out[i]` receives expression `i`, with variable `j`
-    /// of the layout taken from `vars[j]`.
+    /// of the layout taken from `vars[j]` (any [`Variables`]: a slice, or values the caller
+    /// writes in place).
     ///
     /// # Panics
     ///
-    /// If `vars.len() < self.num_vars()` or `out.len() < self.len()`: slice lengths are fixed
-    /// by the caller's code, not by user data.
-    pub fn eval(&self, vars: &[f64], out: &mut [f64]) {
+    /// If `vars.count() < self.num_vars()` or `out.len() < self.len()`: slice lengths are
+    /// fixed by the caller's code, not by user data.
+    pub fn eval<V: Variables + ?Sized>(&self, vars: &V, out: &mut [f64]) {
         assert!(
-            vars.len() >= self.num_vars,
+            vars.count() >= self.num_vars,
             "Program::eval: {} variables given, {} needed",
-            vars.len(),
+            vars.count(),
             self.num_vars
         );
         assert!(
@@ -354,17 +365,17 @@ impl Program {
     ///
     /// # Panics
     ///
-    /// If `index >= self.len()` or `vars.len() < self.num_vars()`.
-    pub fn eval_one(&self, index: usize, vars: &[f64]) -> f64 {
+    /// If `index >= self.len()` or `vars.count() < self.num_vars()`.
+    pub fn eval_one<V: Variables + ?Sized>(&self, index: usize, vars: &V) -> f64 {
         assert!(
             index < self.len(),
             "Program::eval_one: output {index} of {}",
             self.len()
         );
         assert!(
-            vars.len() >= self.num_vars,
+            vars.count() >= self.num_vars,
             "Program::eval_one: {} variables given, {} needed",
-            vars.len(),
+            vars.count(),
             self.num_vars
         );
         let mut value = 0.0;
@@ -374,7 +385,7 @@ impl Program {
 
     /// Runs the code in a register file sized to the program (zeroing 512 registers would cost
     /// more than evaluating a small vector field), then hands the registers to `read`.
-    fn with_registers(&self, vars: &[f64], read: impl FnOnce(&[f64])) {
+    fn with_registers<V: Variables + ?Sized>(&self, vars: &V, read: impl FnOnce(&[f64])) {
         let n = self.num_regs;
         if n <= 32 {
             let mut regs = [0.0; 32];
@@ -400,25 +411,75 @@ impl Program {
     /// `num_regs <= N`, so masking with `N - 1` changes nothing, but it proves to the compiler
     /// that the index is in bounds and removes three bounds checks per instruction.
     #[inline]
-    fn run_fixed<const N: usize>(&self, regs: &mut [f64; N], vars: &[f64]) {
-        // Element loops rather than `copy_from_slice`: for a dozen values the two `memcpy`
-        // calls cost more than the copies.
-        let nv = self.num_vars;
-        for (r, v) in regs.iter_mut().zip(&vars[..nv]) {
-            *r = *v;
-        }
-        for (r, c) in regs.iter_mut().skip(nv).zip(&self.consts) {
-            *r = *c;
+    fn run_fixed<V: Variables + ?Sized, const N: usize>(&self, regs: &mut [f64; N], vars: &V) {
+        let base = self.const_base;
+        vars.load(&mut regs[..self.num_vars]);
+        // `base` and the padded constants' length are whole chunks, and `base + consts.len()`
+        // is at most `num_regs <= N`.
+        for (r, c) in regs[base..]
+            .chunks_exact_mut(CHUNK)
+            .zip(self.consts.chunks_exact(CHUNK))
+        {
+            copy_chunk(r, c);
         }
         exec!(&self.code, regs, |x: u32| x as usize & (N - 1));
     }
 
     #[inline]
-    fn load(&self, regs: &mut [f64], vars: &[f64]) {
-        let nv = self.num_vars;
-        regs[..nv].copy_from_slice(&vars[..nv]);
-        regs[nv..nv + self.consts.len()].copy_from_slice(&self.consts);
+    fn load<V: Variables + ?Sized>(&self, regs: &mut [f64], vars: &V) {
+        let base = self.const_base;
+        vars.load(&mut regs[..self.num_vars]);
+        regs[base..base + self.consts.len()].copy_from_slice(&self.consts);
     }
+}
+
+/// The values of a program's variables, in the order of its layout, loaded into its
+/// registers by [`Program::eval`]. A slice (a `Vec`, an array) is the plain case; a caller
+/// that holds its values apart (a time, a state, an input) writes them in place instead, which
+/// saves assembling a slice that is then copied again.
+pub trait Variables {
+    /// How many values there are; a program reads the first [`Program::num_vars`].
+    fn count(&self) -> usize;
+    /// Writes value `j` into `regs[j]` for every `j < regs.len()` (`regs.len() <= count()`).
+    fn load(&self, regs: &mut [f64]);
+}
+
+impl Variables for [f64] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn load(&self, regs: &mut [f64]) {
+        regs.copy_from_slice(&self[..regs.len()]);
+    }
+}
+
+impl Variables for Vec<f64> {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn load(&self, regs: &mut [f64]) {
+        self.as_slice().load(regs);
+    }
+}
+
+impl<const K: usize> Variables for [f64; K] {
+    fn count(&self) -> usize {
+        K
+    }
+
+    fn load(&self, regs: &mut [f64]) {
+        self.as_slice().load(regs);
+    }
+}
+
+/// One chunk of registers: both slices are [`CHUNK`] long.
+#[inline(always)]
+fn copy_chunk(to: &mut [f64], from: &[f64]) {
+    let to: &mut [f64; CHUNK] = to.try_into().expect("a whole chunk");
+    let from: &[f64; CHUNK] = from.try_into().expect("a whole chunk");
+    *to = *from;
 }
 
 /// What one emitted instruction computes, over DAG node operands.
@@ -516,18 +577,25 @@ fn schedule(dag: &Dag, roots: &[u32], num_vars: usize) -> Program {
 
     let mut reg = vec![u32::MAX; n];
     let mut consts = Vec::new();
+    let const_base = num_vars.next_multiple_of(CHUNK);
     for (i, key) in dag.nodes.iter().enumerate() {
         match *key {
             Key::Var(slot) => reg[i] = slot,
             Key::Const(bits) if live[i] => {
-                reg[i] = (num_vars + consts.len()) as u32;
+                reg[i] = (const_base + consts.len()) as u32;
                 consts.push(f64::from_bits(bits));
             }
             _ => {}
         }
     }
-    let mut num_regs = num_vars + consts.len();
-    let mut free: Vec<u32> = Vec::new();
+    // The padding after the constants is loaded with zeros and free for temporaries.
+    let num_consts = consts.len();
+    consts.resize(num_consts.next_multiple_of(CHUNK), 0.0);
+    let mut free: Vec<u32> = (const_base + num_consts..const_base + consts.len())
+        .rev()
+        .map(|r| r as u32)
+        .collect();
+    let mut num_regs = const_base + consts.len();
     let mut code = Vec::new();
     for i in 0..n {
         let Some(form) = forms[i] else { continue };
@@ -578,6 +646,7 @@ fn schedule(dag: &Dag, roots: &[u32], num_vars: usize) -> Program {
         consts,
         outputs,
         num_vars,
+        const_base,
         num_regs,
     }
 }
@@ -615,7 +684,9 @@ mod tests {
     fn constants_fold_and_commuted_operands_meet() {
         let p = compile(&["2*pi*x", "x*(2*pi)"], &["x"]);
         assert_eq!(p.ops(), 1);
-        assert_eq!(p.consts.len(), 1);
+        // One constant, then the padding of its chunk.
+        assert_eq!(p.consts.iter().filter(|c| **c != 0.0).count(), 1);
+        assert_eq!(p.consts.len(), CHUNK);
     }
 
     #[test]
@@ -627,7 +698,7 @@ mod tests {
             .join(" + ");
         let p = compile(&[src.as_str()], &["x"]);
         assert!(
-            p.num_regs < p.num_vars + p.consts.len() + 5,
+            p.num_regs <= (p.const_base + p.consts.len() + 4).next_multiple_of(CHUNK),
             "{} registers",
             p.num_regs
         );

@@ -82,6 +82,10 @@ struct Scratch {
     a: Vec<f64>,
     fp: Vec<f64>,
     one: Vec<f64>,
+    /// `df/dp` before the input's columns are spread beside it.
+    by_params: Vec<f64>,
+    /// The input's directions at the stage's time.
+    w: Vec<f64>,
 }
 
 impl<'a> Augmented<'a> {
@@ -140,22 +144,33 @@ impl HybridSystem for Augmented<'_> {
     fn vector_field(&self, mode: Mode, t: f64, x: &[f64], dxdt: &mut [f64]) {
         let (n, k, kq, m) = (self.n, self.k, self.kq, self.m);
         let (state, s) = x.split_at(n);
-        self.model.vector_field(mode, t, state, &mut dxdt[..n]);
+        // The input is read once per stage: it is the measured signal read between its
+        // samples (and lagged), which costs as much as the model's own field.
+        let u = self.u(t);
         let mut scratch = self.scratch.borrow_mut();
-        let Scratch { a, fp, one } = &mut *scratch;
+        let Scratch {
+            a,
+            fp,
+            one,
+            by_params,
+            w,
+        } = &mut *scratch;
         a.resize(n * n, 0.0);
         fp.resize(n * kq.max(1), 0.0);
-        self.model.jacobian(mode, t, state, a);
-        if let Some((input, _)) = &self.input {
-            let mut by_params = vec![0.0; n * k];
+        self.model
+            .field_and_jacobian(mode, t, state, u, &mut dxdt[..n], a);
+        if let Some((input, directions)) = &self.input {
+            by_params.resize(n * k, 0.0);
             if k > 0 {
-                self.sens.flow(mode, t, state, self.u(t), &mut by_params);
+                self.sens.flow(mode, t, state, u, by_params);
             }
             one.resize(n, 0.0);
-            input.flow(mode, t, state, self.u(t), one);
-            self.spread(n, &by_params, one, &self.directions(t), fp);
+            input.flow(mode, t, state, u, one);
+            w.clear();
+            w.extend(directions.iter().map(|d| d(t)));
+            self.spread(n, by_params, one, w, fp);
         } else if k > 0 {
-            self.sens.flow(mode, t, state, self.u(t), fp);
+            self.sens.flow(mode, t, state, u, fp);
         }
         let ds = &mut dxdt[n..];
         for i in 0..n {

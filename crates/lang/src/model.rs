@@ -4,7 +4,7 @@ use std::fmt;
 use std::path::Path;
 use std::sync::Arc;
 
-use htfid_expr::{Expr, Program};
+use htfid_expr::{Expr, Program, Variables};
 use htfid_hybrid::{Crossing, HybridSystem, Options};
 use htfid_orbit::{find_limit_cycle, LimitCycle, ShootingOptions};
 
@@ -79,28 +79,35 @@ impl fmt::Debug for Model {
     }
 }
 
-/// Variables of every program: `[t, x..., u]`, on the stack for small models.
-const STACK_VARS: usize = 32;
+/// Variables of every program: `[t, x..., u]`, written straight into its registers.
+struct Vars<'a> {
+    t: f64,
+    x: &'a [f64],
+    u: f64,
+}
 
-fn with_vars<R>(t: f64, x: &[f64], u: f64, f: impl FnOnce(&[f64]) -> R) -> R {
-    let n = x.len();
-    if n + 2 <= STACK_VARS {
-        let mut buf = [0.0; STACK_VARS];
-        buf[0] = t;
-        buf[1..=n].copy_from_slice(x);
-        buf[n + 1] = u;
-        f(&buf[..n + 2])
-    } else {
-        let mut buf = Vec::with_capacity(n + 2);
-        buf.push(t);
-        buf.extend_from_slice(x);
-        buf.push(u);
-        f(&buf)
+impl Variables for Vars<'_> {
+    fn count(&self) -> usize {
+        self.x.len() + 2
+    }
+
+    fn load(&self, regs: &mut [f64]) {
+        // Element by element: for a handful of values a `memcpy` costs more than the copies.
+        let values = std::iter::once(self.t)
+            .chain(self.x.iter().copied())
+            .chain(std::iter::once(self.u));
+        for (r, v) in regs.iter_mut().zip(values) {
+            *r = v;
+        }
     }
 }
 
+fn with_vars<R>(t: f64, x: &[f64], u: f64, f: impl FnOnce(&Vars) -> R) -> R {
+    f(&Vars { t, x, u })
+}
+
 /// Evaluates a program with more outputs than the caller wants, into a stack buffer.
-fn with_outputs<R>(p: &Program, vars: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+fn with_outputs<R>(p: &Program, vars: &Vars, f: impl FnOnce(&[f64]) -> R) -> R {
     const STACK_OUT: usize = 256;
     if p.len() <= STACK_OUT {
         let mut buf = [0.0; STACK_OUT];
@@ -569,6 +576,25 @@ impl Model {
         self.u(t)
     }
 
+    /// The vector field of `mode` and its state Jacobian at `(t, x)` with input value `u`
+    /// (read once by the caller), into `dxdt` (n) and `jac` (`n x n` row-major): the forward
+    /// sensitivities need both at every stage.
+    pub(crate) fn field_and_jacobian(
+        &self,
+        mode: Mode,
+        t: f64,
+        x: &[f64],
+        u: f64,
+        dxdt: &mut [f64],
+        jac: &mut [f64],
+    ) {
+        let n = x.len();
+        with_vars(t, x, u, |v| {
+            self.compiled.flow[mode.index()].eval(v, dxdt);
+            self.compiled.jacobian[mode.index()].eval(v, &mut jac[..n * n]);
+        });
+    }
+
     /// The outputs' Jacobian `dy/dx` at `(t, x)` with input value `u`, into `c` (`p x n`
     /// row-major).
     pub fn output_state_jacobian(&self, t: f64, x: &[f64], u: f64, c: &mut [f64]) {
@@ -648,8 +674,10 @@ impl HybridSystem for Model {
         if let Some((reset, _)) = &self.compiled.reset[g] {
             let u = self.u(t);
             let n = x.len();
-            let mut out = [0.0; STACK_VARS];
-            if n <= STACK_VARS {
+            // The new state on the stack for small models.
+            const STACK_STATES: usize = 32;
+            let mut out = [0.0; STACK_STATES];
+            if n <= STACK_STATES {
                 with_vars(t, x, u, |v| reset.eval(v, &mut out[..n]));
                 x.copy_from_slice(&out[..n]);
             } else {
