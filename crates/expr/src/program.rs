@@ -437,6 +437,39 @@ impl Program {
 /// registers by [`Program::eval`]. A slice (a `Vec`, an array) is the plain case; a caller
 /// that holds its values apart (a time, a state, an input) writes them in place instead, which
 /// saves assembling a slice that is then copied again.
+///
+/// ```
+/// use htfid_expr::{parse, Program, Variables};
+///
+/// /// A time and a state, written into the layout `[t, x, v]` where they lie.
+/// struct At<'a> {
+///     t: f64,
+///     state: &'a [f64],
+/// }
+///
+/// impl Variables for At<'_> {
+///     fn count(&self) -> usize {
+///         1 + self.state.len()
+///     }
+///     fn load(&self, regs: &mut [f64]) {
+///         let values = std::iter::once(self.t).chain(self.state.iter().copied());
+///         for (r, v) in regs.iter_mut().zip(values) {
+///             *r = v;
+///         }
+///     }
+/// }
+///
+/// let field = [parse("v")?, parse("-4*x + cos(t)")?];
+/// let program = Program::compile(&field, &["t", "x", "v"])?;
+/// let mut dxdt = [0.0; 2];
+/// program.eval(&At { t: 0.0, state: &[0.5, 2.0] }, &mut dxdt);
+/// assert_eq!(dxdt, [2.0, -1.0]);
+/// // The same values as a slice give the same numbers.
+/// let mut again = [0.0; 2];
+/// program.eval(&[0.0, 0.5, 2.0], &mut again);
+/// assert_eq!(dxdt, again);
+/// # Ok::<(), htfid_expr::ExprError>(())
+/// ```
 pub trait Variables {
     /// How many values there are; a program reads the first [`Program::num_vars`].
     fn count(&self) -> usize;
