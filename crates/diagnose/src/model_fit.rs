@@ -786,7 +786,8 @@ struct Forward {
 /// it). In the second round the best effect's rivals, and every significant effect within
 /// `rival_margin` of it held out however their fits compare, are tried as the first effect
 /// too: beside a second effect, the right one of two look-alikes fits clearly better (an
-/// actuator lag beside a constant force, where a sensor lag alone fits a little better).
+/// actuator lag beside a constant force, where a sensor lag alone fits a little better). So is
+/// the runner-up, the best significant effect not among them.
 fn forward(
     sel: &Selection<'_, '_>,
     candidates: &[Tried],
@@ -807,15 +808,25 @@ fn forward(
     };
     let mut pairs: Vec<Tried> = Vec::new();
     let firsts: Vec<usize> = match best {
-        Some(b) if room(best_score) && opts.max_effects >= 2 => std::iter::once(b)
-            .chain((0..candidates.len()).filter(|&i| {
-                let c = &candidates[i].candidate;
-                i != b
-                    && (alternatives.contains(&c.effect)
-                        || (c.significant
-                            && c.nrmse_validation <= best_score * (1.0 + opts.rival_margin)))
-            }))
-            .collect(),
+        Some(b) if room(best_score) && opts.max_effects >= 2 => {
+            let mut firsts: Vec<usize> = std::iter::once(b)
+                .chain((0..candidates.len()).filter(|&i| {
+                    let c = &candidates[i].candidate;
+                    i != b
+                        && (alternatives.contains(&c.effect)
+                            || (c.significant
+                                && c.nrmse_validation <= best_score * (1.0 + opts.rival_margin)))
+                }))
+                .collect();
+            // The runner-up too, however far behind: the first pick decides the most, and
+            // an effect that stands in for two (drag for damping in flight beside a moved
+            // switch) can win alone while the pair it stands in for fits better.
+            let runner_up = (0..candidates.len())
+                .filter(|i| !firsts.contains(i) && candidates[*i].candidate.significant)
+                .min_by(|&i, &j| by_score(&candidates[i], &candidates[j]));
+            firsts.extend(runner_up);
+            firsts
+        }
         _ => Vec::new(),
     };
     for &b in &firsts {

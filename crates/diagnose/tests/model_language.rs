@@ -472,6 +472,44 @@ fn an_actuator_lag_beside_a_constant_force_is_named_as_such() {
     );
 }
 
+/// Damping in flight (1.03 N s/m) beside a switch moved to 0.0309 m/s (the catalogue's `009`
+/// on this protocol). Alone, quadratic drag fits best: it stands in for both, and beside it
+/// neither passes, while the damping in flight alone is the runner-up and the moved switch
+/// alone does nothing (the refitted `c` takes its part). The runner-up is tried as a first
+/// effect too, and beside it the switch reaches the noise floor: both are named, each within
+/// 2 % of the truth, with no drag.
+#[test]
+fn damping_in_flight_beside_a_moved_switch_is_named_not_drag() {
+    use htfid_truth::Effect;
+    let (v_th, c_f) = (0.030894, 1.0298);
+    let scenario = protocol(
+        vec![
+            Effect::SwitchThreshold { v_th },
+            Effect::FlightDamping { c_f },
+        ],
+        ParameterErrors::default(),
+    );
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
+    let (shift, damping) = (
+        final_value(&d, "shift_1"),
+        final_value(&d, "damping_v_free"),
+    );
+    eprintln!(
+        "cause {} causes {:?}: shift_1 {shift} ({v_th}), damping_v_free {damping} ({c_f})",
+        d.cause.name(),
+        d.causes,
+    );
+    assert!(
+        d.causes == ["mode_damping(v, free)", "guard_shift(v)"]
+            && (shift / v_th - 1.0).abs() < 0.02
+            && (damping / c_f - 1.0).abs() < 0.02,
+        "cause {} causes {:?}: shift_1 = {shift} (true {v_th}), damping_v_free = {damping} \
+         (true {c_f})",
+        d.cause.name(),
+        d.causes,
+    );
+}
+
 /// A damper 11.5 % stronger than configured beside a switch moved to -0.0346 m/s (the
 /// catalogue's `029` on this protocol). The moved switch is named, and beside it the
 /// parameter error: `c` as fitted with the switch is 2.2305 (the truth's 2 x 1.1152), and set
