@@ -2,9 +2,9 @@
 
 default: test
 
-# Format check, lints as errors, docs, the whole test suite, the wide hidden-effect sweep and
-# the full fuzz suite.
-test: fmt-check clippy doc tests sweep fuzz
+# Format check, lints as errors, docs, the whole test suite, the wide hidden-effect sweeps of
+# both diagnoses and the full fuzz suite.
+test: fmt-check clippy doc tests sweep model-sweep fuzz
 
 # Alias kept for CI scripts.
 ci: test
@@ -26,6 +26,11 @@ tests:
 # single and compound effects, sensor-side effects, effects outside the library, clean data.
 sweep:
     cargo test --release --locked -p htfid-diagnose --test independent -- --ignored --nocapture
+
+# The model-file diagnosis on the same generator's 77 core records, the records side by side,
+# with the floors measured on them (about 20 minutes on 2 cores).
+model-sweep:
+    cargo test --release --locked -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture
 
 # The fuzz and fault suite over more seeds than `cargo test` runs (880 cases, about 2 minutes).
 fuzz:
