@@ -7,8 +7,9 @@
 //! definitions substituted into it and be printed back as parseable text. [`Program::compile`]
 //! turns several expressions over one variable layout (states, time, parameters: all are
 //! variables, read from one slice or written in place through [`Variables`]) into a flat
-//! register program; [`Program::eval`] computes all of them at once without allocating. Subexpressions shared between the expressions, as
-//! between a vector field and its Jacobian, are computed once.
+//! register program; [`Program::eval`] computes all of them at once without allocating.
+//! Subexpressions shared between the expressions, as between a vector field and its Jacobian,
+//! are computed once.
 //!
 //! ```
 //! use htfid_expr::{parse, Program};

@@ -29,8 +29,8 @@ fn compiled_agrees_with_tree_walk_on_random_expressions() {
             ];
             let mut out = [0.0; 3];
             p.eval(&vals, &mut out);
-            // The variables in a longer slice (loaded in whole chunks): what lies beyond the
-            // layout is never read, so NaNs there change nothing.
+            // The variables in a longer slice: what lies beyond the layout is never loaded,
+            // so NaNs there change nothing.
             let mut padded = [f64::NAN; 8];
             padded[..3].copy_from_slice(&vals);
             let mut out_padded = [0.0; 3];

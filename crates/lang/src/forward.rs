@@ -111,11 +111,13 @@ impl Augmented<'_> {
         self.model.input_value(t)
     }
 
-    /// The input's directions at `t`.
-    fn directions(&self, t: f64) -> Vec<f64> {
-        self.input
-            .as_ref()
-            .map_or_else(Vec::new, |(_, d)| d.iter().map(|w| w(t)).collect())
+    /// The input's directions at `t`, into `w` (emptied first; none without the input's
+    /// columns).
+    fn directions_into(&self, t: f64, w: &mut Vec<f64>) {
+        w.clear();
+        if let Some((_, directions)) = &self.input {
+            w.extend(directions.iter().map(|d| d(t)));
+        }
     }
 
     /// The parameter terms of every column `j < kq` into `out` (`rows x kq`, row-major): the
@@ -159,15 +161,14 @@ impl HybridSystem for Augmented<'_> {
         fp.resize(n * kq.max(1), 0.0);
         self.model
             .field_and_jacobian(mode, t, state, u, &mut dxdt[..n], a);
-        if let Some((input, directions)) = &self.input {
+        if let Some((input, _)) = &self.input {
             by_params.resize(n * k, 0.0);
             if k > 0 {
                 self.sens.flow(mode, t, state, u, by_params);
             }
             one.resize(n, 0.0);
             input.flow(mode, t, state, u, one);
-            w.clear();
-            w.extend(directions.iter().map(|d| d(t)));
+            self.directions_into(t, w);
             self.spread(n, by_params, one, w, fp);
         } else if k > 0 {
             self.sens.flow(mode, t, state, u, fp);
@@ -234,7 +235,8 @@ impl Augmented<'_> {
             let (mut h_u, mut r_u) = (vec![0.0; 1], vec![0.0; n]);
             input.guard(g, t, &before, u, &mut h_u);
             input.reset(g, t, &before, u, &mut r_u);
-            let w = self.directions(t);
+            let mut w = Vec::new();
+            self.directions_into(t, &mut w);
             self.spread(1, &h_params, &h_u, &w, &mut h_p);
             self.spread(n, &r_params, &r_u, &w, &mut r_p);
         } else {
@@ -376,6 +378,7 @@ pub fn output_sensitivities_with_input(
     let mut yp = vec![0.0; p * kq];
     let mut y_params = vec![0.0; p * k];
     let mut y_u = vec![0.0; p];
+    let mut w = Vec::with_capacity(directions.len());
     for (i, &t) in grid.iter().enumerate() {
         let u = model.input_value(t);
         let state = traj.state(i);
@@ -387,7 +390,8 @@ pub fn output_sensitivities_with_input(
         }
         if let Some((input, _)) = &input {
             input.output(t, x, u, &mut y_u);
-            sys.spread(p, &y_params, &y_u, &sys.directions(t), &mut yp);
+            sys.directions_into(t, &mut w);
+            sys.spread(p, &y_params, &y_u, &w, &mut yp);
         } else {
             yp.copy_from_slice(&y_params);
         }
