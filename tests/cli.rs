@@ -4513,3 +4513,50 @@ fn a_given_period_is_checked_against_the_samples_and_the_data() {
         }
     }
 }
+
+/// `diagnose.parameter_error` names the model's own parameters held at their configured
+/// values: an unknown name, a free parameter (already refitted with every candidate) and a
+/// name given twice are each refused at the key's line, before any output is written.
+#[test]
+fn a_wrong_parameter_error_list_is_refused_at_its_line() {
+    let model = root().join("models/hopper.toml");
+    let cases: &[(&str, &str)] = &[
+        (
+            "[\"m\", \"spring\"]",
+            "the model has no parameter \"spring\"; it has",
+        ),
+        (
+            "[\"m\", \"k\"]",
+            "\"k\" is in model.free, refitted with every candidate already",
+        ),
+        ("[\"m\", \"m\"]", "\"m\" is listed twice"),
+    ];
+    for &(list, message) in cases {
+        let tmp = tempfile::tempdir().unwrap();
+        let (config, line, column) = edited(
+            tmp.path(),
+            "diagnose-hopper-model.toml",
+            "min_gain = 0.05",
+            &format!("min_gain = 0.05\nparameter_error = {list}"),
+        );
+        // The model file and the record, from the shipped config's folder.
+        let text = fs::read_to_string(&config).unwrap();
+        let text = text
+            .replace("../models/hopper.toml", model.to_str().unwrap())
+            .replace(
+                "../data/hopper-protocol.csv",
+                root().join("data/hopper-protocol.csv").to_str().unwrap(),
+            );
+        fs::write(&config, text).unwrap();
+        let error = error_of("diagnose", &config);
+        let at = format!(
+            "error: edited.toml:{}:{}: diagnose.parameter_error: ",
+            line + 1,
+            column + "parameter_error = ".len()
+        );
+        assert!(
+            error.starts_with(&at) && error.contains(message),
+            "{list}: {error}"
+        );
+    }
+}

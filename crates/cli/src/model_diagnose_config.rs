@@ -53,6 +53,7 @@ struct RawOptions {
     significance_sigma: Option<Spanned<f64>>,
     min_gain: Option<Spanned<f64>>,
     effects: Option<Spanned<Vec<String>>>,
+    parameter_error: Option<Spanned<Vec<String>>>,
     alpha: Option<Spanned<f64>>,
     rival_margin: Option<Spanned<f64>>,
     bic_margin: Option<Spanned<f64>>,
@@ -101,6 +102,41 @@ pub struct ModelDiagnoseSettings {
     pub format: DataFormat,
     pub model: htfid_lang::Model,
     pub options: htfid_diagnose::ModelFitOptions,
+}
+
+/// `diagnose.parameter_error`: the model's parameters, none of them free and none twice, whose
+/// error is a candidate effect.
+fn suspects(
+    src: &Source,
+    model: &htfid_lang::Model,
+    list: &Spanned<Vec<String>>,
+    free: &[String],
+) -> Result<Vec<String>, ConfigError> {
+    let key = "diagnose.parameter_error";
+    for (i, name) in list.get_ref().iter().enumerate() {
+        let problem = if model.parameter_index(name).is_none() {
+            format!(
+                "the model has no parameter \"{name}\"; it has {}",
+                model
+                    .parameters()
+                    .iter()
+                    .map(|p| p.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        } else if free.contains(name) {
+            format!(
+                "\"{name}\" is in model.free, refitted with every candidate already; list here \
+                 only parameters held at their configured values"
+            )
+        } else if list.get_ref()[..i].contains(name) {
+            format!("\"{name}\" is listed twice")
+        } else {
+            continue;
+        };
+        return Err(src.error(Some(&list.span()), key, problem));
+    }
+    Ok(list.get_ref().clone())
 }
 
 /// Whether the config at `path` names a model file in `[model]` (so it takes this path).
@@ -208,8 +244,13 @@ impl ModelDiagnoseSettings {
                 .collect(),
         };
         let o = raw.diagnose.as_ref();
+        let parameter_error = match o.and_then(|o| o.parameter_error.as_ref()) {
+            Some(list) => suspects(&src, &model, list, &free)?,
+            None => Vec::new(),
+        };
         let mut options = htfid_diagnose::ModelFitOptions {
             free,
+            parameter_error,
             ..Default::default()
         };
         if let Some(v) = o.and_then(|o| o.fit_fraction.as_ref()) {

@@ -19,6 +19,16 @@ pub enum DiagnoseError {
         /// What failed.
         reason: String,
     },
+    /// A list of parameter names holds one it may not.
+    #[error("{option} cannot hold \"{parameter}\": it must list {expected}")]
+    InvalidParameterName {
+        /// The option (a field of the options).
+        option: &'static str,
+        /// The name given.
+        parameter: String,
+        /// What the list must hold.
+        expected: &'static str,
+    },
     /// An option is out of range.
     #[error("{name} must be {expected} (got {value})")]
     InvalidOption {

@@ -26,6 +26,12 @@ pub use search::{ModelDiscovered, ModelDiscoveredTerm};
 pub struct ModelFitOptions {
     /// Parameters refitted (names); the others stay as configured.
     pub free: Vec<String>,
+    /// The model's own parameters, none of them `free`, whose error is a candidate effect:
+    /// held at their configured values everywhere else, they are refitted together as the
+    /// candidate `parameter_error`, which competes with the library's effects and can be
+    /// chosen beside them (empty by default: no such candidate). With `free` empty and the
+    /// suspected parameters here, nothing is refitted unless the data ask for it.
+    pub parameter_error: Vec<String>,
     /// Share of the record (from its start) the fit uses; the rest is held out.
     pub fit_fraction: f64,
     /// Seconds at the start of the record left out of every score (the unknown initial
@@ -109,6 +115,7 @@ impl Default for ModelFitOptions {
     fn default() -> Self {
         ModelFitOptions {
             free: Vec::new(),
+            parameter_error: Vec::new(),
             fit_fraction: 0.7,
             burn_in: 2.0,
             significance_sigma: 5.0,
@@ -390,13 +397,29 @@ pub fn diagnose_model(
         .map(|name| {
             model
                 .parameter_index(name)
-                .ok_or(DiagnoseError::InvalidOption {
-                    name: "free",
+                .ok_or_else(|| DiagnoseError::InvalidParameterName {
+                    option: "free",
+                    parameter: name.clone(),
                     expected: "names of the model's parameters",
-                    value: f64::NAN,
                 })
         })
         .collect::<Result<_, _>>()?;
+    for (i, name) in opts.parameter_error.iter().enumerate() {
+        let expected = if model.parameter_index(name).is_none() {
+            "names of the model's parameters"
+        } else if opts.free.contains(name) {
+            "parameters that are not free (a free one is refitted with every candidate)"
+        } else if opts.parameter_error[..i].contains(name) {
+            "each parameter once"
+        } else {
+            continue;
+        };
+        return Err(DiagnoseError::InvalidParameterName {
+            option: "parameter_error",
+            parameter: name.clone(),
+            expected,
+        });
+    }
     let names: Vec<&str> = opts.free.iter().map(String::as_str).collect();
     let outputs: Vec<String> = model.outputs().iter().map(|o| o.name.clone()).collect();
     let joint = Joint {
@@ -441,6 +464,9 @@ pub fn diagnose_model(
         trials.push(Trial::Boundary(e, names));
     }
     trials.extend(terms.into_iter().map(Trial::Term));
+    if !opts.parameter_error.is_empty() {
+        trials.push(Trial::Parameters(opts.parameter_error.clone()));
+    }
     let sel = Selection {
         opts,
         est: &est,
@@ -554,7 +580,9 @@ pub fn diagnose_model(
         .as_ref()
         .map(|c| c.set.iter().map(|&i| trials[i].name()).collect())
         .unwrap_or_default();
-    if parameters_beside.as_ref().is_some_and(|p| p.named) {
+    if parameters_beside.as_ref().is_some_and(|p| p.named)
+        && !causes.iter().any(|c| c == "parameter_error")
+    {
         causes.push("parameter_error".into());
     }
     let (extended, simulated_extended) = match current {
@@ -923,6 +951,7 @@ fn decide(
     let cause = match &lead {
         _ if structure_left && explained < opts.min_explained => ModelCause::Unexplained,
         Some(_) if !alternatives.is_empty() => ModelCause::Ambiguous,
+        Some(name) if name == "parameter_error" => ModelCause::ParameterError,
         Some(name) => ModelCause::Effect(name.clone()),
         None if refit.moved && refit.gain >= opts.min_gain => ModelCause::ParameterError,
         None => ModelCause::None,

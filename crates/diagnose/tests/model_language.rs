@@ -633,3 +633,90 @@ fn a_flipped_sign_or_a_unit_slip_is_refused_before_any_fit() {
         assert!(d.is_ok(), "k = {k}: {:?}", d.map(|_| ()));
     }
 }
+
+/// Nothing refitted with every candidate, `m`, `k` and `c` the candidate `parameter_error`.
+fn nothing_refitted() -> ModelFitOptions {
+    ModelFitOptions {
+        parameter_error: vec!["m".into(), "k".into(), "c".into()],
+        ..ModelFitOptions::default()
+    }
+}
+
+/// With nothing refitted, a spring 3 % stiffer than configured (truth 206 N/m) is the
+/// candidate `parameter_error`, chosen against every library effect: its fit holds `k`
+/// within 0.5 % of the truth (the refit's own test above asks the same), and `m` and `c`
+/// within 1 % of their configured 1 and 2 (the record's noise is 2e-6 m against a motion of
+/// centimetres; 1 % leaves room for a trade between them over 90 s).
+#[test]
+fn nothing_refitted_a_stiffer_spring_is_the_candidate_parameter_error() {
+    let scenario = protocol(
+        Vec::new(),
+        ParameterErrors {
+            k: 0.03,
+            ..ParameterErrors::default()
+        },
+    );
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &nothing_refitted()).unwrap();
+    let (m, k, c) = (
+        final_value(&d, "m"),
+        final_value(&d, "k"),
+        final_value(&d, "c"),
+    );
+    assert!(
+        d.cause == ModelCause::ParameterError
+            && d.causes == ["parameter_error"]
+            && (k / 206.0 - 1.0).abs() < 5e-3
+            && (m - 1.0).abs() < 0.01
+            && (c / 2.0 - 1.0).abs() < 0.01,
+        "cause {} causes {:?}: m {m}, k {k}, c {c}\n{}",
+        d.cause.name(),
+        d.causes,
+        candidate_table(&d)
+    );
+}
+
+/// With nothing refitted, the nominal hopper's record names nothing: the candidate
+/// `parameter_error` is tried (it is in `candidates`) and does not pass.
+#[test]
+fn nothing_refitted_the_nominal_hopper_gives_none() {
+    let scenario = protocol(Vec::new(), ParameterErrors::default());
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &nothing_refitted()).unwrap();
+    let tried = d.candidates.iter().find(|c| c.effect == "parameter_error");
+    assert!(
+        d.cause == ModelCause::None && tried.is_some_and(|c| !c.significant),
+        "cause {} causes {:?}\n{}",
+        d.cause.name(),
+        d.causes,
+        candidate_table(&d)
+    );
+}
+
+/// The candidate's parameters must be the model's, not free, each once: each mistake is
+/// refused before any fit.
+#[test]
+fn a_parameter_error_list_must_name_held_parameters_once() {
+    let scenario = protocol(Vec::new(), ParameterErrors::default());
+    let rec = record(&scenario);
+    for (list, free) in [
+        (vec!["spring"], vec![]),
+        (vec!["k"], vec!["k"]),
+        (vec!["m", "m"], vec![]),
+    ] {
+        let opts = ModelFitOptions {
+            parameter_error: list.iter().map(|s| s.to_string()).collect(),
+            free: free.iter().map(|s| s.to_string()).collect(),
+            ..ModelFitOptions::default()
+        };
+        let e = diagnose_model(&hopper(), &rec, None, &opts).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                htfid_diagnose::DiagnoseError::InvalidParameterName {
+                    option: "parameter_error",
+                    ..
+                }
+            ),
+            "{list:?} beside free {free:?}: {e}"
+        );
+    }
+}

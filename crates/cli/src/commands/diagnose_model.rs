@@ -139,6 +139,7 @@ pub fn run(
         "max_iterations": s.options.max_iterations,
         "candidate_max_iterations": s.options.candidate_max_iterations,
         "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "parameter_error": s.options.parameter_error,
         "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
         "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({
             "name": t.name,
@@ -292,6 +293,54 @@ pub fn run(
     let unit = |name: &str| parameter_unit(&s, name);
     crate::results::diagnose_model(&json, &unit, &dir, &written);
     Ok(())
+}
+
+/// The parameters of the candidate `parameter_error` (`diagnose.parameter_error`) as the
+/// final fit holds them: each from its configured value, with its standard error and by how
+/// many standard errors it moved.
+fn suspect_list(
+    d: &ModelDiagnosis,
+    s: &ModelDiagnoseSettings,
+    unit: &dyn Fn(&str) -> Option<String>,
+) -> String {
+    let Some(c) = &d.extended else {
+        return String::new();
+    };
+    let values = s.model.values();
+    let (mut moved, mut kept) = (Vec::new(), Vec::new());
+    for name in &s.options.parameter_error {
+        let (Some(i), Some(&v), Some(&se)) = (
+            s.model.parameter_index(name),
+            c.parameters.get(name),
+            c.stderr.get(name),
+        ) else {
+            continue;
+        };
+        let z = (v - values[i]) / se;
+        if z.abs() >= s.options.significance_sigma {
+            moved.push(format!(
+                "`{name}` moves from {} to {} ({} standard errors)",
+                sig(values[i], 4),
+                Quantity::new(v).stderr(se).unit(unit(name).as_deref()),
+                sig(z.abs(), 2)
+            ));
+        } else {
+            kept.push(format!("`{name}`"));
+        }
+    }
+    let mut out = moved.join(", ");
+    if !kept.is_empty() {
+        out.push_str(&format!(
+            "{}{} {} within {} standard errors of {} configured value{}",
+            if out.is_empty() { "" } else { "; " },
+            kept.join(" and "),
+            if kept.len() == 1 { "stays" } else { "stay" },
+            sig(s.options.significance_sigma, 2),
+            if kept.len() == 1 { "its" } else { "their" },
+            if kept.len() == 1 { "" } else { "s" },
+        ));
+    }
+    out
 }
 
 /// The free parameters beside the named effects, when some moved: a parameter error when
@@ -536,6 +585,31 @@ fn decision(
         })
         .collect();
     let mut decision = match &d.cause {
+        // The candidate `parameter_error` chosen first: its own fit.
+        ModelCause::ParameterError if d.extended.is_some() => {
+            let c = d.extended.as_ref();
+            let others: Vec<String> = d
+                .causes
+                .iter()
+                .filter(|n| *n != "parameter_error")
+                .map(|n| format!("`{n}`"))
+                .collect();
+            format!(
+                "**The configured parameters of model `{model}` are off.** Refitted as the \
+                 candidate `parameter_error`, {}; the held-out error falls from {} to {} \
+                 NRMSE (likelihood ratio {:.1}, at least {:.1} needed).{}",
+                suspect_list(d, s, &unit),
+                percent(after, 3),
+                percent(c.map_or(f64::NAN, |c| c.nrmse_validation), 3),
+                c.map_or(f64::NAN, |c| c.likelihood_ratio),
+                c.map_or(f64::NAN, |c| c.critical),
+                if others.is_empty() {
+                    String::new()
+                } else {
+                    format!(" Beside it the model misses {}.", others.join(" and "))
+                }
+            )
+        }
         ModelCause::ParameterError => format!(
             "**The configured parameters of model `{model}` are off.** Refitting them moves {}, \
              and lowers the error on held-out data from {} to {} NRMSE, {} less.",
@@ -620,7 +694,18 @@ fn decision(
                     c.map_or(f64::NAN, |c| c.critical)
                 ),
             };
-            text + &beside_sentence(d, s.options.min_gain, &unit)
+            let suspects = if d.causes.iter().any(|n| n == "parameter_error")
+                && !d.parameters_beside.as_ref().is_some_and(|p| p.named)
+            {
+                format!(
+                    " **The configured parameters are off as well** (the candidate \
+                     `parameter_error`, fitted with them): {}.",
+                    suspect_list(d, s, &unit)
+                )
+            } else {
+                String::new()
+            };
+            text + &suspects + &beside_sentence(d, s.options.min_gain, &unit)
         }
         ModelCause::Ambiguous => format!(
             "**Several effects explain the data of `{}` equally well:** {}. \
@@ -794,23 +879,39 @@ fn data_section(r: &mut Report, s: &ModelDiagnoseSettings) {
             percent(1.0 - s.options.fit_fraction, 2)
         ),
     };
-    r.list(&[
+    let listed = |names: &[String]| {
+        names
+            .iter()
+            .map(|p| format!("`{p}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut items = vec![
         format!(
             "Config: `{}`; data: `{}`.",
             shown_path(&s.path),
             shown_path(&s.file)
         ),
-        format!(
-            "Refitted: {} (the model's own parameters only).",
-            s.options
-                .free
-                .iter()
-                .map(|p| format!("`{p}`"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-        format!("Held out from the fit and used to judge it: {held_out}."),
-    ]);
+        if s.options.free.is_empty() {
+            "Refitted with every candidate: nothing (the model as configured).".to_string()
+        } else {
+            format!(
+                "Refitted with every candidate: {} (the model's own parameters only).",
+                listed(&s.options.free)
+            )
+        },
+    ];
+    if !s.options.parameter_error.is_empty() {
+        items.push(format!(
+            "Held at their configured values, and refitted together only as the candidate \
+             `parameter_error`: {}.",
+            listed(&s.options.parameter_error)
+        ));
+    }
+    items.push(format!(
+        "Held out from the fit and used to judge it: {held_out}."
+    ));
+    r.list(&items);
 }
 
 /// One row per effect of `list` in the tables of effects tried: its parameters (those of

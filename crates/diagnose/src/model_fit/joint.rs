@@ -16,6 +16,10 @@ pub(super) enum Trial {
     /// [`BoundaryEffect::parameter_names`], suffixed where the model or a term uses them).
     Boundary(BoundaryEffect, Vec<String>),
     Term(TermEffect),
+    /// `parameter_error`: the model's own parameters named here, held at their configured
+    /// values everywhere else, refitted together as one candidate effect
+    /// ([`ModelFitOptions::parameter_error`](super::ModelFitOptions::parameter_error)).
+    Parameters(Vec<String>),
 }
 
 impl Trial {
@@ -23,19 +27,20 @@ impl Trial {
         match self {
             Trial::Boundary(e, _) => e.name().to_string(),
             Trial::Term(t) => t.name.clone(),
+            Trial::Parameters(_) => "parameter_error".to_string(),
         }
     }
 
     pub(super) fn describe(&self) -> Option<String> {
         match self {
-            Trial::Boundary(..) => None,
+            Trial::Boundary(..) | Trial::Parameters(_) => None,
             Trial::Term(t) => Some(t.describe()),
         }
     }
 
     pub(super) fn parameter_names(&self) -> Vec<String> {
         match self {
-            Trial::Boundary(_, names) => names.clone(),
+            Trial::Boundary(_, names) | Trial::Parameters(names) => names.clone(),
             Trial::Term(t) => t.parameter_names(),
         }
     }

@@ -98,6 +98,16 @@ fn model_error(e: htfid_lang::ModelError) -> DiagnoseError {
     }
 }
 
+/// The scale of a meaningful change of each of the model's parameters `names`, as the free
+/// parameters': the configured magnitude, at least 1e-3.
+fn parameter_scales<'n>(model: &'n Model, names: &'n [String]) -> impl Iterator<Item = f64> + 'n {
+    names.iter().map(|n| {
+        model
+            .parameter_index(n)
+            .map_or(1.0, |i| model.values()[i].abs().max(1e-3))
+    })
+}
+
 /// Where the selection runs: the records, the refitted nominal model and its fit, and the
 /// candidates.
 pub(super) struct Selection<'a, 'r> {
@@ -170,6 +180,36 @@ impl Selection<'_, '_> {
                         let m = joint_b.model_at(&f.params[..k])?;
                         let b = Boundary::with(effect, &f.params[k..], outputs.len());
                         let (score, sim) = self.score(&m, &f.state, &b)?;
+                        Ok((f, score, sim))
+                    })
+                }
+                Trial::Parameters(added) => {
+                    // The model's own parameters beside the free ones, from their configured
+                    // values and the refit's state.
+                    let model = self.refitted_model;
+                    let all: Vec<&str> = names
+                        .iter()
+                        .copied()
+                        .chain(added.iter().map(String::as_str))
+                        .collect();
+                    let index_p: Vec<usize> = all
+                        .iter()
+                        .filter_map(|n| model.parameter_index(n))
+                        .collect();
+                    let mut scales = joint.scales.clone();
+                    scales.extend(parameter_scales(model, added));
+                    let joint_p = Joint {
+                        est,
+                        model,
+                        names: &all,
+                        index: &index_p,
+                        scales,
+                        max_iter: opts.candidate_max_iterations,
+                        ftol: joint.ftol,
+                    };
+                    joint_p.fit(&[], &[], &base.state).and_then(|f| {
+                        let m = joint_p.model_at(&f.params)?;
+                        let (score, sim) = self.score(&m, &f.state, &ideal)?;
                         Ok((f, score, sim))
                     })
                 }
@@ -344,6 +384,8 @@ impl Selection<'_, '_> {
                     boundary.push(*e);
                     names.push(n.as_slice());
                 }
+                // The model's own parameters: `fit_set` frees them.
+                Trial::Parameters(_) => {}
             }
         }
         Ok((m, terms, boundary, names))
@@ -364,6 +406,16 @@ impl Selection<'_, '_> {
         for term in &terms {
             all.extend(term.parameter_names());
         }
+        // A `parameter_error` in the set frees the model's own parameters it names.
+        let suspects: Vec<&String> = set
+            .iter()
+            .filter_map(|&i| match &self.trials[i] {
+                Trial::Parameters(p) => Some(p),
+                _ => None,
+            })
+            .flatten()
+            .collect();
+        all.extend(suspects.iter().map(|n| (*n).clone()));
         let values: Vec<(&str, f64)> = all
             .iter()
             .filter_map(|n| known.get(n).map(|v| (n.as_str(), *v)))
@@ -381,6 +433,8 @@ impl Selection<'_, '_> {
         for term in &terms {
             scales.extend(self.samples.term_scales(&m, &est.signal, term));
         }
+        let suspects: Vec<String> = suspects.into_iter().cloned().collect();
+        scales.extend(parameter_scales(self.refitted_model, &suspects));
         // Any other term not fitted before starts its first parameter from the best of a grid
         // across its scale, zero included: beside the chosen effects the free parameters have
         // compensated for them, and from zero its fit can stay in that basin (drag beside a
