@@ -2442,6 +2442,47 @@ fn diagnose_names_a_shifted_parameter_of_every_model() {
             (fitted / truth - 1.0).abs() < 2e-3,
             "{model}: {param} = {fitted}, truth {truth}"
         );
+        // The evidence figures (every shipped model has a forcing period: the orbit too),
+        // and the held-out error step by step: configured, the refit, the final level, each
+        // the held-out score reported beside it (mean over the outputs).
+        for figure in [
+            "residual_time",
+            "residual_spectrum",
+            "orbit",
+            "error_waterfall",
+        ] {
+            for ext in ["svg", "png"] {
+                assert!(
+                    out.join(format!("{figure}.{ext}")).is_file(),
+                    "{model}: {figure}.{ext}"
+                );
+            }
+        }
+        let mean = |v: &serde_json::Value| {
+            let a = v.as_array().unwrap();
+            a.iter().map(|x| x.as_f64().unwrap()).sum::<f64>() / a.len() as f64
+        };
+        let steps = d["error_waterfall"].as_array().unwrap();
+        let names: Vec<&str> = steps.iter().map(|s| s["step"].as_str().unwrap()).collect();
+        assert_eq!(names, ["configured", "refitted", "final"], "{model}");
+        let configured = mean(&d["configured"]["nrmse_validation"]);
+        let refitted = mean(&d["refitted"]["nrmse_validation"]);
+        // Equal up to the rounding of the means (1e-12 relative; one unit in the last place).
+        let same = |step: usize, key: &str, v: f64| {
+            let w = steps[step][key].as_f64().unwrap();
+            assert!(
+                (w / v - 1.0).abs() < 1e-12,
+                "{model}: step {step} {key} {w} against {v}"
+            );
+        };
+        same(0, "after", configured);
+        same(1, "before", configured);
+        same(1, "after", refitted);
+        same(2, "after", refitted);
+        assert!(
+            refitted < configured,
+            "{model}: {refitted} against {configured}"
+        );
     }
 }
 

@@ -14,6 +14,8 @@
 //! - [`error_waterfall`]: the held-out RMSE from the configured model through the refit of
 //!   its free parameters and each selected effect to the final model.
 //! - [`amplitude_spectrum`]: where in frequency a residual's error sits.
+//! - [`period_average`]: a signal folded over the forcing period, with the standard error of
+//!   each phase bin's mean across the periods.
 
 use std::ops::Range;
 
@@ -122,6 +124,28 @@ pub fn binned_means(
             }
         })
         .collect()
+}
+
+/// The period average of `y` sampled at times `t` (s): its means in `bins` equal bins of the
+/// phase `t mod period` over `[0, period)`, each with its standard error across the periods
+/// (every period one block of [`binned_means`]: the samples of one pass through a phase are
+/// correlated, the passes of different periods are taken as independent). Samples that are
+/// not finite are left out, and so are bins without samples.
+///
+/// # Panics
+///
+/// When `t` and `y` differ in length (a broken contract of the caller).
+pub fn period_average(t: &[f64], y: &[f64], period: f64, bins: usize) -> Vec<Bin> {
+    assert_eq!(t.len(), y.len(), "period_average: one time per sample");
+    if !(period.is_finite() && period > 0.0) {
+        return Vec::new();
+    }
+    let phase: Vec<f64> = t.iter().map(|ti| ti.rem_euclid(period)).collect();
+    let block: Vec<usize> = t
+        .iter()
+        .map(|ti| (ti / period).floor().max(0.0) as usize)
+        .collect();
+    binned_means(&phase, y, &block, bins, (0.0, period))
 }
 
 /// How far a set of bin means stands from zero, in their own standard errors.
@@ -461,6 +485,43 @@ mod tests {
             a[0]
         );
         assert!(amplitude_spectrum(&x[..15], dt).0.is_empty());
+    }
+
+    /// A sine of period `T` folded over `T`: each of 10 bins holds the mean of the sine over
+    /// its phases, `(cos a - cos b) / (b - a)` for a bin from `a` to `b` rad (the samples'
+    /// midpoint rule differs from the integral by about `h^2 f'' / 24`, 2e-6 at 1000 samples
+    /// a period: 1e-5 allowed). White noise of 0.1 added (seeded) over 400 periods: each bin's
+    /// standard error across the periods is `0.1 / sqrt(n)` for its `n` samples, within 20 %
+    /// (400 blocks estimate it to about 4 %).
+    #[test]
+    fn a_folded_sine_reads_its_bin_averages_and_noise_its_standard_error() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        use std::f64::consts::PI;
+        let (period, per, periods) = (0.8, 1000, 400);
+        let dt = period / per as f64;
+        let t: Vec<f64> = (0..per * periods).map(|i| (i as f64 + 0.5) * dt).collect();
+        let y: Vec<f64> = t.iter().map(|ti| (2.0 * PI * ti / period).sin()).collect();
+        let bins = period_average(&t, &y, period, 10);
+        assert_eq!(bins.len(), 10);
+        for (k, b) in bins.iter().enumerate() {
+            let (a, c) = (2.0 * PI * k as f64 / 10.0, 2.0 * PI * (k + 1) as f64 / 10.0);
+            let exact = (a.cos() - c.cos()) / (c - a);
+            assert_abs_diff_eq!(b.mean, exact, epsilon = 1e-5);
+            assert_eq!((b.count, b.blocks), (100 * periods, periods));
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let normal = Normal::new(0.0, 0.1).unwrap();
+        let noisy: Vec<f64> = y.iter().map(|v| v + normal.sample(&mut rng)).collect();
+        for b in period_average(&t, &noisy, period, 10) {
+            let expected = 0.1 / (b.count as f64).sqrt();
+            assert!(
+                (b.stderr / expected - 1.0).abs() < 0.2,
+                "stderr {} against {expected}",
+                b.stderr
+            );
+        }
+        assert!(period_average(&t, &y, 0.0, 10).is_empty());
     }
 
     #[test]

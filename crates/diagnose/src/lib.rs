@@ -243,8 +243,9 @@ pub use discover::{Discovered, DiscoveredTerm};
 pub use effect::{Effect, NominalParam, UnknownEffect};
 pub use error::DiagnoseError;
 pub use evidence::{
-    amplitude_spectrum, binned_means, error_waterfall, quantile_range, residual_acceleration, Bin,
-    BinnedResidual, ErrorStep, ResidualSamples, Structure, MIN_BLOCKS, PHASE_BINS, STATE_BINS,
+    amplitude_spectrum, binned_means, error_waterfall, period_average, quantile_range,
+    residual_acceleration, Bin, BinnedResidual, ErrorStep, ResidualSamples, Structure, MIN_BLOCKS,
+    PHASE_BINS, STATE_BINS,
 };
 pub use htf::{
     htf_comparison, HarmonicDifference, HtfComparison, HtfComparisonSpec, DIFFERENCE_SIGMAS,

@@ -14,6 +14,7 @@ mod joint;
 mod prepared;
 mod search;
 mod selection;
+mod waterfall;
 
 use joint::{Joint, JointFit, Trial, Tried};
 use prepared::Prepared;
@@ -467,6 +468,7 @@ pub fn diagnose_model(
     if !opts.parameter_error.is_empty() {
         trials.push(Trial::Parameters(opts.parameter_error.clone()));
     }
+    let aliases = selection::aliases(&trials, &refit.model, &samples, &opts.parameter_error);
     let sel = Selection {
         opts,
         est: &est,
@@ -479,6 +481,7 @@ pub fn diagnose_model(
         outputs: &outputs,
         trials: &trials,
         samples: &samples,
+        aliases: &aliases,
     };
     let n = est.residual_len();
     let candidates = sel.first_round();

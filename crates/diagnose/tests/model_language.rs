@@ -720,3 +720,34 @@ fn a_parameter_error_list_must_name_held_parameters_once() {
         );
     }
 }
+
+/// With nothing refitted, a damper 10 % stronger than configured (truth 2.2 N s/m) is the
+/// candidate `parameter_error`, not extra damping in the mode where the damper acts: that term
+/// only re-expresses a change of `c` (its derivatives are `c`'s times `m`), fits exactly as
+/// well with one parameter instead of three, and is marked so. `c` within 0.5 % of the truth.
+#[test]
+fn nothing_refitted_a_stronger_damper_is_a_parameter_error_not_damping_in_its_mode() {
+    let scenario = protocol(
+        Vec::new(),
+        ParameterErrors {
+            c: 0.1,
+            ..ParameterErrors::default()
+        },
+    );
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &nothing_refitted()).unwrap();
+    let c = final_value(&d, "c");
+    let alias = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == "mode_damping(v, damped)");
+    assert!(
+        d.cause == ModelCause::ParameterError
+            && d.causes == ["parameter_error"]
+            && (c / 2.2 - 1.0).abs() < 5e-3
+            && alias.is_some_and(|a| !a.significant && a.note.contains("re-expresses")),
+        "cause {} causes {:?}: c {c}\n{}",
+        d.cause.name(),
+        d.causes,
+        candidate_table(&d)
+    );
+}

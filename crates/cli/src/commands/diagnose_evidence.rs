@@ -260,16 +260,39 @@ pub fn draw_waterfall(
     report: &DiagnosisReport,
     ev: &Evidence,
 ) -> Result<()> {
-    let free = s.free.join(", ");
+    let u = unit_or_words(s);
+    let fig = waterfall_figure(
+        &s.name,
+        &ev.waterfall,
+        &format!("refit {}", s.free.join(", ")),
+        ("held-out RMSE", &format!("held-out RMSE ({u})")),
+        report
+            .noise_floor
+            .map(|floor| (floor, format!("noise floor ({} {u})", num(floor, 3)))),
+    );
+    plots::write(out, "error_waterfall", &fig)
+}
+
+/// The figure of a held-out error from the configured to the final model, step by step
+/// (`steps` as `htfid-diagnose` gives them: `configured`, `refitted`, the effects, `final`):
+/// the refit's bar named `refit` under the axis, the error's name and axis label in `measure`,
+/// and the noise floor with its legend.
+pub fn waterfall_figure(
+    name: &str,
+    steps: &[ErrorStep],
+    refit: &str,
+    measure: (&str, &str),
+    floor: Option<(f64, String)>,
+) -> htfid_plot::Figure {
     let mut bars = Vec::new();
     let mut seen_nominal = false;
     let mut seen_extended = false;
-    for (i, step) in ev.waterfall.iter().enumerate() {
+    for (i, step) in steps.iter().enumerate() {
         let (name, from, role) = match step.step.as_str() {
             "configured" => ("configured".to_string(), 0.0, Role::Nominal),
             // Without a configured level the refitted model's level comes first.
             "refitted" if i == 0 => ("refitted".to_string(), 0.0, Role::Nominal),
-            "refitted" => (format!("refit {free}"), step.before, Role::Nominal),
+            "refitted" => (refit.to_string(), step.before, Role::Nominal),
             "final" => ("final model".to_string(), 0.0, Role::Extended),
             effect => (format!("+ {effect}"), step.before, Role::Extended),
         };
@@ -292,24 +315,17 @@ pub fn draw_waterfall(
             legend,
         });
     }
-    let u = unit_or_words(s);
     let panel = waterfall_panel(
-        "held-out RMSE, step by step",
-        &format!("held-out RMSE ({u})"),
+        &format!("{}, step by step", measure.0),
+        measure.1,
         &bars,
-        report
-            .noise_floor
-            .map(|floor| (floor, format!("noise floor ({} {u})", num(floor, 3)))),
+        floor,
     );
     let fig = stacked_figure(
-        format!(
-            "{}: held-out error from the configured to the final model",
-            s.name
-        ),
+        format!("{name}: held-out error from the configured to the final model"),
         vec![panel],
     );
-    let fig = htfid_plot::Figure { height: 420, ..fig };
-    plots::write(out, "error_waterfall", &fig)
+    htfid_plot::Figure { height: 420, ..fig }
 }
 
 /// The samples of the residual-in-time window: a few forcing periods (or natural periods of

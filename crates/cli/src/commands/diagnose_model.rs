@@ -27,18 +27,20 @@ pub fn run(
         crate::limits::check_data_file(&s.path, "data.validation", v)?;
     }
     let dir = resolve_dir(out, &s.name);
-    let mut outdir = open(
-        &dir,
-        force,
-        &[
-            "diagnosis.json",
-            "report.md",
-            "compare.svg",
-            "compare.png",
-            "resid.svg",
-            "resid.png",
-        ],
-    )?;
+    let mut names: Vec<String> = ["diagnosis.json", "report.md"]
+        .iter()
+        .map(|n| n.to_string())
+        .collect();
+    // The orbit is drawn for a model with a forcing period only.
+    for figure in ["compare", "resid"]
+        .into_iter()
+        .chain(super::diagnose_model_evidence::FIGURES)
+        .filter(|f| *f != "orbit" || s.model.period().is_some())
+    {
+        names.extend([format!("{figure}.svg"), format!("{figure}.png")]);
+    }
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let mut outdir = open(&dir, force, &names)?;
     let record = read_model_record(&s, &s.file)?;
     let validation = match &s.validation {
         Some(path) => Some(read_model_record(&s, path)?),
@@ -173,6 +175,7 @@ pub fn run(
         "explained": d.explained,
         "validation": validation_json,
         "options": options,
+        "error_waterfall": d.error_waterfall(!s.options.free.is_empty()),
     });
     let mut json = json;
     if let Some(found) = &d.discovered {
@@ -289,6 +292,7 @@ pub fn run(
     ) {
         crate::plots::write(&mut outdir, "resid", &fig)?;
     }
+    super::diagnose_model_evidence::draw(&mut outdir, &s, &d, shown, held_out.clone())?;
     let written = outdir.commit()?;
     let unit = |name: &str| parameter_unit(&s, name);
     crate::results::diagnose_model(&json, &unit, &dir, &written);
@@ -553,7 +557,32 @@ fn report(
     data_section(&mut r, s);
     effects_sections(&mut r, s, d);
     errors_and_parameters(&mut r, s, d, checks);
+    figures_section(&mut r, s);
     r.finish()
+}
+
+/// The evidence figures (beside `compare` and `resid`, shown with the validation), each with
+/// what it shows.
+fn figures_section(r: &mut Report, s: &ModelDiagnoseSettings) {
+    r.section("Where the error sits");
+    r.figure(
+        "residual_time.png",
+        "The held-out residual in time: its RMS per forcing period, and the first periods",
+    );
+    r.figure(
+        "residual_spectrum.png",
+        "Where in frequency the held-out residual sits",
+    );
+    if s.model.period().is_some() {
+        r.figure(
+            "orbit.png",
+            "The orbit folded over the forcing period, with ±2 standard errors across the periods",
+        );
+    }
+    r.figure(
+        "error_waterfall.png",
+        "The held-out NRMSE from the configured to the final model, step by step",
+    );
 }
 
 /// The decision in words, and whether the refitted model's residual is white.

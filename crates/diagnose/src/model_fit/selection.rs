@@ -108,6 +108,89 @@ fn parameter_scales<'n>(model: &'n Model, names: &'n [String]) -> impl Iterator<
     })
 }
 
+/// Relative size of the part of a term's derivative not proportional to a parameter's below
+/// which the term only re-expresses that parameter's change: rounding of the exact derivatives
+/// (sums of a few products) stays near 1e-15; a term that differs anywhere on the motion, even
+/// on one sample in a thousand, stands far above 1e-9.
+const ALIAS_TOLERANCE: f64 = 1e-9;
+
+/// For every trial, the parameter of `suspects` (the candidate `parameter_error`'s) whose
+/// change it only re-expresses, if one: a term of one parameter `q` added to `model` whose
+/// exact derivatives by `q` (of every flow in the mode of each sample, every guard, every
+/// reset and every output, at the model's states `samples` along the record) are those by
+/// the model's parameter `p` times one constant. Damping added in the one mode where the
+/// model's damper acts is such a term: a change of its damping constant. It is not an effect
+/// of the model's own, so the candidate `parameter_error` stands for it. Effects on the
+/// boundary and terms of several parameters are never aliases.
+pub(super) fn aliases(
+    trials: &[Trial],
+    model: &Model,
+    samples: &StateSamples,
+    suspects: &[String],
+) -> Vec<Option<String>> {
+    trials
+        .iter()
+        .map(|trial| {
+            let Trial::Term(term) = trial else {
+                return None;
+            };
+            let q = match term.parameter_names().as_slice() {
+                [q] => q.clone(),
+                _ => return None,
+            };
+            let extended = model.with_extension(&term.extension).ok()?;
+            suspects
+                .iter()
+                .find(|p| re_expresses(&extended, &q, p, samples))
+                .cloned()
+        })
+        .collect()
+}
+
+/// Whether the derivatives of `model` by `q` are those by `p` times one constant at every
+/// sample (see [`aliases`]).
+fn re_expresses(model: &Model, q: &str, p: &str, samples: &StateSamples) -> bool {
+    let Ok(sens) = model.parameter_sensitivity(&[q, p]) else {
+        return false;
+    };
+    let n = model.states().len();
+    let (guards, outputs) = (model.guard_names().len(), model.outputs().len());
+    let mut buf = vec![0.0; 2 * n.max(outputs).max(1)];
+    // Every derivative by q beside the same by p.
+    let (mut by_q, mut by_p) = (Vec::new(), Vec::new());
+    let mut take = |buf: &[f64], rows: usize| {
+        for r in 0..rows {
+            by_q.push(buf[2 * r]);
+            by_p.push(buf[2 * r + 1]);
+        }
+    };
+    for (i, x) in samples.x.iter().enumerate() {
+        let (t, u) = (samples.t[i], samples.u[i]);
+        sens.flow(samples.modes[i], t, x, u, &mut buf);
+        take(&buf, n);
+        for g in 0..guards {
+            sens.guard(g, t, x, u, &mut buf);
+            take(&buf, 1);
+            sens.reset(g, t, x, u, &mut buf);
+            take(&buf, n);
+        }
+        sens.output(t, x, u, &mut buf);
+        take(&buf, outputs);
+    }
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let (qq, pp, qp) = (dot(&by_q, &by_q), dot(&by_p, &by_p), dot(&by_q, &by_p));
+    if !(qq > 0.0 && pp > 0.0 && qq.is_finite() && pp.is_finite()) {
+        return false;
+    }
+    let kappa = qp / pp;
+    let rest: f64 = by_q
+        .iter()
+        .zip(&by_p)
+        .map(|(a, b)| (a - kappa * b).powi(2))
+        .sum();
+    rest <= ALIAS_TOLERANCE * ALIAS_TOLERANCE * qq
+}
+
 /// Where the selection runs: the records, the refitted nominal model and its fit, and the
 /// candidates.
 pub(super) struct Selection<'a, 'r> {
@@ -129,6 +212,9 @@ pub(super) struct Selection<'a, 'r> {
     pub(super) trials: &'a [Trial],
     /// The refitted model's states along the record, where the terms' parameters are scaled.
     pub(super) samples: &'a StateSamples,
+    /// Per trial: the parameter of `parameter_error` whose change it only re-expresses, if
+    /// one ([`aliases`]).
+    pub(super) aliases: &'a [Option<String>],
 }
 
 impl Selection<'_, '_> {
@@ -303,7 +389,10 @@ impl Selection<'_, '_> {
                     opts.candidate_max_iterations
                 ));
             }
-            if let Some(reason) = self.outside_the_motion(trial, &parameters) {
+            if let Some(reason) = self
+                .outside_the_motion(trial, &parameters)
+                .or_else(|| self.alias_note(ti))
+            {
                 significant = false;
                 note.push_str(&format!("; not significant: {reason}"));
             }
@@ -332,6 +421,18 @@ impl Selection<'_, '_> {
             (a.candidate.nrmse_validation).total_cmp(&b.candidate.nrmse_validation)
         });
         candidates
+    }
+
+    /// Why trial `i` is no effect of its own, if it only re-expresses a change of a parameter
+    /// of the candidate `parameter_error`.
+    fn alias_note(&self, i: usize) -> Option<String> {
+        self.aliases[i].as_ref().map(|p| {
+            format!(
+                "it only re-expresses a change of the model's own `{p}` (its derivatives \
+                 are those of `{p}` times a constant wherever the motion goes): the candidate \
+                 parameter_error stands for it"
+            )
+        })
     }
 
     /// Why `trial`, fitted to `parameters`, does not act where the motion is, if it is a term
@@ -540,7 +641,10 @@ impl Selection<'_, '_> {
             100.0 * gain_e,
             100.0 * opts.min_gain
         );
-        if let Some(reason) = self.outside_the_motion(t2, &parameters) {
+        if let Some(reason) = self
+            .outside_the_motion(t2, &parameters)
+            .or_else(|| self.alias_note(added))
+        {
             significant = false;
             note.push_str(&format!("; not significant: {reason}"));
         }

@@ -1,0 +1,98 @@
+//! The held-out error of a model-file diagnosis, step by step from the configured model to the
+//! final one, each level a fit the diagnosis made.
+
+use super::ModelDiagnosis;
+use crate::ErrorStep;
+
+impl ModelDiagnosis {
+    /// The held-out NRMSE (mean over the outputs) from the configured model to the final one:
+    /// the configured level; the refit of the free parameters (`refitted`, left out when
+    /// nothing is free, `refit` false: then the refit only fits the initial state); one step
+    /// per named effect in the order chosen, each ending at the held-out score of the fit of
+    /// that effect beside those before it, as the selection fitted it (the first round alone,
+    /// the pairs, the later rounds; the last at the final fit); `parameter_error` beside the
+    /// effects from the final fit with the moved parameters set back to it; and the final
+    /// level. Every level is a measured score. Where the backward pass left a set of effects
+    /// whose prefix the selection never fitted (an effect dropped from between them), the
+    /// effects from there on are one step, named `"a + b"`.
+    pub fn error_waterfall(&self, refit: bool) -> Vec<ErrorStep> {
+        let level = |step: &str, v: f64| ErrorStep {
+            step: step.to_string(),
+            before: v,
+            after: v,
+        };
+        let configured = self.configured.validation();
+        let refitted = self.refitted.validation();
+        let mut steps = vec![level("configured", configured)];
+        if refit {
+            steps.push(ErrorStep {
+                step: "refitted".into(),
+                before: configured,
+                after: refitted,
+            });
+        }
+        let Some(extended) = &self.extended else {
+            steps.push(level("final", refitted));
+            return steps;
+        };
+        let beside = self.parameters_beside.as_ref().filter(|p| p.named);
+        // The effects chosen, the candidate `parameter_error` among them; a parameter error
+        // beside them is its own last step.
+        let effects: Vec<&String> = if beside.is_some() {
+            match self.causes.split_last() {
+                Some((last, rest)) if last == "parameter_error" => rest.iter().collect(),
+                _ => self.causes.iter().collect(),
+            }
+        } else {
+            self.causes.iter().collect()
+        };
+        let end = beside.map_or(extended.nrmse_validation, |p| p.nrmse_reset);
+        // The score of the fit of the first `i` effects together, as the selection made it.
+        let prefix = |i: usize| -> Option<f64> {
+            let name = effects[..i]
+                .iter()
+                .map(|e| e.as_str())
+                .collect::<Vec<_>>()
+                .join(" + ");
+            std::iter::once(&self.candidates)
+                .chain(std::iter::once(&self.pairs))
+                .chain(self.later_rounds.iter())
+                .flatten()
+                .find(|c| c.effect == name)
+                .map(|c| c.nrmse_validation)
+                .filter(|v| v.is_finite())
+        };
+        let mut before = refitted;
+        let mut from = 0;
+        for i in 1..=effects.len() {
+            let after = if i == effects.len() {
+                Some(end)
+            } else {
+                prefix(i)
+            };
+            if let Some(after) = after {
+                let step = effects[from..i]
+                    .iter()
+                    .map(|e| e.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" + ");
+                steps.push(ErrorStep {
+                    step,
+                    before,
+                    after,
+                });
+                before = after;
+                from = i;
+            }
+        }
+        if beside.is_some() {
+            steps.push(ErrorStep {
+                step: "parameter_error".into(),
+                before,
+                after: extended.nrmse_validation,
+            });
+        }
+        steps.push(level("final", extended.nrmse_validation));
+        steps
+    }
+}
