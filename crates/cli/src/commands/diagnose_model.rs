@@ -663,7 +663,11 @@ fn decision(
                 .map(|c| {
                     c.parameters
                         .iter()
-                        .filter(|(k, _)| !s.options.free.contains(k))
+                        // The free parameters, and the candidate parameter_error's (their
+                        // own sentence), are not the effects'.
+                        .filter(|(k, _)| {
+                            !s.options.free.contains(k) && !s.options.parameter_error.contains(k)
+                        })
                         .map(|(k, v)| {
                             format!(
                                 "{k} = {}",
@@ -677,6 +681,11 @@ fn decision(
                 })
                 .unwrap_or_default();
             let overall = 1.0 - c.map_or(f64::NAN, |c| c.nrmse_validation) / after;
+            let baseline = if s.options.free.is_empty() {
+                "the model as configured"
+            } else {
+                "the refit of the free parameters"
+            };
             // The effects named (a parameter error beside them has its own sentence).
             let effects: Vec<&String> = d
                 .causes
@@ -698,30 +707,48 @@ fn decision(
                         3 => "three".to_string(),
                         k => k.to_string(),
                     };
+                    // The last effect's test beside those before it: the fit of these
+                    // effects alone (beside a parameter error the final fit has one more).
+                    let set = effects
+                        .iter()
+                        .map(|e| e.as_str())
+                        .collect::<Vec<_>>()
+                        .join(" + ");
+                    let own = d
+                        .pairs
+                        .iter()
+                        .chain(d.later_rounds.iter().flatten())
+                        .find(|c| c.effect == set)
+                        .or(c);
                     format!(
                         "The configured model `{model}` misses {count} effects: {} and {}. \
                          Fitted together ({fitted}), they lower the held-out error by {:.1} % \
-                         beyond the refit of the free parameters; beside {}, `{last}` passes \
+                         beyond {baseline}; beside {}, `{last}` passes \
                          with a likelihood ratio of {:.1} (at least {:.1} needed) and lowers \
                          the held-out error by a further {:.1} %.",
                         named[..named.len() - 1].join(", "),
                         named[named.len() - 1],
                         100.0 * overall,
                         before.join(" and "),
-                        c.map_or(f64::NAN, |c| c.likelihood_ratio),
-                        c.map_or(f64::NAN, |c| c.critical),
-                        100.0 * c.map_or(f64::NAN, |c| c.gain),
+                        own.map_or(f64::NAN, |c| c.likelihood_ratio),
+                        own.map_or(f64::NAN, |c| c.critical),
+                        100.0 * own.map_or(f64::NAN, |c| c.gain),
                     )
                 }
-                _ => format!(
-                    "The configured model `{model}` misses an effect {}: `{e}` ({fitted}) \
-                     lowers the held-out error by {:.1} % beyond the refit of the free \
-                     parameters (likelihood ratio {:.1}, at least {:.1} needed).",
-                    site(e),
-                    100.0 * c.map_or(f64::NAN, |c| c.gain),
-                    c.map_or(f64::NAN, |c| c.likelihood_ratio),
-                    c.map_or(f64::NAN, |c| c.critical)
-                ),
+                _ => {
+                    // The effect's own test against the refit (beside a parameter error the
+                    // final fit is the pair's).
+                    let own = d.candidates.iter().find(|c| c.effect == *e).or(c);
+                    format!(
+                        "The configured model `{model}` misses an effect {}: `{e}` ({fitted}) \
+                         lowers the held-out error by {:.1} % beyond {baseline} (likelihood \
+                         ratio {:.1}, at least {:.1} needed).",
+                        site(e),
+                        100.0 * own.map_or(f64::NAN, |c| c.gain),
+                        own.map_or(f64::NAN, |c| c.likelihood_ratio),
+                        own.map_or(f64::NAN, |c| c.critical)
+                    )
+                }
             };
             let suspects = if d.causes.iter().any(|n| n == "parameter_error")
                 && !d.parameters_beside.as_ref().is_some_and(|p| p.named)
@@ -811,6 +838,14 @@ fn decision(
                 c.effect,
                 percent(d.explained, 3)
             ),
+            // The candidate parameter_error chosen: the model's own parameters, held as
+            // configured in the refit, explain it.
+            (ModelCause::ParameterError, Some(c)) => format!(
+                "the refit held the suspected parameters as configured, and the candidate \
+                 `{}` removes {} of the error above the noise floor.",
+                c.effect,
+                percent(d.explained, 3)
+            ),
             // The decision above already says what to do.
             _ if matches!(d.cause, ModelCause::Unexplained) => {
                 "no effect tried accounts for it.".to_string()
@@ -820,14 +855,24 @@ fn decision(
                   its gain."
                 .to_string(),
         };
+        let refit = !s.options.free.is_empty();
         decision.push_str(&format!(
-            " The refitted model's residual in {} is not white: structure remains that the \
-             model's own parameters cannot explain; {next}",
+            " The {} residual in {} is not white: structure remains{}; {next}",
+            if refit {
+                "refitted model's"
+            } else {
+                "configured model's"
+            },
             structured
                 .iter()
                 .map(|o| format!("`{o}`"))
                 .collect::<Vec<_>>()
-                .join(", ")
+                .join(", "),
+            if refit {
+                " that the model's own parameters cannot explain"
+            } else {
+                ""
+            }
         ));
     }
     decision
