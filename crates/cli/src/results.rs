@@ -536,21 +536,27 @@ pub fn diagnose_model(
     if causes.len() > 1 {
         t.row("causes", causes.join(", "));
     }
+    // Nothing free: no refit to show beside the configured model.
+    let refit = d["options"]["free"]
+        .as_array()
+        .is_some_and(|free| !free.is_empty());
     let gain = f(&d["gain"]);
-    t.row(
-        "gain",
-        if gain < 0.0 {
-            format!(
-                "{} higher held-out NRMSE refitted than configured",
-                pct(-gain)
-            )
-        } else {
-            format!(
-                "{} lower held-out NRMSE refitted than configured",
-                pct(gain)
-            )
-        },
-    );
+    if refit {
+        t.row(
+            "gain",
+            if gain < 0.0 {
+                format!(
+                    "{} higher held-out NRMSE refitted than configured",
+                    pct(-gain)
+                )
+            } else {
+                format!(
+                    "{} lower held-out NRMSE refitted than configured",
+                    pct(gain)
+                )
+            },
+        );
+    }
     // Each refitted parameter against its configured value (`context` after the value).
     let changes = |list: &Value, context: &str| -> Vec<String> {
         list.as_array()
@@ -575,7 +581,10 @@ pub fn diagnose_model(
             changes(&beside["moved"], " beside the effects"),
         );
     }
-    for (label, key) in [("configured", "configured"), ("refitted", "refitted")] {
+    for (label, key) in [("configured", "configured"), ("refitted", "refitted")]
+        .into_iter()
+        .take(if refit { 2 } else { 1 })
+    {
         let per_output: Vec<String> = d[key]["nrmse_validation"]
             .as_array()
             .into_iter()

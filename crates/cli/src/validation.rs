@@ -26,6 +26,7 @@ pub struct Simulated<'a> {
 
 /// The validation of one output: fit percent per model, and the residual analysis of the last
 /// model (the one a user keeps) against the input. `error` says why a part could not be computed.
+#[derive(Clone)]
 pub struct OutputValidation {
     pub output: String,
     pub fits: Vec<(String, Option<f64>)>,

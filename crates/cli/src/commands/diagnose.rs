@@ -721,30 +721,31 @@ fn draw(
     let orbit = s.params.forcing_amplitude.abs() > 0.0;
     let fig = if orbit {
         let period = s.params.period;
-        let bins = 100usize;
-        let mut acc = vec![[0.0f64; 4]; bins];
-        for r in &report.validation_ranges {
-            for i in r.clone() {
-                let (a, b) = (report.nominal_output[i], report.extended_output[i]);
-                if !(a.is_finite() && b.is_finite()) {
-                    continue;
-                }
-                let phase = record.time()[i].rem_euclid(period) / period;
-                let k = ((phase * bins as f64) as usize).min(bins - 1);
-                acc[k][0] += record.output()[i];
-                acc[k][1] += a;
-                acc[k][2] += b;
-                acc[k][3] += 1.0;
-            }
-        }
-        let phase: Vec<f64> = (0..bins)
-            .map(|k| (k as f64 + 0.5) / bins as f64 * period)
+        // The held-out samples, folded over the forcing period by `htfid-diagnose`: at most
+        // one bin per sample interval, the bins' edges half a sample from the samples.
+        let dt = record.dt();
+        let bins = 100usize.min((period / dt).round() as usize).max(4);
+        let held: Vec<usize> = report
+            .validation_ranges
+            .iter()
+            .flat_map(|r| r.clone())
+            .filter(|&i| {
+                report.nominal_output[i].is_finite() && report.extended_output[i].is_finite()
+            })
             .collect();
-        let col = |j: usize| -> Vec<f64> {
-            acc.iter()
-                .map(|a| if a[3] > 0.0 { a[j] / a[3] } else { f64::NAN })
-                .collect()
+        let t: Vec<f64> = held.iter().map(|&i| record.time()[i] + 0.5 * dt).collect();
+        let fold = |y: &[f64]| -> Vec<htfid_diagnose::Bin> {
+            let v: Vec<f64> = held.iter().map(|&i| y[i]).collect();
+            htfid_diagnose::period_average(&t, &v, period, bins)
         };
+        let folded = [
+            fold(record.output()),
+            fold(&report.nominal_output),
+            fold(&report.extended_output),
+        ];
+        let phase: Vec<f64> = folded[0].iter().map(|b| b.centre - 0.5 * dt).collect();
+        // Each model's mean on the measured one's bins.
+        let col = |j: usize| -> Vec<f64> { evidence::means_on(&folded[0], &folded[j]) };
         let (measured, nom, ext) = (col(0), col(1), col(2));
         let mut p = Panel::new(
             "period-averaged orbit (held-out data)",

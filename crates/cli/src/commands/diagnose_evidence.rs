@@ -253,6 +253,21 @@ pub fn draw_bins(
     plots::write(out, "residual_bins", &fig)
 }
 
+/// The means of `other` on the bins of `reference` (NaN where `other` has no such bin), two
+/// binnings of one range with the same number of bins (the same edges, matched within half a
+/// bin's width), for curves drawn over the reference's bin centres.
+pub fn means_on(reference: &[Bin], other: &[Bin]) -> Vec<f64> {
+    reference
+        .iter()
+        .map(|b| {
+            other
+                .iter()
+                .find(|a| (a.lo - b.lo).abs() < 0.5 * (b.hi - b.lo))
+                .map_or(f64::NAN, |a| a.mean)
+        })
+        .collect()
+}
+
 /// `error_waterfall.png`.
 pub fn draw_waterfall(
     out: &mut OutputDir,
@@ -284,6 +299,10 @@ pub fn waterfall_figure(
     measure: (&str, &str),
     floor: Option<(f64, String)>,
 ) -> htfid_plot::Figure {
+    // Without an effect the final model is the nominal one, and coloured so.
+    let effects = steps
+        .iter()
+        .any(|s| !matches!(s.step.as_str(), "configured" | "refitted" | "final"));
     let mut bars = Vec::new();
     let mut seen_nominal = false;
     let mut seen_extended = false;
@@ -293,7 +312,8 @@ pub fn waterfall_figure(
             // Without a configured level the refitted model's level comes first.
             "refitted" if i == 0 => ("refitted".to_string(), 0.0, Role::Nominal),
             "refitted" => (refit.to_string(), step.before, Role::Nominal),
-            "final" => ("final model".to_string(), 0.0, Role::Extended),
+            "final" if effects => ("final model".to_string(), 0.0, Role::Extended),
+            "final" => ("final model".to_string(), 0.0, Role::Nominal),
             effect => (format!("+ {effect}"), step.before, Role::Extended),
         };
         let legend = match role {

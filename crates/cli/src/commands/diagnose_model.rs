@@ -102,22 +102,54 @@ pub fn run(
             )
         })
         .collect();
-    let mut validation_json = checks.first().map_or(serde_json::Value::Null, |v| {
-        crate::validation::json(v, "refitted model")
-    });
-    if validation_json.is_object() {
-        validation_json["by_output"] = serde_json::Value::Object(
-            checks
-                .iter()
-                .map(|v| {
-                    (
-                        v.output.clone(),
-                        crate::validation::json(v, "refitted model"),
-                    )
-                })
-                .collect(),
-        );
-    }
+    // With an effect named, the final model too: its residual is the one a user keeps.
+    let final_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+    let checks_final: Option<Vec<crate::validation::OutputValidation>> =
+        match (&d.simulated_extended, &final_label) {
+            (Some(ext), Some(label)) => Some(
+                s.outputs
+                    .iter()
+                    .enumerate()
+                    .map(|(o, name)| {
+                        let mut models = models_of(&d, o);
+                        models[1].role = Role::Refitted;
+                        models.push(crate::validation::Simulated {
+                            label: label.clone(),
+                            role: Role::Extended,
+                            style: Style::Line,
+                            y: &ext[o],
+                        });
+                        crate::validation::validate(
+                            name,
+                            &shown.outputs()[o],
+                            shown.input(),
+                            &models,
+                            held_out.clone(),
+                        )
+                    })
+                    .collect(),
+            ),
+            _ => None,
+        };
+    let validation_of = |checks: &[crate::validation::OutputValidation], model: &str| {
+        let mut v = checks.first().map_or(serde_json::Value::Null, |v| {
+            crate::validation::json(v, model)
+        });
+        if v.is_object() {
+            v["by_output"] = serde_json::Value::Object(
+                checks
+                    .iter()
+                    .map(|c| (c.output.clone(), crate::validation::json(c, model)))
+                    .collect(),
+            );
+        }
+        v
+    };
+    let validation_json = validation_of(&checks, "refitted model");
+    let validation_final_json = match (&checks_final, &final_label) {
+        (Some(c), Some(label)) => validation_of(c, label),
+        _ => serde_json::Value::Null,
+    };
 
     let options = serde_json::json!({
         "free": s.options.free,
@@ -174,6 +206,7 @@ pub fn run(
         "noise_floor": d.noise_floor,
         "explained": d.explained,
         "validation": validation_json,
+        "validation_final": validation_final_json,
         "options": options,
         "error_waterfall": d.error_waterfall(!s.options.free.is_empty()),
     });
@@ -188,7 +221,10 @@ pub fn run(
         json["input_noise"] = serde_json::to_value(noise)?;
     }
     outdir.write_text("diagnosis.json", &json_text(&json))?;
-    outdir.write_text("report.md", &report(&s, &d, &checks))?;
+    outdir.write_text(
+        "report.md",
+        &report(&s, &d, &checks, checks_final.as_deref()),
+    )?;
     // A few forcing periods at the end of the held-out part: measured, configured, refitted.
     let win = crate::validation::window(held_out.clone(), dt, s.model.period());
     let mut panels: Vec<Panel> = Vec::new();
@@ -201,18 +237,13 @@ pub fn run(
             .map_or(String::new(), |u| format!(" ({u})"));
         // Beside the configured and the refitted model, the model with the chosen effect.
         let mut models = models_of(&d, o);
-        let mut fits = checks[o].fits.clone();
+        let fits = match &checks_final {
+            Some(f) => f[o].fits.clone(),
+            None => checks[o].fits.clone(),
+        };
         if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
             models[1].role = Role::Refitted;
             let label = format!("with {}", c.effect);
-            fits.push((
-                label.clone(),
-                htfid_validate::fit_percent(
-                    &shown.outputs()[o][held_out.clone()],
-                    &ext[o][held_out.clone()],
-                )
-                .ok(),
-            ));
             models.push(crate::validation::Simulated {
                 label,
                 role: Role::Extended,
@@ -550,15 +581,26 @@ fn report(
     s: &ModelDiagnoseSettings,
     d: &ModelDiagnosis,
     checks: &[crate::validation::OutputValidation],
+    checks_final: Option<&[crate::validation::OutputValidation]>,
 ) -> String {
     let mut r = Report::new(&format!("Diagnosis: {}", s.name));
-    r.para(&decision(s, d, checks));
+    r.para(&decision(s, d, checks, checks_final));
     notes(&mut r, s, d);
     data_section(&mut r, s);
     effects_sections(&mut r, s, d);
-    errors_and_parameters(&mut r, s, d, checks);
+    errors_and_parameters(&mut r, s, d, checks, checks_final);
     figures_section(&mut r, s);
     r.finish()
+}
+
+/// Where an effect without a term acts: the candidate `parameter_error` (alone or in a set) on
+/// the model's own parameters, any other on its boundary.
+fn where_boundary(effect: &str) -> String {
+    if effect.split(" + ").any(|e| e == "parameter_error") {
+        "the model's own parameters".into()
+    } else {
+        "on the boundary".into()
+    }
 }
 
 /// The evidence figures (beside `compare` and `resid`, shown with the validation), each with
@@ -590,6 +632,7 @@ fn decision(
     s: &ModelDiagnoseSettings,
     d: &ModelDiagnosis,
     checks: &[crate::validation::OutputValidation],
+    checks_final: Option<&[crate::validation::OutputValidation]>,
 ) -> String {
     let model = s.model.name();
     let unit = |name: &str| parameter_unit(s, name);
@@ -797,6 +840,16 @@ fn decision(
             },
             held_parameters(s)
         ),
+        ModelCause::None if s.options.free.is_empty() => format!(
+            "**The configured model `{model}` describes the data.** No candidate effect{} \
+             passes both tests against it: the held-out NRMSE is {} as configured.",
+            if s.options.parameter_error.is_empty() {
+                ""
+            } else {
+                ", the candidate `parameter_error` included,"
+            },
+            percent(before, 3)
+        ),
         ModelCause::None => format!(
             "**The configured model `{model}` describes the data.** A refit moves no parameter \
              by {} standard errors or more while lowering the held-out error by at least {}: \
@@ -807,27 +860,61 @@ fn decision(
             percent(after, 3)
         ),
     };
-    let structured: Vec<&str> = checks
-        .iter()
-        .filter(|c| c.resid.as_ref().is_ok_and(|r| !r.whiteness.passed))
-        .map(|c| c.output.as_str())
-        .collect();
+    let structured_in = |checks: &[crate::validation::OutputValidation]| -> Vec<String> {
+        checks
+            .iter()
+            .filter(|c| c.resid.as_ref().is_ok_and(|r| !r.whiteness.passed))
+            .map(|c| format!("`{}`", c.output))
+            .collect()
+    };
+    let structured: Vec<String> = structured_in(checks);
+    // With an effect named, the residual a user keeps is the final model's.
+    if let (Some(fin), Some(c)) = (checks_final, &d.extended) {
+        let left = structured_in(fin);
+        decision.push_str(&if left.is_empty() {
+            format!(
+                " The final model's residual (with `{}`) is white: no structure is left for \
+                 an effect the model lacks.",
+                c.effect
+            )
+        } else {
+            format!(
+                " The final model's residual (with `{}`) in {} is not white: its held-out \
+                 NRMSE is {} times the noise floor{}.",
+                c.effect,
+                left.join(", "),
+                sig(c.nrmse_validation / d.noise_floor, 3),
+                if d.input_noise.is_some() {
+                    ", which holds the model's response to the noise on the measured input, \
+                     a filtered noise (see below)"
+                } else {
+                    ""
+                }
+            )
+        });
+        return decision;
+    }
     if structured.is_empty() {
-        decision.push_str(
-            " The refitted model's residual is white: no structure is left for an effect the \
-             model lacks.",
-        );
+        decision.push_str(&format!(
+            " The {} residual is white: no structure is left for an effect the model lacks.",
+            if s.options.free.is_empty() {
+                "configured model's"
+            } else {
+                "refitted model's"
+            }
+        ));
     } else if d.input_noise.is_some() && matches!(d.cause, ModelCause::None) {
         // The response to the input's noise is filtered noise: not white, and not an effect.
         decision.push_str(&format!(
-            " The refitted model's residual in {} is not white, and need not be: its held-out \
+            " The {} residual in {} is not white, and need not be: its held-out \
              NRMSE is {} times the noise floor, which holds the model's response to the noise \
              on the measured input, a filtered noise (see below).",
-            structured
-                .iter()
-                .map(|o| format!("`{o}`"))
-                .collect::<Vec<_>>()
-                .join(", "),
+            if s.options.free.is_empty() {
+                "configured model's"
+            } else {
+                "refitted model's"
+            },
+            structured.join(", "),
             sig(d.refitted.validation() / d.noise_floor, 3)
         ));
     } else {
@@ -863,11 +950,7 @@ fn decision(
             } else {
                 "configured model's"
             },
-            structured
-                .iter()
-                .map(|o| format!("`{o}`"))
-                .collect::<Vec<_>>()
-                .join(", "),
+            structured.join(", "),
             if refit {
                 " that the model's own parameters cannot explain"
             } else {
@@ -1013,7 +1096,7 @@ fn effect_rows(
                 .collect();
             rows.push(vec![
                 format!("`{}`", c.effect),
-                c.term.clone().unwrap_or_else(|| "on the boundary".into()),
+                c.term.clone().unwrap_or_else(|| where_boundary(&c.effect)),
                 own.join(", "),
                 percent(c.nrmse_validation, 3),
                 percent(c.gain, 3),
@@ -1024,7 +1107,7 @@ fn effect_rows(
             let why = r.missing(&c.note);
             rows.push(vec![
                 format!("`{}`", c.effect),
-                c.term.clone().unwrap_or_else(|| "on the boundary".into()),
+                c.term.clone().unwrap_or_else(|| where_boundary(&c.effect)),
                 why.clone(),
                 why.clone(),
                 why.clone(),
@@ -1155,6 +1238,7 @@ fn errors_and_parameters(
     s: &ModelDiagnoseSettings,
     d: &ModelDiagnosis,
     checks: &[crate::validation::OutputValidation],
+    checks_final: Option<&[crate::validation::OutputValidation]>,
 ) {
     let unit = |name: &str| parameter_unit(s, name);
     r.section("Error on held-out data");
@@ -1178,6 +1262,55 @@ fn errors_and_parameters(
     r.table(&["output", "configured model", "refitted model"], &rows);
 
     r.section("Parameters");
+    if d.parameters.is_empty() {
+        r.para(
+            "Nothing is refitted with every candidate (`[model] free = []`): the model's \
+             parameters stay as configured, and only the candidate `parameter_error` (when \
+             `[diagnose] parameter_error` names some) refits them; its values are in the \
+             paragraph at the top and in the table of effects tried.",
+        );
+    } else {
+        parameter_table(r, d, &unit);
+    }
+    match (checks_final, &d.extended) {
+        // One table: each output's refitted model, then its final model.
+        (Some(fin), Some(c)) => {
+            let rows: Vec<crate::validation::OutputValidation> = checks
+                .iter()
+                .zip(fin)
+                .flat_map(|(a, b)| {
+                    let mut a = a.clone();
+                    let mut b = b.clone();
+                    a.output = format!("{}: refitted model", a.output);
+                    b.output = format!("{}: with {}", b.output, c.effect);
+                    [a, b]
+                })
+                .collect();
+            r.push(&crate::validation::report(
+                "## Validation",
+                &rows.iter().collect::<Vec<_>>(),
+                &format!(
+                    "refitted model and of the final one (with `{}`), a row each",
+                    c.effect
+                ),
+                &format!("input `{}`", s.input),
+            ));
+        }
+        _ => r.push(&crate::validation::report(
+            "## Validation",
+            &checks.iter().collect::<Vec<_>>(),
+            "refitted model",
+            &format!("input `{}`", s.input),
+        )),
+    }
+    if d.input_noise.is_some() {
+        r.para(crate::validation::noisy_input_note(&format!("input `{}`", s.input)).trim_end());
+    }
+}
+
+/// The refitted free parameters: configured, refitted with its standard error, and by how many
+/// standard errors they moved; and the widening of the standard errors.
+fn parameter_table(r: &mut Report, d: &ModelDiagnosis, unit: &dyn Fn(&str) -> Option<String>) {
     let mut rows = Vec::new();
     for p in &d.parameters {
         let u = unit(&p.name);
@@ -1205,20 +1338,16 @@ fn errors_and_parameters(
         ],
         &rows,
     );
-    r.para(&format!(
-        "The standard errors are widened by a factor {} because the residuals are correlated \
-         in time.",
-        sig(d.stderr_inflation, 3)
-    ));
-    r.push(&crate::validation::report(
-        "## Validation",
-        &checks.iter().collect::<Vec<_>>(),
-        "refitted model",
-        &format!("input `{}`", s.input),
-    ));
-    if d.input_noise.is_some() {
-        r.para(crate::validation::noisy_input_note(&format!("input `{}`", s.input)).trim_end());
-    }
+    r.para(&if d.stderr_inflation > 1.0 {
+        format!(
+            "The standard errors are widened by a factor {} because the residuals are \
+             correlated in time.",
+            sig(d.stderr_inflation, 3)
+        )
+    } else {
+        "The residuals show no correlation in time that would widen the standard errors."
+            .to_string()
+    });
 }
 
 #[cfg(test)]

@@ -223,10 +223,10 @@ pub fn draw(
             );
             for (j, m) in drawn.iter().enumerate() {
                 let sim = &m.y[o][held_out.clone()];
-                let y: Vec<f64> = period_average(t, sim, period, bins)
-                    .iter()
-                    .map(|b| b.mean)
-                    .collect();
+                let y = super::diagnose_evidence::means_on(
+                    &measured,
+                    &period_average(t, sim, period, bins),
+                );
                 // The difference's own period average: the measured input's response, common
                 // to both, leaves its standard error.
                 let diff: Vec<f64> = sim
