@@ -104,15 +104,16 @@ pub struct ModelDiagnoseSettings {
     pub options: htfid_diagnose::ModelFitOptions,
 }
 
-/// `diagnose.parameter_error`: the model's parameters, none of them free and none twice, whose
-/// error is a candidate effect.
-fn suspects(
+/// A list of the model's parameters at `key` (`model.free`, `diagnose.parameter_error`): each
+/// a parameter of the model, none twice, none of `free` (the free parameters, which
+/// `diagnose.parameter_error` may not name).
+fn parameter_names(
     src: &Source,
     model: &htfid_lang::Model,
     list: &Spanned<Vec<String>>,
+    key: &str,
     free: &[String],
 ) -> Result<Vec<String>, ConfigError> {
-    let key = "diagnose.parameter_error";
     for (i, name) in list.get_ref().iter().enumerate() {
         let problem = if model.parameter_index(name).is_none() {
             format!(
@@ -209,33 +210,7 @@ impl ModelDiagnoseSettings {
         used.extend(d.time.as_ref().map(|t| t.get_ref().as_str()));
         let format = resolve_format(&src, raw_format!(d), &used)?;
         let free = match &raw.model.free {
-            Some(list) => {
-                for (i, f) in list.get_ref().iter().enumerate() {
-                    if model.parameter_index(f).is_none() {
-                        return Err(src.error(
-                            Some(&list.span()),
-                            "model.free",
-                            format!(
-                                "the model has no parameter \"{f}\"; it has {}",
-                                model
-                                    .parameters()
-                                    .iter()
-                                    .map(|p| p.name.as_str())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            ),
-                        ));
-                    }
-                    if list.get_ref()[..i].contains(f) {
-                        return Err(src.error(
-                            Some(&list.span()),
-                            "model.free",
-                            format!("\"{f}\" is listed twice"),
-                        ));
-                    }
-                }
-                list.get_ref().clone()
-            }
+            Some(list) => parameter_names(&src, &model, list, "model.free", &[])?,
             None => model
                 .parameters()
                 .iter()
@@ -245,7 +220,7 @@ impl ModelDiagnoseSettings {
         };
         let o = raw.diagnose.as_ref();
         let parameter_error = match o.and_then(|o| o.parameter_error.as_ref()) {
-            Some(list) => suspects(&src, &model, list, &free)?,
+            Some(list) => parameter_names(&src, &model, list, "diagnose.parameter_error", &free)?,
             None => Vec::new(),
         };
         let mut options = htfid_diagnose::ModelFitOptions {
