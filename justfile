@@ -4,7 +4,7 @@ default: test
 
 # Format check, lints as errors, docs, the whole test suite, the wide hidden-effect sweeps of
 # both diagnoses and the full fuzz suite.
-test: fmt-check clippy doc tests sweep model-sweep fuzz
+test: fmt-check clippy doc tests sweep model-sweep model-sweep-configured fuzz
 
 # Alias kept for CI scripts.
 ci: test
@@ -31,6 +31,11 @@ sweep:
 # with the floors measured on them (about 20 minutes on 2 cores).
 model-sweep:
     cargo test --release --locked -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture
+
+# The same records with the built-in diagnosis's protocol: nothing refitted, an error of m, k
+# or c the candidate parameter_error (about 13 minutes on 2 cores).
+model-sweep-configured:
+    HTFID_MODEL_SWEEP_PROTOCOL=configured cargo test --release --locked -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture
 
 # The fuzz and fault suite over more seeds than `cargo test` runs (880 cases, about 2 minutes).
 fuzz:

@@ -7,7 +7,9 @@
 //! run with
 //! `cargo test --release -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture`
 //! (`HTFID_MODEL_SWEEP_N` records, the catalogue's core cells by default; from record
-//! `HTFID_MODEL_SWEEP_FROM`, 0 by default). It prints one line
+//! `HTFID_MODEL_SWEEP_FROM`, 0 by default; `HTFID_MODEL_SWEEP_PROTOCOL=configured` for the
+//! built-in diagnosis's protocol, nothing refitted and `m`, `k`, `c` the candidate
+//! `parameter_error`, with floors of its own). It prints one line
 //! per record and a score per group, and holds the floors measured when it was written.
 //!
 //! The model file's library differs from the built-in one: its terms sit at the sites the file
@@ -187,10 +189,16 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
     }
     let total: usize = scores.values().map(|s| s.1).sum();
     assert!(total > 0, "no record was diagnosed");
-    if n == htfid_truth::core_size() && from == 0 && !configured {
-        // The floors measured on the core cells at seed 2026 (`FLOORS`): a change
-        // that loses a record in any group fails here.
-        for (g, floor) in FLOORS {
+    if n == htfid_truth::core_size() && from == 0 {
+        // The floors measured on the core cells at seed 2026 (`FLOORS`, or
+        // `FLOORS_CONFIGURED` for the built-in diagnosis's protocol): a change that loses a
+        // record in any group fails here.
+        let floors = if configured {
+            FLOORS_CONFIGURED
+        } else {
+            FLOORS
+        };
+        for (g, floor) in floors {
             let (ok, all) = scores.get(g).copied().unwrap_or_default();
             assert!(
                 ok >= floor,
@@ -211,6 +219,18 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
 const FLOORS: [(&str, usize); 4] = [
     ("clean", 10),
     ("single, in its library", 47),
+    ("pair, in its library", 8),
+    ("outside its library", 10),
+];
+
+/// Records judged right per group on the core cells (seed 2026) with nothing refitted and `m`,
+/// `k`, `c` the candidate `parameter_error` (`HTFID_MODEL_SWEEP_PROTOCOL=configured`), as
+/// measured on 2026-11-29 with a term that only re-expresses a change of those parameters
+/// marked so: 74 of 77 (790 s, the records side by side on 2 cores). Without that check, 70
+/// (10, 42, 8, 10): the four damper errors were named damping in the damper's own mode.
+const FLOORS_CONFIGURED: [(&str, usize); 4] = [
+    ("clean", 10),
+    ("single, in its library", 46),
     ("pair, in its library", 8),
     ("outside its library", 10),
 ];
