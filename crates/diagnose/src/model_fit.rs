@@ -301,8 +301,9 @@ pub struct ModelDiagnosis {
     /// Every effect tried (on the boundary and inside the model), best held-out score first.
     pub candidates: Vec<ModelCandidate>,
     /// Every effect named, in the order chosen: the best single effect, then each one that
-    /// passes beside those before it (empty when no effect is named); last `parameter_error`
-    /// when the free parameters beside them are off too ([`ParametersBeside`]).
+    /// passes beside those before it; last `parameter_error` when the free parameters beside
+    /// them are off too ([`ParametersBeside`]). `["parameter_error"]` when the refit of the
+    /// free parameters is the answer; empty when nothing is named.
     pub causes: Vec<String>,
     /// Every other candidate refitted jointly with the best one (named `first + second`),
     /// best held-out score first; empty when nothing passes or the best one leaves the
@@ -583,7 +584,10 @@ pub fn diagnose_model(
         .as_ref()
         .map(|c| c.set.iter().map(|&i| trials[i].name()).collect())
         .unwrap_or_default();
-    if parameters_beside.as_ref().is_some_and(|p| p.named)
+    // A parameter error is a cause wherever it is named: beside the effects, or alone by the
+    // refit of the free parameters (as the candidate `parameter_error` is when chosen).
+    if (parameters_beside.as_ref().is_some_and(|p| p.named)
+        || decision.cause == ModelCause::ParameterError)
         && !causes.iter().any(|c| c == "parameter_error")
     {
         causes.push("parameter_error".into());

@@ -96,6 +96,8 @@ fn a_stiffer_spring_is_a_parameter_error() {
     };
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
     assert_eq!(d.cause, ModelCause::ParameterError, "{:?}", d.candidates);
+    // Named as a cause, as the candidate `parameter_error` is with nothing refitted.
+    assert_eq!(d.causes, ["parameter_error"]);
     let k = &d.parameters[0];
     assert!((k.fitted / 206.0 - 1.0).abs() < 5e-3, "{k:?}");
     assert!(k.z.abs() > 5.0);
