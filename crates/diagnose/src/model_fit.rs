@@ -18,7 +18,7 @@ mod waterfall;
 
 use joint::{Joint, JointFit, Trial, Tried};
 use prepared::Prepared;
-use selection::{correlation_inflation, rivals_by_bic, score_on, Selection};
+use selection::{correlation_inflation, parameter_scales, rivals_by_bic, score_on, Selection};
 
 pub use search::{ModelDiscovered, ModelDiscoveredTerm};
 
@@ -429,10 +429,7 @@ pub fn diagnose_model(
         model,
         names: &names,
         index: &index,
-        scales: index
-            .iter()
-            .map(|&i| model.values()[i].abs().max(1e-3))
-            .collect(),
+        scales: parameter_scales(model, &opts.free).collect(),
         max_iter: opts.max_iterations,
         ftol: opts.fit_tolerance / est.residual_len().max(1) as f64,
     };
@@ -954,17 +951,17 @@ fn decide(
     let structure_left = noise_floor.is_finite()
         && final_score > opts.unexplained_ratio * noise_floor
         && final_score > opts.resolution;
-    let lead = current.map(|c| trials[c.set[0]].name());
-    let cause = match &lead {
+    let lead = current.map(|c| &trials[c.set[0]]);
+    let cause = match lead {
         _ if structure_left && explained < opts.min_explained => ModelCause::Unexplained,
         Some(_) if !alternatives.is_empty() => ModelCause::Ambiguous,
-        Some(name) if name == "parameter_error" => ModelCause::ParameterError,
-        Some(name) => ModelCause::Effect(name.clone()),
+        Some(Trial::Parameters(_)) => ModelCause::ParameterError,
+        Some(trial) => ModelCause::Effect(trial.name()),
         None if refit.moved && refit.gain >= opts.min_gain => ModelCause::ParameterError,
         None => ModelCause::None,
     };
-    if let (ModelCause::Ambiguous, Some(name)) = (&cause, &lead) {
-        alternatives.insert(0, name.clone());
+    if let (ModelCause::Ambiguous, Some(trial)) = (&cause, lead) {
+        alternatives.insert(0, trial.name());
     }
     Decision {
         cause,

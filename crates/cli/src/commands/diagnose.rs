@@ -622,20 +622,8 @@ fn draw(
         let p = &report.nominal_model.params;
         10.0 * 2.0 * std::f64::consts::PI / (p.k / p.m).sqrt()
     };
-    let rms = |r: &[f64]| -> (Vec<f64>, Vec<f64>) {
-        let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
-            return (Vec::new(), Vec::new());
-        };
-        let nb = (((t1 - t0) / period).ceil() as usize).clamp(1, 5000);
-        let sq: Vec<f64> = r.iter().map(|v| v * v).collect();
-        let block: Vec<usize> = (0..t.len()).collect();
-        let bins = htfid_diagnose::binned_means(&t, &sq, &block, nb, (t0, t0 + nb as f64 * period));
-        bins.iter()
-            .map(|b| (0.5 * (b.lo + b.hi), b.mean.sqrt()))
-            .unzip()
-    };
-    let (tb, q0) = rms(&r0);
-    let (_, q1) = rms(&r1);
+    let (tb, q0) = evidence::rms_per_block(&t, &r0, period);
+    let (_, q1) = evidence::rms_per_block(&t, &r1, period);
     let block_words = if s.params.forcing_amplitude.abs() > 0.0 {
         format!("forcing period ({} s)", htfid_number::sig(period, 3))
     } else {
@@ -721,10 +709,7 @@ fn draw(
     let orbit = s.params.forcing_amplitude.abs() > 0.0;
     let fig = if orbit {
         let period = s.params.period;
-        // The held-out samples, folded over the forcing period by `htfid-diagnose`: at most
-        // one bin per sample interval, the bins' edges half a sample from the samples.
-        let dt = record.dt();
-        let bins = 100usize.min((period / dt).round() as usize).max(4);
+        // The held-out samples where both models were simulated, folded over the period.
         let held: Vec<usize> = report
             .validation_ranges
             .iter()
@@ -733,17 +718,17 @@ fn draw(
                 report.nominal_output[i].is_finite() && report.extended_output[i].is_finite()
             })
             .collect();
-        let t: Vec<f64> = held.iter().map(|&i| record.time()[i] + 0.5 * dt).collect();
+        let t: Vec<f64> = held.iter().map(|&i| record.time()[i]).collect();
         let fold = |y: &[f64]| -> Vec<htfid_diagnose::Bin> {
             let v: Vec<f64> = held.iter().map(|&i| y[i]).collect();
-            htfid_diagnose::period_average(&t, &v, period, bins)
+            evidence::fold_sampled(&t, &v, period, record.dt())
         };
         let folded = [
             fold(record.output()),
             fold(&report.nominal_output),
             fold(&report.extended_output),
         ];
-        let phase: Vec<f64> = folded[0].iter().map(|b| b.centre - 0.5 * dt).collect();
+        let phase: Vec<f64> = folded[0].iter().map(|b| b.centre).collect();
         // Each model's mean on the measured one's bins.
         let col = |j: usize| -> Vec<f64> { evidence::means_on(&folded[0], &folded[j]) };
         let (measured, nom, ext) = (col(0), col(1), col(2));

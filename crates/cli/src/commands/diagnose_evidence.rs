@@ -253,6 +253,44 @@ pub fn draw_bins(
     plots::write(out, "residual_bins", &fig)
 }
 
+/// Most phase bins of a folded orbit.
+const ORBIT_BINS: usize = 100;
+
+/// `y`, sampled every `dt` s at times `t`, folded over `period` by
+/// [`htfid_diagnose::period_average`] in at most [`ORBIT_BINS`] bins and at most one per sample
+/// interval, the bins' edges half a sample from the samples: each bin holds the same phases in
+/// every period (a bin that caught two phases in some periods and one in others would mix the
+/// orbit's slope into its standard error). Bins as that function gives them, in time into the
+/// period.
+pub fn fold_sampled(t: &[f64], y: &[f64], period: f64, dt: f64) -> Vec<Bin> {
+    let bins = ORBIT_BINS.min((period / dt).round() as usize).max(4);
+    let shifted: Vec<f64> = t.iter().map(|v| v + 0.5 * dt).collect();
+    htfid_diagnose::period_average(&shifted, y, period, bins)
+        .into_iter()
+        .map(|b| Bin {
+            lo: b.lo - 0.5 * dt,
+            hi: b.hi - 0.5 * dt,
+            centre: b.centre - 0.5 * dt,
+            ..b
+        })
+        .collect()
+}
+
+/// The RMS of `r` (at times `t`) per block of `block` s from the first sample: `(centre of
+/// each block, RMS)`; blocks without samples are left out.
+pub fn rms_per_block(t: &[f64], r: &[f64], block: f64) -> (Vec<f64>, Vec<f64>) {
+    let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
+        return (Vec::new(), Vec::new());
+    };
+    let nb = (((t1 - t0) / block).ceil() as usize).clamp(1, 5000);
+    let sq: Vec<f64> = r.iter().map(|v| v * v).collect();
+    let own: Vec<usize> = (0..t.len()).collect();
+    htfid_diagnose::binned_means(t, &sq, &own, nb, (t0, t0 + nb as f64 * block))
+        .iter()
+        .map(|b| (0.5 * (b.lo + b.hi), b.mean.sqrt()))
+        .unzip()
+}
+
 /// The means of `other` on the bins of `reference` (NaN where `other` has no such bin), two
 /// binnings of one range with the same number of bins (the same edges, matched within half a
 /// bin's width), for curves drawn over the reference's bin centres.

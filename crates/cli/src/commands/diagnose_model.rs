@@ -104,33 +104,25 @@ pub fn run(
         .collect();
     // With an effect named, the final model too: its residual is the one a user keeps.
     let final_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
-    let checks_final: Option<Vec<crate::validation::OutputValidation>> =
-        match (&d.simulated_extended, &final_label) {
-            (Some(ext), Some(label)) => Some(
-                s.outputs
-                    .iter()
-                    .enumerate()
-                    .map(|(o, name)| {
-                        let mut models = models_of(&d, o);
-                        models[1].role = Role::Refitted;
-                        models.push(crate::validation::Simulated {
-                            label: label.clone(),
-                            role: Role::Extended,
-                            style: Style::Line,
-                            y: &ext[o],
-                        });
-                        crate::validation::validate(
-                            name,
-                            &shown.outputs()[o],
-                            shown.input(),
-                            &models,
-                            held_out.clone(),
-                        )
-                    })
-                    .collect(),
-            ),
-            _ => None,
-        };
+    let checks_final: Option<Vec<crate::validation::OutputValidation>> = d
+        .simulated_extended
+        .as_ref()
+        .and(final_label.as_ref())
+        .map(|_| {
+            s.outputs
+                .iter()
+                .enumerate()
+                .map(|(o, name)| {
+                    crate::validation::validate(
+                        name,
+                        &shown.outputs()[o],
+                        shown.input(),
+                        &models_shown(&d, o),
+                        held_out.clone(),
+                    )
+                })
+                .collect()
+        });
     let validation_of = |checks: &[crate::validation::OutputValidation], model: &str| {
         let mut v = checks.first().map_or(serde_json::Value::Null, |v| {
             crate::validation::json(v, model)
@@ -151,6 +143,7 @@ pub fn run(
         _ => serde_json::Value::Null,
     };
 
+    let steps = d.error_waterfall(!s.options.free.is_empty());
     let options = serde_json::json!({
         "free": s.options.free,
         "fit_fraction": s.options.fit_fraction,
@@ -208,7 +201,7 @@ pub fn run(
         "validation": validation_json,
         "validation_final": validation_final_json,
         "options": options,
-        "error_waterfall": d.error_waterfall(!s.options.free.is_empty()),
+        "error_waterfall": steps,
     });
     let mut json = json;
     if let Some(found) = &d.discovered {
@@ -236,21 +229,11 @@ pub fn run(
             .or(s.model.outputs()[o].unit.as_deref())
             .map_or(String::new(), |u| format!(" ({u})"));
         // Beside the configured and the refitted model, the model with the chosen effect.
-        let mut models = models_of(&d, o);
+        let models = models_shown(&d, o);
         let fits = match &checks_final {
             Some(f) => f[o].fits.clone(),
             None => checks[o].fits.clone(),
         };
-        if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
-            models[1].role = Role::Refitted;
-            let label = format!("with {}", c.effect);
-            models.push(crate::validation::Simulated {
-                label,
-                role: Role::Extended,
-                style: Style::Line,
-                y: &ext[o],
-            });
-        }
         panels.push(crate::validation::compare_panel(
             &format!("{name}: measured and simulated (held-out data; fit over all of it)"),
             &format!("{name}{unit}"),
@@ -323,7 +306,7 @@ pub fn run(
     ) {
         crate::plots::write(&mut outdir, "resid", &fig)?;
     }
-    super::diagnose_model_evidence::draw(&mut outdir, &s, &d, shown, held_out.clone())?;
+    super::diagnose_model_evidence::draw(&mut outdir, &s, &d, &steps, shown, held_out.clone())?;
     let written = outdir.commit()?;
     let unit = |name: &str| parameter_unit(&s, name);
     crate::results::diagnose_model(&json, &unit, &dir, &written);
@@ -516,6 +499,22 @@ fn models_of(d: &ModelDiagnosis, o: usize) -> Vec<crate::validation::Simulated<'
             y: &d.simulated[o],
         },
     ]
+}
+
+/// The models shown for output `o`: the configured and the refitted one, and the model with
+/// the chosen effects when some are named (the refitted one then in its own colour).
+pub(super) fn models_shown(d: &ModelDiagnosis, o: usize) -> Vec<crate::validation::Simulated<'_>> {
+    let mut models = models_of(d, o);
+    if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
+        models[1].role = Role::Refitted;
+        models.push(crate::validation::Simulated {
+            label: format!("with {}", c.effect),
+            role: Role::Extended,
+            style: Style::Line,
+            y: &ext[o],
+        });
+    }
+    models
 }
 
 /// The record with one column per model output, each read from `file`.
@@ -868,6 +867,14 @@ fn decision(
             .collect()
     };
     let structured: Vec<String> = structured_in(checks);
+    // Whose residual the validation above analyses: with nothing free, the model as
+    // configured (its initial state fitted).
+    let refit = !s.options.free.is_empty();
+    let analysed = if refit {
+        "refitted model's"
+    } else {
+        "configured model's"
+    };
     // With an effect named, the residual a user keeps is the final model's.
     if let (Some(fin), Some(c)) = (checks_final, &d.extended) {
         let left = structured_in(fin);
@@ -897,11 +904,7 @@ fn decision(
     if structured.is_empty() {
         decision.push_str(&format!(
             " The {} residual is white: no structure is left for an effect the model lacks.",
-            if s.options.free.is_empty() {
-                "configured model's"
-            } else {
-                "refitted model's"
-            }
+            analysed
         ));
     } else if d.input_noise.is_some() && matches!(d.cause, ModelCause::None) {
         // The response to the input's noise is filtered noise: not white, and not an effect.
@@ -909,11 +912,7 @@ fn decision(
             " The {} residual in {} is not white, and need not be: its held-out \
              NRMSE is {} times the noise floor, which holds the model's response to the noise \
              on the measured input, a filtered noise (see below).",
-            if s.options.free.is_empty() {
-                "configured model's"
-            } else {
-                "refitted model's"
-            },
+            analysed,
             structured.join(", "),
             sig(d.refitted.validation() / d.noise_floor, 3)
         ));
@@ -942,14 +941,9 @@ fn decision(
                   its gain."
                 .to_string(),
         };
-        let refit = !s.options.free.is_empty();
         decision.push_str(&format!(
             " The {} residual in {} is not white: structure remains{}; {next}",
-            if refit {
-                "refitted model's"
-            } else {
-                "configured model's"
-            },
+            analysed,
             structured.join(", "),
             if refit {
                 " that the model's own parameters cannot explain"

@@ -1,19 +1,21 @@
 //! The evidence figures of a model-file diagnosis: the held-out residual in time and its
 //! spectrum, the period-averaged orbit with its uncertainty, and the held-out error from the
 //! configured to the final model. The numbers come from `htfid-diagnose` (the simulations,
-//! [`ModelDiagnosis::error_waterfall`], [`period_average`], [`amplitude_spectrum`]); this
+//! [`ModelDiagnosis::error_waterfall`], [`htfid_diagnose::period_average`], [`amplitude_spectrum`]); this
 //! module draws them.
 
 use std::ops::Range;
 
 use anyhow::Result;
 use htfid_data::{OutputDir, TimeSeries};
-use htfid_diagnose::{amplitude_spectrum, binned_means, period_average, ModelDiagnosis};
+use htfid_diagnose::{amplitude_spectrum, ErrorStep, ModelDiagnosis};
 use htfid_number::sig;
 use htfid_plot::{
-    grid_figure, spectrum_panel, stacked_figure, Panel, Role, Series, SpectrumScale, Style,
+    grid_figure, spectrum_panel, stacked_figure, Panel, Series, SpectrumScale, Style,
 };
 
+use super::diagnose_evidence::{fold_sampled, means_on, rms_per_block, waterfall_figure};
+use super::diagnose_model::models_shown;
 use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::plots;
 
@@ -30,64 +32,24 @@ pub const FIGURES: [&str; 4] = [
 const WINDOW_PERIODS: f64 = 4.0;
 /// Samples in that window, and per block of the RMS in time, for a model without forcing.
 const UNFORCED_WINDOW: usize = 500;
-/// Phase bins of the period-averaged orbit.
-const ORBIT_BINS: usize = 100;
 /// The orbit's band: this many standard errors of the measured period average either side.
 const BAND_STDERRS: f64 = 2.0;
 
-/// One model's simulated outputs, as drawn.
-struct Drawn<'a> {
-    label: String,
-    role: Role,
-    style: Style,
-    y: &'a [Vec<f64>],
-}
-
-/// The configured, the refitted and (when an effect is named) the extended model.
-fn models(d: &ModelDiagnosis) -> Vec<Drawn<'_>> {
-    let mut v = vec![
-        Drawn {
-            label: "configured model".into(),
-            role: Role::Nominal,
-            style: Style::Dashed,
-            y: &d.simulated_configured,
-        },
-        Drawn {
-            label: "refitted model".into(),
-            role: if d.simulated_extended.is_some() {
-                Role::Refitted
-            } else {
-                Role::Extended
-            },
-            style: Style::Line,
-            y: &d.simulated,
-        },
-    ];
-    if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
-        v.push(Drawn {
-            label: format!("with {}", c.effect),
-            role: Role::Extended,
-            style: Style::Line,
-            y: ext,
-        });
-    }
-    v
-}
-
 /// Writes `residual_time`, `residual_spectrum`, `orbit` (with a forcing period) and
-/// `error_waterfall` for the held-out samples `held_out` of `shown` (the record the held-out
-/// simulations run on).
+/// `error_waterfall` (the held-out error's `steps`) for the held-out samples `held_out` of
+/// `shown` (the record the held-out simulations run on), for the models
+/// [`models_shown`].
 pub fn draw(
     out: &mut OutputDir,
     s: &ModelDiagnoseSettings,
     d: &ModelDiagnosis,
+    steps: &[ErrorStep],
     shown: &TimeSeries,
     held_out: Range<usize>,
 ) -> Result<()> {
     let period = s.model.period().filter(|p| p.is_finite() && *p > 0.0);
     let dt = shown.dt();
     let t = &shown.time()[held_out.clone()];
-    let drawn = models(d);
     let unit = |o: usize| {
         s.format
             .unit(&s.outputs[o])
@@ -130,8 +92,8 @@ pub fn draw(
             format!("residual{}", unit(o)),
         );
         let mut top_max = 0.0f64;
-        for m in &drawn {
-            let r = residual(&m.y[o], o);
+        for m in &models_shown(d, o) {
+            let r = residual(m.y, o);
             let (tb, rms) = rms_per_block(t, &r, block);
             top_max = rms
                 .iter()
@@ -172,8 +134,8 @@ pub fn draw(
             SpectrumScale::LogLog,
         );
         panel.y_label = format!("amplitude{}", unit(o));
-        for m in &drawn {
-            let (w, a) = amplitude_spectrum(&residual(&m.y[o], o), dt);
+        for m in &models_shown(d, o) {
+            let (w, a) = amplitude_spectrum(&residual(m.y, o), dt);
             panel
                 .series
                 .push(Series::new(m.label.clone(), w, a, m.style).with_role(m.role));
@@ -186,17 +148,10 @@ pub fn draw(
     // The orbit: every output folded over the forcing period, the measured average with a
     // band of two standard errors across the periods; beside it each model minus the measured.
     if let Some(period) = period {
-        // At most one bin per sample interval, the bins' edges half a sample from the
-        // samples: each bin holds the same phases in every period (a bin that caught two
-        // phases in some periods and one in others would mix the orbit's slope into its
-        // standard error).
-        let bins = ORBIT_BINS.min((period / dt).round() as usize).max(4);
-        let t_shifted: Vec<f64> = t.iter().map(|v| v + 0.5 * dt).collect();
-        let t = &t_shifted[..];
         let mut panels = Vec::new();
         for (o, name) in s.outputs.iter().enumerate() {
-            let measured = period_average(t, &shown.outputs()[o][held_out.clone()], period, bins);
-            let phase: Vec<f64> = measured.iter().map(|b| b.centre - 0.5 * dt).collect();
+            let measured = fold_sampled(t, &shown.outputs()[o][held_out.clone()], period, dt);
+            let phase: Vec<f64> = measured.iter().map(|b| b.centre).collect();
             let mean: Vec<f64> = measured.iter().map(|b| b.mean).collect();
             let half: Vec<f64> = measured.iter().map(|b| BAND_STDERRS * b.stderr).collect();
             let mut p = Panel::new(
@@ -221,12 +176,10 @@ pub fn draw(
                 "time into the forcing period (s)",
                 format!("difference{}", unit(o)),
             );
+            let drawn = models_shown(d, o);
             for (j, m) in drawn.iter().enumerate() {
-                let sim = &m.y[o][held_out.clone()];
-                let y = super::diagnose_evidence::means_on(
-                    &measured,
-                    &period_average(t, sim, period, bins),
-                );
+                let sim = &m.y[held_out.clone()];
+                let y = means_on(&measured, &fold_sampled(t, sim, period, dt));
                 // The difference's own period average: the measured input's response, common
                 // to both, leaves its standard error.
                 let diff: Vec<f64> = sim
@@ -234,11 +187,11 @@ pub fn draw(
                     .zip(&shown.outputs()[o][held_out.clone()])
                     .map(|(a, b)| a - b)
                     .collect();
-                let diff = period_average(t, &diff, period, bins);
+                let diff = fold_sampled(t, &diff, period, dt);
                 if j + 1 == drawn.len() {
                     q.series.push(Series::band(
                         format!("± {BAND_STDERRS} standard errors ({})", m.label),
-                        diff.iter().map(|b| b.centre - 0.5 * dt).collect(),
+                        diff.iter().map(|b| b.centre).collect(),
                         diff.iter().map(|b| -BAND_STDERRS * b.stderr).collect(),
                         diff.iter().map(|b| BAND_STDERRS * b.stderr).collect(),
                     ));
@@ -249,7 +202,7 @@ pub fn draw(
                 q.series.push(
                     Series::new(
                         m.label.clone(),
-                        diff.iter().map(|b| b.centre - 0.5 * dt).collect(),
+                        diff.iter().map(|b| b.centre).collect(),
                         diff.iter().map(|b| b.mean).collect(),
                         m.style,
                     )
@@ -264,10 +217,9 @@ pub fn draw(
     }
 
     // The held-out error, step by step.
-    let steps = d.error_waterfall(!s.options.free.is_empty());
-    let fig = super::diagnose_evidence::waterfall_figure(
+    let fig = waterfall_figure(
         &s.name,
-        &steps,
+        steps,
         &format!("refit {}", s.options.free.join(", ")),
         (
             "held-out NRMSE (mean over the outputs)",
@@ -281,19 +233,4 @@ pub fn draw(
         }),
     );
     plots::write(out, "error_waterfall", &fig)
-}
-
-/// The RMS of `r` (at times `t`) per block of `block` s from the first sample: `(centre of
-/// each block, RMS)`; blocks without samples are left out.
-fn rms_per_block(t: &[f64], r: &[f64], block: f64) -> (Vec<f64>, Vec<f64>) {
-    let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
-        return (Vec::new(), Vec::new());
-    };
-    let nb = (((t1 - t0) / block).ceil() as usize).clamp(1, 5000);
-    let sq: Vec<f64> = r.iter().map(|v| v * v).collect();
-    let own: Vec<usize> = (0..t.len()).collect();
-    binned_means(t, &sq, &own, nb, (t0, t0 + nb as f64 * block))
-        .iter()
-        .map(|b| (0.5 * (b.lo + b.hi), b.mean.sqrt()))
-        .unzip()
 }

@@ -100,10 +100,13 @@ fn model_error(e: htfid_lang::ModelError) -> DiagnoseError {
 
 /// The scale of a meaningful change of each of the model's parameters `names`, as the free
 /// parameters': the configured magnitude, at least 1e-3.
-fn parameter_scales<'n>(model: &'n Model, names: &'n [String]) -> impl Iterator<Item = f64> + 'n {
+pub(super) fn parameter_scales<'n, S: AsRef<str>>(
+    model: &'n Model,
+    names: &'n [S],
+) -> impl Iterator<Item = f64> + 'n {
     names.iter().map(|n| {
         model
-            .parameter_index(n)
+            .parameter_index(n.as_ref())
             .map_or(1.0, |i| model.values()[i].abs().max(1e-3))
     })
 }
@@ -128,6 +131,9 @@ pub(super) fn aliases(
     samples: &StateSamples,
     suspects: &[String],
 ) -> Vec<Option<String>> {
+    if suspects.is_empty() {
+        return vec![None; trials.len()];
+    }
     trials
         .iter()
         .map(|trial| {
@@ -516,7 +522,7 @@ impl Selection<'_, '_> {
             })
             .flatten()
             .collect();
-        all.extend(suspects.iter().map(|n| (*n).clone()));
+        all.extend(suspects.iter().map(|n| n.to_string()));
         let values: Vec<(&str, f64)> = all
             .iter()
             .filter_map(|n| known.get(n).map(|v| (n.as_str(), *v)))
@@ -534,7 +540,6 @@ impl Selection<'_, '_> {
         for term in &terms {
             scales.extend(self.samples.term_scales(&m, &est.signal, term));
         }
-        let suspects: Vec<String> = suspects.into_iter().cloned().collect();
         scales.extend(parameter_scales(self.refitted_model, &suspects));
         // Any other term not fitted before starts its first parameter from the best of a grid
         // across its scale, zero included: beside the chosen effects the free parameters have

@@ -49,11 +49,7 @@ impl ModelDiagnosis {
         let end = beside.map_or(extended.nrmse_validation, |p| p.nrmse_reset);
         // The score of the fit of the first `i` effects together, as the selection made it.
         let prefix = |i: usize| -> Option<f64> {
-            let name = effects[..i]
-                .iter()
-                .map(|e| e.as_str())
-                .collect::<Vec<_>>()
-                .join(" + ");
+            let name = joined(&effects[..i]);
             std::iter::once(&self.candidates)
                 .chain(std::iter::once(&self.pairs))
                 .chain(self.later_rounds.iter())
@@ -71,13 +67,8 @@ impl ModelDiagnosis {
                 prefix(i)
             };
             if let Some(after) = after {
-                let step = effects[from..i]
-                    .iter()
-                    .map(|e| e.as_str())
-                    .collect::<Vec<_>>()
-                    .join(" + ");
                 steps.push(ErrorStep {
-                    step,
+                    step: joined(&effects[from..i]),
                     before,
                     after,
                 });
@@ -95,4 +86,13 @@ impl ModelDiagnosis {
         steps.push(level("final", extended.nrmse_validation));
         steps
     }
+}
+
+/// Effects' names as the selection names their joint fit: `"a + b"`.
+fn joined(effects: &[&String]) -> String {
+    effects
+        .iter()
+        .map(|e| e.as_str())
+        .collect::<Vec<_>>()
+        .join(" + ")
 }
