@@ -88,27 +88,9 @@ pub fn run(
         Some(_) => ((s.options.burn_in / dt).ceil() as usize).min(n / 4)..n,
         None => ((n as f64 * s.options.fit_fraction) as usize).min(n)..n,
     };
-    let checks: Vec<crate::validation::OutputValidation> = s
-        .outputs
-        .iter()
-        .enumerate()
-        .map(|(o, name)| {
-            crate::validation::validate(
-                name,
-                &shown.outputs()[o],
-                shown.input(),
-                &models_of(&d, o),
-                held_out.clone(),
-            )
-        })
-        .collect();
-    // With an effect named, the final model too: its residual is the one a user keeps.
-    let final_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
-    let checks_final: Option<Vec<crate::validation::OutputValidation>> = d
-        .simulated_extended
-        .as_ref()
-        .and(final_label.as_ref())
-        .map(|_| {
+    // Every output's validation of the last of the models `models` gives for it.
+    let validate_with =
+        |models: fn(&ModelDiagnosis, usize) -> Vec<crate::validation::Simulated<'_>>| {
             s.outputs
                 .iter()
                 .enumerate()
@@ -117,12 +99,20 @@ pub fn run(
                         name,
                         &shown.outputs()[o],
                         shown.input(),
-                        &models_shown(&d, o),
+                        &models(&d, o),
                         held_out.clone(),
                     )
                 })
-                .collect()
-        });
+                .collect::<Vec<_>>()
+        };
+    let checks = validate_with(models_of);
+    // With an effect named, the final model too: its residual is the one a user keeps.
+    let final_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+    let checks_final = d
+        .simulated_extended
+        .as_ref()
+        .and(final_label.as_ref())
+        .map(|_| validate_with(models_shown));
     let validation_of = |checks: &[crate::validation::OutputValidation], model: &str| {
         let mut v = checks.first().map_or(serde_json::Value::Null, |v| {
             crate::validation::json(v, model)
