@@ -527,11 +527,18 @@ pub fn diagnose_model(
         d["model"].as_str().unwrap_or("")
     ));
     t.row("cause", d["cause"].as_str().unwrap_or("?"));
-    let causes: Vec<&str> = d["causes"]
+    // Every cause with its share of the explained held-out error, strongest first.
+    let causes: Vec<String> = d["causes"]
         .as_array()
         .into_iter()
         .flatten()
-        .filter_map(Value::as_str)
+        .map(|c| {
+            format!(
+                "{} ({})",
+                c["effect"].as_str().unwrap_or("?"),
+                pct(f(&c["gain_share"]))
+            )
+        })
         .collect();
     if causes.len() > 1 {
         t.row("causes", causes.join(", "));
@@ -540,10 +547,20 @@ pub fn diagnose_model(
     let refit = d["options"]["free"]
         .as_array()
         .is_some_and(|free| !free.is_empty());
-    let gain = f(&d["gain"]);
-    if refit {
+    if d["extended"].is_object() {
         t.row(
             "gain",
+            format!(
+                "{} lower held-out NRMSE with the named effects than {}",
+                pct(f(&d["gain"])),
+                if refit { "refitted" } else { "as configured" }
+            ),
+        );
+    }
+    let gain = f(&d["refit_gain"]);
+    if refit {
+        t.row(
+            "refit",
             if gain < 0.0 {
                 format!(
                     "{} higher held-out NRMSE refitted than configured",
@@ -573,7 +590,7 @@ pub fn diagnose_model(
             })
             .collect()
     };
-    t.rows("parameters", changes(&d["parameters"], ""));
+    t.rows("parameters", changes(&d["refit_parameters"], ""));
     let beside = &d["parameters_beside"];
     if beside["named"].as_bool() == Some(true) {
         t.rows(

@@ -8,8 +8,10 @@ use serde::Serialize;
 use crate::boundary::{Boundary, BoundaryEffect};
 use crate::decide::{Agreement, Plain};
 use crate::term::{term_library, TermEffect, TermKind};
-use crate::{DiagnoseError, TimeSeries};
+use crate::{Cause, DiagnoseError, TimeSeries};
+use std::collections::BTreeMap;
 
+mod causes;
 mod joint;
 mod prepared;
 mod search;
@@ -143,8 +145,9 @@ impl Default for ModelFitOptions {
     }
 }
 
-/// How well a simulation matches the record.
-#[derive(Debug, Clone, Serialize)]
+/// How well a simulation matches the record. In JSON it also holds `nrmse`, the mean held-out
+/// NRMSE over the outputs ([`ModelScore::validation`]).
+#[derive(Debug, Clone)]
 pub struct ModelScore {
     /// Per output: RMS of (simulated - measured) over its standard deviation, on the fit part.
     pub nrmse_fit: Vec<f64>,
@@ -158,6 +161,18 @@ impl ModelScore {
     /// The mean held-out NRMSE over the outputs.
     pub fn validation(&self) -> f64 {
         self.nrmse_validation.iter().sum::<f64>() / self.nrmse_validation.len().max(1) as f64
+    }
+}
+
+impl Serialize for ModelScore {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut m = s.serialize_struct("ModelScore", 4)?;
+        m.serialize_field("nrmse", &self.validation())?;
+        m.serialize_field("nrmse_fit", &self.nrmse_fit)?;
+        m.serialize_field("nrmse_validation", &self.nrmse_validation)?;
+        m.serialize_field("rmse_validation", &self.rmse_validation)?;
+        m.end()
     }
 }
 
@@ -248,6 +263,10 @@ pub struct ModelCandidate {
     pub nrmse_validation: f64,
     /// Held-out improvement over the refit without the effect.
     pub gain: f64,
+    /// Bayesian information criterion of the fit that `nrmse_validation` scores, on the fit
+    /// data: `N ln(RSS / N) + p ln N`, `N` the residuals, `p` the fitted parameters (the
+    /// initial state excluded); lower is better (NaN, `null` in JSON, when the fit failed).
+    pub bic: f64,
     /// Likelihood ratio against the refit, corrected for the residuals' correlation.
     pub likelihood_ratio: f64,
     /// The ratio it must reach (chi-square quantile at `alpha`, one degree per parameter).
@@ -269,6 +288,7 @@ impl ModelCandidate {
             stderr: Default::default(),
             nrmse_validation: f64::NAN,
             gain: f64::NAN,
+            bic: f64::NAN,
             likelihood_ratio: f64::NAN,
             critical: f64::NAN,
             significant: false,
@@ -287,11 +307,22 @@ pub struct ModelDiagnosis {
     pub configured: ModelScore,
     /// The refitted simulation's score.
     pub refitted: ModelScore,
-    /// Every free parameter, refitted.
-    pub parameters: Vec<ParameterChange>,
+    /// The final model's fitted parameters by name: the free parameters and the named
+    /// effects' (the extended fit's), or the refit's free parameters when no effect is named.
+    pub parameters: BTreeMap<String, f64>,
+    /// Their standard errors, inflated for correlated residuals.
+    pub stderr: BTreeMap<String, f64>,
+    /// Held-out improvement of the final model over the refitted one:
+    /// `1 - NRMSE_extended / NRMSE_refitted` (mean over outputs); 0 without an extended model.
+    pub gain: f64,
+    /// Held-out improvement of the final model over the configured simulation:
+    /// `1 - NRMSE_final / NRMSE_configured` (mean over outputs).
+    pub gain_vs_configured: f64,
+    /// Every free parameter, refitted: configured and fitted values, standard error, `z`.
+    pub refit_parameters: Vec<ParameterChange>,
     /// Held-out improvement of the refit over the configured simulation:
     /// `1 - NRMSE_refitted / NRMSE_configured` (mean over outputs).
-    pub gain: f64,
+    pub refit_gain: f64,
     /// Factor by which the residuals' correlation inflates the standard errors.
     pub stderr_inflation: f64,
     /// Levenberg-Marquardt iterations.
@@ -302,9 +333,10 @@ pub struct ModelDiagnosis {
     pub candidates: Vec<ModelCandidate>,
     /// Every effect named, in the order chosen: the best single effect, then each one that
     /// passes beside those before it; last `parameter_error` when the free parameters beside
-    /// them are off too ([`ParametersBeside`]). `["parameter_error"]` when the refit of the
-    /// free parameters is the answer; empty when nothing is named.
-    pub causes: Vec<String>,
+    /// them are off too ([`ParametersBeside`]). Only `parameter_error` when the refit of the
+    /// free parameters is the answer; empty when nothing is named. Each with its parameters
+    /// in the final fit and its share of the explained held-out error ([`Cause`]).
+    pub causes: Vec<Cause>,
     /// Every other candidate refitted jointly with the best one (named `first + second`),
     /// best held-out score first; empty when nothing passes or the best one leaves the
     /// held-out residual within 1.2 times the noise floor.
@@ -577,18 +609,40 @@ pub fn diagnose_model(
         }
         _ => None,
     };
-    let mut causes: Vec<String> = current
-        .as_ref()
-        .map(|c| c.set.iter().map(|&i| trials[i].name()).collect())
-        .unwrap_or_default();
-    // A parameter error is a cause wherever it is named: beside the effects, or alone by the
-    // refit of the free parameters (as the candidate `parameter_error` is when chosen).
-    if (parameters_beside.as_ref().is_some_and(|p| p.named)
-        || decision.cause == ModelCause::ParameterError)
-        && !causes.iter().any(|c| c == "parameter_error")
-    {
-        causes.push("parameter_error".into());
+    let causes = causes::Named {
+        current: current.as_ref(),
+        trials: &trials,
+        backward: &backward,
+        refitted: refit.refitted.validation(),
+        beside: parameters_beside.as_ref(),
+        refit_alone: (current.is_none() && decision.cause == ModelCause::ParameterError)
+            .then_some(refit.parameters.as_slice()),
+        significance_sigma: opts.significance_sigma,
     }
+    .causes();
+    // The final model's parameters: the extended fit's, or the refit's free parameters.
+    let (parameters, stderr): (BTreeMap<String, f64>, BTreeMap<String, f64>) = match &current {
+        Some(c) => (c.candidate.parameters.clone(), c.candidate.stderr.clone()),
+        None => (
+            refit
+                .parameters
+                .iter()
+                .map(|p| (p.name.clone(), p.fitted))
+                .collect(),
+            refit
+                .parameters
+                .iter()
+                .map(|p| (p.name.clone(), p.stderr))
+                .collect(),
+        ),
+    };
+    let final_nrmse = current.as_ref().map_or(refit.refitted.validation(), |c| {
+        c.candidate.nrmse_validation
+    });
+    let gain = current
+        .as_ref()
+        .map_or(0.0, |_| 1.0 - final_nrmse / refit.refitted.validation());
+    let gain_vs_configured = 1.0 - final_nrmse / refit.configured.validation();
     let (extended, simulated_extended) = match current {
         Some(mut c) => {
             let sim = c.simulated.take();
@@ -600,8 +654,12 @@ pub fn diagnose_model(
         cause: decision.cause,
         configured: refit.configured,
         refitted: refit.refitted,
-        parameters: refit.parameters,
-        gain: refit.gain,
+        parameters,
+        stderr,
+        gain,
+        gain_vs_configured,
+        refit_parameters: refit.parameters,
+        refit_gain: refit.gain,
         stderr_inflation: refit.inflation,
         iterations: refit.base.iterations,
         stop: refit.base.stop,

@@ -67,6 +67,27 @@ fn final_value(d: &htfid_diagnose::ModelDiagnosis, name: &str) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
+/// The causes' names, strongest first; checks on the way that their shares of the explained
+/// error lie in [0, 1], add up to 1 (to rounding) and fall from the first to the last.
+fn effects(d: &htfid_diagnose::ModelDiagnosis) -> Vec<&str> {
+    let shares: Vec<f64> = d.causes.iter().map(|c| c.gain_share).collect();
+    if !shares.is_empty() {
+        assert!(
+            (shares.iter().sum::<f64>() - 1.0).abs() < 1e-12
+                && shares.iter().all(|s| (0.0..=1.0).contains(s))
+                && shares.windows(2).all(|w| w[0] >= w[1]),
+            "shares {shares:?}"
+        );
+    }
+    d.causes.iter().map(|c| c.effect.as_str()).collect()
+}
+
+/// `names` in alphabetical order.
+fn sorted(mut names: Vec<&str>) -> Vec<&str> {
+    names.sort_unstable();
+    names
+}
+
 /// Every candidate's name, score, parameters and note, a line each (for failure messages).
 fn candidate_table(d: &htfid_diagnose::ModelDiagnosis) -> String {
     d.candidates
@@ -97,13 +118,26 @@ fn a_stiffer_spring_is_a_parameter_error() {
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
     assert_eq!(d.cause, ModelCause::ParameterError, "{:?}", d.candidates);
     // Named as a cause, as the candidate `parameter_error` is with nothing refitted.
-    assert_eq!(d.causes, ["parameter_error"]);
-    let k = &d.parameters[0];
+    assert_eq!(effects(&d), ["parameter_error"]);
+    let k = &d.refit_parameters[0];
     assert!((k.fitted / 206.0 - 1.0).abs() < 5e-3, "{k:?}");
     assert!(k.z.abs() > 5.0);
-    assert!(d.gain > 0.5, "{}", d.gain);
-    let c = &d.parameters[1];
+    assert!(d.refit_gain > 0.5, "{}", d.refit_gain);
+    let c = &d.refit_parameters[1];
     assert!((c.fitted / 2.0 - 1.0).abs() < 0.02, "{c:?}");
+    // The cause holds the moved parameters as refitted, and all of the explained error.
+    let cause = &d.causes[0];
+    // (Copies of one value: equal to the bit.)
+    assert_eq!(
+        cause.parameters["k"].to_bits(),
+        k.fitted.to_bits(),
+        "{cause:?}"
+    );
+    assert_eq!(cause.gain_share.to_bits(), 1f64.to_bits());
+    // No effect: the final model is the refit, its parameters the refit's, no gain beyond.
+    assert_eq!(d.parameters["k"].to_bits(), k.fitted.to_bits());
+    assert_eq!(d.stderr["c"].to_bits(), c.stderr.to_bits());
+    assert_eq!(d.gain.to_bits(), 0f64.to_bits());
 }
 
 /// A record of the nominal hopper names nothing: every refitted parameter stays within its
@@ -116,7 +150,8 @@ fn the_nominal_hopper_gives_none() {
     };
     let d = diagnose_model(&hopper(), &record(&scenario), None, &options()).unwrap();
     assert_eq!(d.cause, ModelCause::None, "{:?}", d.candidates);
-    for p in &d.parameters {
+    assert!(d.causes.is_empty(), "{:?}", d.causes);
+    for p in &d.refit_parameters {
         assert!(
             p.z.abs() < 5.0 && (p.fitted / p.configured - 1.0).abs() < 1e-2,
             "{p:?}"
@@ -350,7 +385,7 @@ fn a_cubic_spring_is_named_alone_with_its_coefficient_about_the_rest_point() {
     let (k3, k) = (final_value(&d, "k3_x"), final_value(&d, "k"));
     eprintln!("causes {:?}: k3_x {k3}, k {k}", d.causes);
     assert!(
-        d.causes == ["nonlinear_stiffness(x)"]
+        effects(&d) == ["nonlinear_stiffness(x)"]
             && (k3 / -2000.0 - 1.0).abs() < 0.1
             && (k / 200.0 - 1.0).abs() < 5e-3,
         "causes {:?}, k3_x {k3}, k {k}\n{}",
@@ -376,7 +411,7 @@ fn a_stiffness_error_beside_a_cubic_spring_is_named_with_it() {
     let (k3, k) = (final_value(&d, "k3_x"), final_value(&d, "k"));
     eprintln!("causes {:?}: k3_x {k3}, k {k}", d.causes);
     assert!(
-        d.causes == ["nonlinear_stiffness(x)", "parameter_error"]
+        sorted(effects(&d)) == ["nonlinear_stiffness(x)", "parameter_error"]
             && (k3 / -2000.0 - 1.0).abs() < 0.1
             && (k / (200.0 * 0.967) - 1.0).abs() < 5e-3,
         "causes {:?}, k3_x {k3}, k {k}, beside {:?}\n{}",
@@ -421,8 +456,8 @@ fn beside_a_stiffness_law_its_linear_part_is_not_a_parameter_error() {
         diagnosis
             .causes
             .iter()
-            .any(|c| c == "nonlinear_stiffness(x)")
-            && !diagnosis.causes.iter().any(|c| c == "parameter_error")
+            .any(|c| c.effect == "nonlinear_stiffness(x)")
+            && !effects(&diagnosis).contains(&"parameter_error")
             && beside.is_some_and(|p| {
                 p.moved.is_empty()
                     && p.excused
@@ -463,7 +498,7 @@ fn an_actuator_lag_beside_a_constant_force_is_named_as_such() {
         pairs.join("\n")
     );
     assert!(
-        d.causes == ["actuator_lag", "input_offset"]
+        sorted(effects(&d)) == sorted(vec!["actuator_lag", "input_offset"])
             && (tau_fit / tau - 1.0).abs() < 0.1
             && (offset_fit / offset - 1.0).abs() < 0.1,
         "cause {} causes {:?}: tau = {tau_fit} (true {tau}), input_offset = {offset_fit} (true \
@@ -502,7 +537,7 @@ fn damping_in_flight_beside_a_moved_switch_is_named_not_drag() {
         d.causes,
     );
     assert!(
-        d.causes == ["mode_damping(v, free)", "guard_shift(v)"]
+        sorted(effects(&d)) == sorted(vec!["mode_damping(v, free)", "guard_shift(v)"])
             && (shift / v_th - 1.0).abs() < 0.02
             && (damping / c_f - 1.0).abs() < 0.02,
         "cause {} causes {:?}: shift_1 = {shift} (true {v_th}), damping_v_free = {damping} \
@@ -542,7 +577,7 @@ fn a_damping_error_beside_a_moved_switch_is_named_with_it() {
         candidate_table(&d)
     );
     assert!(
-        d.causes == ["guard_shift(v)", "parameter_error"]
+        sorted(effects(&d)) == sorted(vec!["guard_shift(v)", "parameter_error"])
             && (shift / v_th - 1.0).abs() < 0.1
             && (c / c_true - 1.0).abs() < 0.01
             && beside.is_some_and(|p| p.named && p.moved.iter().any(|m| m.name == "c")),
@@ -666,7 +701,7 @@ fn nothing_refitted_a_stiffer_spring_is_the_candidate_parameter_error() {
     );
     assert!(
         d.cause == ModelCause::ParameterError
-            && d.causes == ["parameter_error"]
+            && effects(&d) == ["parameter_error"]
             && (k / 206.0 - 1.0).abs() < 5e-3
             && (m - 1.0).abs() < 0.01
             && (c / 2.0 - 1.0).abs() < 0.01,
@@ -744,7 +779,7 @@ fn nothing_refitted_a_stronger_damper_is_a_parameter_error_not_damping_in_its_mo
         .find(|c| c.effect == "mode_damping(v, damped)");
     assert!(
         d.cause == ModelCause::ParameterError
-            && d.causes == ["parameter_error"]
+            && effects(&d) == ["parameter_error"]
             && (c / 2.2 - 1.0).abs() < 5e-3
             && alias.is_some_and(|a| !a.significant && a.note.contains("re-expresses")),
         "cause {} causes {:?}: c {c}\n{}",

@@ -65,7 +65,7 @@ fn accepted(e: &EffectLabel) -> Option<Vec<&'static str>> {
 
 /// Every name the diagnosis gives: its causes, its cause, an `ambiguous` answer's names.
 fn names_of(d: &ModelDiagnosis) -> Vec<String> {
-    let mut v = d.causes.clone();
+    let mut v: Vec<String> = d.causes.iter().map(|c| c.effect.clone()).collect();
     match &d.cause {
         ModelCause::Effect(e) => v.push(e.clone()),
         ModelCause::ParameterError => v.push("parameter_error".into()),

@@ -148,7 +148,7 @@ fn a_stiffer_coupling_spring_is_a_parameter_error() {
     let d = diagnose("stiffer-k2.csv");
     let t = table(&d);
     assert_eq!(d.cause, ModelCause::ParameterError, "{t}");
-    let k2 = d.parameters.iter().find(|p| p.name == "k2").unwrap();
+    let k2 = d.refit_parameters.iter().find(|p| p.name == "k2").unwrap();
     let want = truth("stiffer-k2.csv", "k2");
     // The refit sees 4200 samples of two outputs at 2e-5 m of noise: k2 is determined to a
     // small fraction of a percent, and 1 % leaves room for the other parameters' correlation.
@@ -262,7 +262,7 @@ fn all_named(d: &ModelDiagnosis, file: &str, want: &[(&str, &str, f64)]) {
     let t = table(d);
     for (effect, _, _) in want {
         assert!(
-            d.causes.iter().any(|c| c == effect),
+            d.causes.iter().any(|c| c.effect == *effect),
             "{file}: {effect} not among the causes {:?}\n{t}",
             d.causes
         );

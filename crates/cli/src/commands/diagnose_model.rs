@@ -171,10 +171,15 @@ pub fn run(
         "units": s.format.units_json(),
         "model": s.model.name(),
         "cause": d.cause,
+        "parameters": d.parameters,
+        "stderr": d.stderr,
+        "nominal": { "nrmse": d.refitted.validation() },
         "gain": d.gain,
+        "gain_vs_configured": d.gain_vs_configured,
         "configured": d.configured,
         "refitted": d.refitted,
-        "parameters": d.parameters,
+        "refit_parameters": d.refit_parameters,
+        "refit_gain": d.refit_gain,
         "stderr_inflation": d.stderr_inflation,
         "iterations": d.iterations,
         "stop": d.stop,
@@ -183,7 +188,7 @@ pub fn run(
         "pairs": d.pairs,
         "later_rounds": d.later_rounds,
         "backward": d.backward,
-        "extended": d.extended,
+        "extended": extended_json(&d),
         "parameters_beside": d.parameters_beside,
         "alternatives": d.alternatives,
         "noise_floor": d.noise_floor,
@@ -279,7 +284,11 @@ pub fn run(
     }
     // Several effects named: all of them in the title.
     let named = if d.causes.len() > 1 {
-        d.causes.join(" + ")
+        d.causes
+            .iter()
+            .map(|c| c.effect.as_str())
+            .collect::<Vec<_>>()
+            .join(" + ")
     } else {
         d.cause.name().to_string()
     };
@@ -616,6 +625,16 @@ fn figures_section(r: &mut Report, s: &ModelDiagnoseSettings) {
     );
 }
 
+/// The extended fit as in `diagnosis.json`: the candidate, with its held-out NRMSE also as
+/// `nrmse` (as `nominal.nrmse`).
+fn extended_json(d: &ModelDiagnosis) -> serde_json::Value {
+    let mut v = serde_json::to_value(&d.extended).unwrap_or(serde_json::Value::Null);
+    if let (Some(o), Some(c)) = (v.as_object_mut(), &d.extended) {
+        o.insert("nrmse".into(), json!(c.nrmse_validation));
+    }
+    v
+}
+
 /// The decision in words, and whether the refitted model's residual is white.
 fn decision(
     s: &ModelDiagnoseSettings,
@@ -631,7 +650,7 @@ fn decision(
         mean(&d.refitted.nrmse_validation),
     );
     let moved: Vec<String> = d
-        .parameters
+        .refit_parameters
         .iter()
         .filter(|p| p.z.abs() >= s.options.significance_sigma)
         .map(|p| {
@@ -652,8 +671,8 @@ fn decision(
             let others: Vec<String> = d
                 .causes
                 .iter()
-                .filter(|n| *n != "parameter_error")
-                .map(|n| format!("`{n}`"))
+                .filter(|c| c.effect != "parameter_error")
+                .map(|c| format!("`{}`", c.effect))
                 .collect();
             format!(
                 "**The configured parameters of model `{model}` are off.** Refitted as the \
@@ -677,7 +696,7 @@ fn decision(
             moved.join(", "),
             percent(before, 3),
             percent(after, 3),
-            percent(d.gain, 3)
+            percent(d.refit_gain, 3)
         ),
         ModelCause::Effect(e) => {
             let c = d.extended.as_ref();
@@ -718,10 +737,10 @@ fn decision(
             } else {
                 "the refit of the free parameters"
             };
-            // The effects named (a parameter error beside them has its own sentence).
-            let effects: Vec<&String> = d
-                .causes
-                .iter()
+            // The effects named, in the order chosen (a parameter error has its own sentence).
+            let effects: Vec<&str> = d
+                .chosen()
+                .into_iter()
                 .filter(|n| *n != "parameter_error")
                 .collect();
             let text = match effects.as_slice() {
@@ -741,11 +760,7 @@ fn decision(
                     };
                     // The last effect's test beside those before it: the fit of these
                     // effects alone (beside a parameter error the final fit has one more).
-                    let set = effects
-                        .iter()
-                        .map(|e| e.as_str())
-                        .collect::<Vec<_>>()
-                        .join(" + ");
+                    let set = effects.join(" + ");
                     let own = d
                         .pairs
                         .iter()
@@ -782,7 +797,7 @@ fn decision(
                     )
                 }
             };
-            let suspects = if d.causes.iter().any(|n| n == "parameter_error")
+            let suspects = if d.causes.iter().any(|c| c.effect == "parameter_error")
                 && !d.parameters_beside.as_ref().is_some_and(|p| p.named)
             {
                 format!(
@@ -1246,7 +1261,7 @@ fn errors_and_parameters(
     r.table(&["output", "configured model", "refitted model"], &rows);
 
     r.section("Parameters");
-    if d.parameters.is_empty() {
+    if d.refit_parameters.is_empty() {
         r.para(
             "Nothing is refitted with every candidate (`[model] free = []`): the model's \
              parameters stay as configured, and only the candidate `parameter_error` (when \
@@ -1296,7 +1311,7 @@ fn errors_and_parameters(
 /// standard errors they moved; and the widening of the standard errors.
 fn parameter_table(r: &mut Report, d: &ModelDiagnosis, unit: &dyn Fn(&str) -> Option<String>) {
     let mut rows = Vec::new();
-    for p in &d.parameters {
+    for p in &d.refit_parameters {
         let u = unit(&p.name);
         let z = if p.z.is_finite() {
             sig(p.z, 2)

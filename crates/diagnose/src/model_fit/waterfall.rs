@@ -5,6 +5,16 @@ use super::ModelDiagnosis;
 use crate::ErrorStep;
 
 impl ModelDiagnosis {
+    /// The effects of the extended fit in the order the selection chose them (the candidate
+    /// `parameter_error` among them when it was chosen; not a parameter error named beside
+    /// them); empty without an extended fit.
+    pub fn chosen(&self) -> Vec<&str> {
+        self.extended
+            .as_ref()
+            .map(|c| c.effect.split(" + ").collect())
+            .unwrap_or_default()
+    }
+
     /// The held-out NRMSE (mean over the outputs) from the configured model to the final one:
     /// the configured level; the refit of the free parameters (`refitted`, left out when
     /// nothing is free, `refit` false: then the refit only fits the initial state); one step
@@ -36,16 +46,10 @@ impl ModelDiagnosis {
             return steps;
         };
         let beside = self.parameters_beside.as_ref().filter(|p| p.named);
-        // The effects chosen, the candidate `parameter_error` among them; a parameter error
-        // beside them is its own last step.
-        let effects: Vec<&String> = if beside.is_some() {
-            match self.causes.split_last() {
-                Some((last, rest)) if last == "parameter_error" => rest.iter().collect(),
-                _ => self.causes.iter().collect(),
-            }
-        } else {
-            self.causes.iter().collect()
-        };
+        // The effects in the order chosen, the candidate `parameter_error` among them; a
+        // parameter error beside them is its own last step.
+        let names: Vec<String> = self.chosen().into_iter().map(String::from).collect();
+        let effects: Vec<&String> = names.iter().collect();
         let end = beside.map_or(extended.nrmse_validation, |p| p.nrmse_reset);
         // The score of the fit of the first `i` effects together, as the selection made it.
         let prefix = |i: usize| -> Option<f64> {
