@@ -55,7 +55,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::deriv::savitzky_golay;
+use crate::deriv::{acceleration_kernel, savitzky_golay};
 use crate::diagnose::{evaluate_driven, validation_inits_of};
 use crate::fit::{hac, Context, Driven, FitResult, ModelPoint, Segment};
 use crate::select::{chi2_quantile, likelihood_ratio};
@@ -334,34 +334,6 @@ fn regression_data(
     let a = DMatrix::from_fn(idx.len(), terms.len(), |i, j| rows[idx[i]][j]);
     let y = DVector::from_iterator(idx.len(), idx.iter().map(|&i| ys[i]));
     (a.iter().all(|v| v.is_finite()) && y.iter().all(|v| v.is_finite())).then_some((a, y))
-}
-
-/// The weights `w` (sum 1, offsets `-half..=half`) with which the Savitzky-Golay second
-/// derivative of a position sequence equals `sum_m w_m x''(t + m dt)` up to `O(dt^2)`: the
-/// derivative filter `c` annihilates constants and lines, so `c = D2 w / dt^2` with `D2` the
-/// second difference, and `w` is the double running sum of `c dt^2`. Smoothing the model's
-/// acceleration with `w` makes it comparable with the measured one at every frequency, not only
-/// inside the smoother's pass band.
-pub(crate) fn acceleration_kernel(half: usize, dt: f64) -> Vec<f64> {
-    let len = 2 * half + 1;
-    let c: Vec<f64> = (0..len)
-        .map(|i| {
-            let mut e = vec![0.0; len];
-            e[i] = 1.0;
-            savitzky_golay(&e, half, half + 1, dt, half, 4)
-                .first()
-                .map_or(0.0, |(_, k)| k.a * dt * dt)
-        })
-        .collect();
-    let mut s1 = 0.0;
-    let mut s2 = 0.0;
-    let mut w = vec![0.0; len];
-    for (i, &ci) in c.iter().enumerate().take(len - 1) {
-        s1 += ci;
-        s2 += s1;
-        w[i + 1] = s2;
-    }
-    w
 }
 
 /// Least squares on the columns `support` of `a`; coefficients in the order of `support`.
@@ -876,27 +848,6 @@ mod tests {
         let (a, y) = data(3, 4000, false);
         let (av, yv) = data(4, 4000, false);
         assert_eq!(choose_support((&a, &y), (&av, &yv), &nuisance), None);
-    }
-
-    #[test]
-    fn the_acceleration_kernel_turns_the_derivative_filter_into_a_smoother() {
-        // On x = sin(w t) the filter's second derivative must equal the kernel applied to
-        // x'' = -w^2 sin(w t), up to the second difference's O((w dt)^2) error (w dt = 0.3:
-        // under 1 % of the amplitude), and the kernel's weights must sum to 1.
-        let (dt, half, w) = (0.01, 12, 30.0);
-        let kernel = acceleration_kernel(half, dt);
-        assert!((kernel.iter().sum::<f64>() - 1.0).abs() < 1e-9);
-        let x: Vec<f64> = (0..200).map(|i| (w * i as f64 * dt).sin()).collect();
-        let a: Vec<f64> = x.iter().map(|v| -w * w * v).collect();
-        for (k, kin) in savitzky_golay(&x, 0, x.len(), dt, half, 4) {
-            let smoothed: f64 = (0..kernel.len()).map(|m| kernel[m] * a[k + m - half]).sum();
-            assert!(
-                (kin.a - smoothed).abs() < 0.01 * w * w,
-                "{} {}",
-                kin.a,
-                smoothed
-            );
-        }
     }
 
     #[test]

@@ -22,8 +22,7 @@ use std::ops::Range;
 use htfid_hybrid::HybridSystem;
 use serde::{Deserialize, Serialize};
 
-use crate::deriv::{savitzky_golay, window_half_width};
-use crate::discover::acceleration_kernel;
+use crate::deriv::{acceleration_kernel, savitzky_golay, window_half_width};
 use crate::sim::MeasuredForce;
 use crate::{DiagnoseError, Diagnosis, FittedModel, Interpolation, TimeSeries};
 

@@ -248,13 +248,15 @@ pub use evidence::{
     PHASE_BINS, STATE_BINS,
 };
 pub use htf::{
-    htf_comparison, HarmonicDifference, HtfComparison, HtfComparisonSpec, DIFFERENCE_SIGMAS,
+    estimated_comparison, htf_comparison, EstimatedComparison, HarmonicDifference, HtfComparison,
+    HtfComparisonSpec, DIFFERENCE_SIGMAS, ESTIMATED_ALPHA, ESTIMATED_HARMONICS,
 };
 pub use htfid_data::TimeSeries;
 pub use interp::Interpolation;
 pub use model_fit::{
-    diagnose_model, ModelCandidate, ModelCause, ModelDiagnosis, ModelDiscovered,
-    ModelDiscoveredTerm, ModelFitOptions, ModelScore, ParameterChange, ParametersBeside,
+    diagnose_model, second_order_pairs, ModelCandidate, ModelCause, ModelDiagnosis,
+    ModelDiscovered, ModelDiscoveredTerm, ModelFitOptions, ModelScore, PairResidual,
+    ParameterChange, ParametersBeside,
 };
 pub use nominal::NominalModel;
 pub use options::DiagnoseOptions;

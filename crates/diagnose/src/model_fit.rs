@@ -14,12 +14,14 @@ use std::collections::BTreeMap;
 mod causes;
 mod joint;
 mod prepared;
+mod residual_bins;
 mod search;
 mod selection;
 mod waterfall;
 
 use joint::{Joint, JointFit, Trial, Tried};
 use prepared::Prepared;
+pub use residual_bins::{second_order_pairs, PairResidual};
 use selection::{correlation_inflation, parameter_scales, rivals_by_bic, score_on, Selection};
 
 pub use search::{ModelDiscovered, ModelDiscoveredTerm};
@@ -383,6 +385,11 @@ pub struct ModelDiagnosis {
     pub discovered: Option<ModelDiscovered>,
     /// What the term search found or why it proposed nothing; `None` when it did not run.
     pub term_search: Option<String>,
+    /// Where the equations miss the data: for every output that reads a position state whose
+    /// derivative is a velocity state, the measured acceleration minus the model's on the
+    /// held-out data, binned against position, velocity and forcing phase, for the refitted
+    /// and the final model ([`PairResidual`]); empty for a model without such a pair.
+    pub residual_bins: Vec<PairResidual>,
 }
 
 /// The default [`ModelFitOptions::second_effect_floor_ratio`].
@@ -643,6 +650,27 @@ pub fn diagnose_model(
         .as_ref()
         .map_or(0.0, |_| 1.0 - final_nrmse / refit.refitted.validation());
     let gain_vs_configured = 1.0 - final_nrmse / refit.configured.validation();
+    // Where the equations miss the data, for the refitted and the final model.
+    let realised = current.as_ref().map(|c| sel.realised(c)).transpose()?;
+    let residual_bins = residual_bins::residual_bins(
+        &est,
+        val.as_ref(),
+        cut,
+        &residual_bins::Simulated {
+            model: &refit.model,
+            boundary: &ideal,
+            x0: &refit.base.state,
+        },
+        match (&current, &realised) {
+            (Some(c), Some((m, b))) => Some(residual_bins::Simulated {
+                model: m,
+                boundary: b,
+                x0: &c.state,
+            }),
+            _ => None,
+        }
+        .as_ref(),
+    )?;
     let (extended, simulated_extended) = match current {
         Some(mut c) => {
             let sim = c.simulated.take();
@@ -683,6 +711,7 @@ pub fn diagnose_model(
         simulated_extended,
         discovered,
         term_search,
+        residual_bins,
     })
 }
 

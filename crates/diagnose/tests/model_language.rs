@@ -788,3 +788,75 @@ fn nothing_refitted_a_stronger_damper_is_a_parameter_error_not_damping_in_its_mo
         candidate_table(&d)
     );
 }
+
+/// Where the equations miss the data, against the force the generator added: a record with
+/// Coulomb friction `mu` = 0.1 N on the 1 kg mass, diagnosed with nothing refitted (the model
+/// as configured is the generator's but for the friction). The refitted model's binned
+/// residual acceleration against velocity is then `-mu sign(v) / m`: each bin of speed above a
+/// third of the largest within 10 % of `mu` plus three standard errors of its mean (the 10 %
+/// for the smoothing, which spreads the step at zero speed over its window, and the bins
+/// nearest the third reach into it). The final model, with the friction named, leaves every
+/// such bin within 5 % of `mu` plus three standard errors of zero. The position has no pair
+/// but the hopper's `(x, v)`, so there is one pair and its output is `x`.
+#[test]
+fn the_binned_residual_acceleration_shows_the_missing_friction_as_its_step() {
+    let mu = 0.1;
+    let scenario = protocol(
+        vec![htfid_truth::Effect::CoulombFriction { mu }],
+        ParameterErrors::default(),
+    );
+    let opts = ModelFitOptions {
+        free: Vec::new(),
+        ..ModelFitOptions::default()
+    };
+    let d = diagnose_model(&hopper(), &record(&scenario), None, &opts).unwrap();
+    assert_eq!(d.residual_bins.len(), 1);
+    let pair = &d.residual_bins[0];
+    assert_eq!(
+        (
+            pair.output.as_str(),
+            pair.position.as_str(),
+            pair.velocity.as_str()
+        ),
+        ("x", "x", "v")
+    );
+    let top = pair
+        .nominal
+        .by_velocity
+        .iter()
+        .map(|b| b.centre.abs())
+        .fold(0.0, f64::max);
+    let mut checked = 0;
+    for b in pair
+        .nominal
+        .by_velocity
+        .iter()
+        .filter(|b| b.centre.abs() > top / 3.0)
+    {
+        let want = -mu * b.centre.signum();
+        assert!(
+            (b.mean - want).abs() < 0.1 * mu + 3.0 * b.stderr,
+            "bin at v = {}: mean {} against {want} (stderr {})",
+            b.centre,
+            b.mean,
+            b.stderr
+        );
+        checked += 1;
+    }
+    assert!(checked >= 8, "only {checked} bins of speed");
+    assert!(names(&d, "coulomb_friction(v)"), "{}", candidate_table(&d));
+    let ext = pair.extended.as_ref().expect("the final model's bins");
+    for b in ext
+        .by_velocity
+        .iter()
+        .filter(|b| b.centre.abs() > top / 3.0)
+    {
+        assert!(
+            b.mean.abs() < 0.05 * mu + 3.0 * b.stderr,
+            "with friction, bin at v = {}: mean {} (stderr {})",
+            b.centre,
+            b.mean,
+            b.stderr
+        );
+    }
+}

@@ -161,16 +161,58 @@ pub fn draw_bins(
     ev: &Evidence,
 ) -> Result<()> {
     let u = unit_or_words(s);
-    let y_label = format!("residual acceleration ({u}/s^2)");
     let ext_label = super::diagnose::ext_label(report);
-    type Pick = fn(&BinnedResidual) -> &Vec<Bin>;
-    let mut panels = Vec::new();
-    let kinds: [(&str, String, Pick); 3] = [
-        (
-            "against position",
-            format!("position {} ({u})", s.data.output),
-            |b| &b.by_position,
+    let panels = bins_panels(&BinsFigure {
+        position: format!("position {} ({u})", s.data.output),
+        unit: &u,
+        block_words: &ev.block_words,
+        nominal: &ev.nominal,
+        extended: ev.extended.as_ref().map(|e| (e, ext_label.as_str())),
+        period: forcing_period(s),
+        first: true,
+    });
+    if panels.is_empty() {
+        // Too few held-out samples to fill a bin: no figure (the report says nothing of bins).
+        return Ok(());
+    }
+    let fig = stacked_figure(
+        format!(
+            "{}: residual acceleration, measured minus model (held-out data)",
+            s.name
         ),
+        panels,
+    );
+    plots::write(out, "residual_bins", &fig)
+}
+
+/// What [`bins_panels`] draws: one pair's binned residual acceleration.
+pub struct BinsFigure<'a> {
+    /// The position axis's label, unit included.
+    pub position: String,
+    /// The position's unit, or words for it.
+    pub unit: &'a str,
+    /// What a block of the standard errors is, in words.
+    pub block_words: &'a str,
+    /// The refitted nominal model's bins.
+    pub nominal: &'a BinnedResidual,
+    /// The extended model's, with its legend label.
+    pub extended: Option<(&'a BinnedResidual, &'a str)>,
+    /// The forcing period (the phase axis's range).
+    pub period: Option<f64>,
+    /// Whether these are the figure's first panels (the legend, and the blocks' words).
+    pub first: bool,
+}
+
+/// The panels of one pair's binned residual acceleration: against position, velocity and the
+/// forcing phase (those with bins), the nominal model's and the extended one's bin means with
+/// bands of two standard errors.
+pub fn bins_panels(f: &BinsFigure<'_>) -> Vec<Panel> {
+    let u = f.unit;
+    let y_label = format!("residual acceleration ({u}/s^2)");
+    type Pick = fn(&BinnedResidual) -> &Vec<Bin>;
+    let mut panels: Vec<Panel> = Vec::new();
+    let kinds: [(&str, String, Pick); 3] = [
+        ("against position", f.position.clone(), |b| &b.by_position),
         ("against velocity", format!("velocity ({u}/s)"), |b| {
             &b.by_velocity
         }),
@@ -181,13 +223,13 @@ pub fn draw_bins(
         ),
     ];
     for (title, x_label, pick) in kinds {
-        let nom = columns(pick(&ev.nominal));
+        let nom = columns(pick(f.nominal));
         if nom.0.is_empty() {
             continue;
         }
         // One legend, in the first panel: the others show the same series.
-        let first = panels.is_empty();
-        let ext = ev.extended.as_ref().map(|e| columns(pick(e)));
+        let first = f.first && panels.is_empty();
+        let ext = f.extended.map(|(e, label)| (columns(pick(e)), label));
         let mut series = vec![BinnedSeries {
             label: if first { "nominal (refitted)" } else { "" },
             centre: &nom.0,
@@ -195,19 +237,19 @@ pub fn draw_bins(
             stderr: &nom.2,
             role: Role::Nominal,
         }];
-        if let Some(e) = &ext {
+        if let Some((e, label)) = &ext {
             series.push(BinnedSeries {
-                label: if first { &ext_label } else { "" },
+                label: if first { label } else { "" },
                 centre: &e.0,
                 mean: &e.1,
                 stderr: &e.2,
                 role: Role::Extended,
             });
         }
-        let title = if first {
+        let title = if panels.is_empty() {
             format!(
                 "{title} (bin means; blocks of {} independent)",
-                ev.block_words
+                f.block_words
             )
         } else {
             title.to_string()
@@ -233,24 +275,13 @@ pub fn draw_bins(
             }
         }
         if title.contains("phase") {
-            if let Some(period) = forcing_period(s) {
+            if let Some(period) = f.period {
                 p.x_range = Some((0.0, period));
             }
         }
         panels.push(p);
     }
-    if panels.is_empty() {
-        // Too few held-out samples to fill a bin: no figure (the report says nothing of bins).
-        return Ok(());
-    }
-    let fig = stacked_figure(
-        format!(
-            "{}: residual acceleration, measured minus model (held-out data)",
-            s.name
-        ),
-        panels,
-    );
-    plots::write(out, "residual_bins", &fig)
+    panels
 }
 
 /// Most phase bins of a folded orbit.
@@ -446,18 +477,41 @@ pub fn draw_htf_difference(
     unit: Option<&str>,
 ) -> Result<()> {
     let ext_label = format!("{}: measured - theory", super::diagnose::ext_label(report));
+    let fig = htf_difference_figure(
+        &format!(
+            "{}: HTF estimated from the data minus each model's theory, per harmonic",
+            s.name
+        ),
+        diffs,
+        "nominal: measured - theory",
+        (report.extended_model != report.nominal_model).then_some(ext_label.as_str()),
+        unit,
+    );
+    plots::write(out, "htf_difference", &fig)
+}
+
+/// Per harmonic, `|measured - model|` for the nominal model (`nominal_label`) and the
+/// extended one (`ext_label`, when it differs) over the estimate's noise level `2 stderr`,
+/// shaded from the bottom of the axes.
+pub fn htf_difference_figure(
+    title: &str,
+    diffs: &[HarmonicDifference],
+    nominal_label: &str,
+    ext_label: Option<&str>,
+    unit: Option<&str>,
+) -> htfid_plot::Figure {
     let panels: Vec<Panel> = diffs
         .iter()
         .map(|d| {
             let mut curves = vec![BodeSeries {
-                label: "nominal: measured - theory",
+                label: nominal_label,
                 omega: &d.omega,
                 response: &d.nominal,
                 style: Style::Line,
             }];
-            if report.extended_model != report.nominal_model {
+            if let Some(label) = ext_label {
                 curves.push(BodeSeries {
-                    label: &ext_label,
+                    label,
                     omega: &d.omega,
                     response: &d.extended,
                     style: Style::Dashed,
@@ -494,29 +548,39 @@ pub fn draw_htf_difference(
     } else {
         panels.len().max(1)
     };
-    let fig = grid_figure(
-        format!(
-            "{}: HTF estimated from the data minus each model's theory, per harmonic",
-            s.name
-        ),
-        panels,
-        columns,
-    );
-    plots::write(out, "htf_difference", &fig)
+    grid_figure(title.to_string(), panels, columns)
 }
 
 /// Which binned variable shows the nominal residual most, in words with its numbers.
 fn strongest(ev: &Evidence, s: &DiagnoseSettings) -> Option<String> {
-    let u = unit_or_words(s);
+    strongest_in(
+        &ev.nominal,
+        ev.extended.as_ref(),
+        ev.block_s,
+        &unit_or_words(s),
+        "",
+    )
+}
+
+/// Where the refitted nominal model's binned residual acceleration `nominal` varies most (the
+/// largest chi-square per bin), in words, with the extended model's there; `whose` names the
+/// pair (`""` for a model with one).
+pub fn strongest_in(
+    nominal: &BinnedResidual,
+    extended: Option<&BinnedResidual>,
+    block_s: f64,
+    u: &str,
+    whose: &str,
+) -> Option<String> {
     let cands = [
-        ("position", Structure::of(&ev.nominal.by_position)),
-        ("velocity", Structure::of(&ev.nominal.by_velocity)),
-        ("the forcing phase", Structure::of(&ev.nominal.by_phase)),
+        ("position", Structure::of(&nominal.by_position)),
+        ("velocity", Structure::of(&nominal.by_velocity)),
+        ("the forcing phase", Structure::of(&nominal.by_phase)),
     ];
     let few = format!(
         "too few independent blocks of {} s (at least {} per bin) for standard errors of the \
          bin means",
-        num(ev.block_s, 3),
+        num(block_s, 3),
         htfid_diagnose::MIN_BLOCKS
     );
     let Some((what, st)) = cands.iter().filter(|(_, st)| st.bins > 0).max_by(|a, b| {
@@ -527,7 +591,7 @@ fn strongest(ev: &Evidence, s: &DiagnoseSettings) -> Option<String> {
              bin is said to stand off zero."
         ));
     };
-    let ext = ev.extended.as_ref().map(|e| {
+    let ext = extended.map(|e| {
         let st = match *what {
             "position" => Structure::of(&e.by_position),
             "velocity" => Structure::of(&e.by_velocity),
@@ -543,7 +607,7 @@ fn strongest(ev: &Evidence, s: &DiagnoseSettings) -> Option<String> {
         }
     });
     Some(format!(
-        "The refitted nominal model's residual acceleration varies most against {what}: bin means from {} to {} {u}/s^2, up to {} standard errors of the bin mean from zero (`residual_bins.png`){}.",
+        "The refitted nominal model's residual acceleration{whose} varies most against {what}: bin means from {} to {} {u}/s^2, up to {} standard errors of the bin mean from zero (`residual_bins.png`){}.",
         num(st.min_mean, 4),
         num(st.max_mean, 4),
         num(st.max_abs_z, 3),

@@ -31,13 +31,26 @@ pub fn run(
         .iter()
         .map(|n| n.to_string())
         .collect();
-    // The orbit is drawn for a model with a forcing period only.
+    // The orbit is drawn for a model with a forcing period only, the binned residual
+    // acceleration for one with an output that reads a position.
+    let pairs = !htfid_diagnose::second_order_pairs(&s.model).is_empty();
     for figure in ["compare", "resid"]
         .into_iter()
         .chain(super::diagnose_model_evidence::FIGURES)
         .filter(|f| *f != "orbit" || s.model.period().is_some())
+        .filter(|f| *f != "residual_bins" || pairs)
     {
         names.extend([format!("{figure}.svg"), format!("{figure}.png")]);
+    }
+    // The HTFs from the data against the models', per output, for a model with a forcing
+    // period.
+    if s.model.period().is_some() {
+        for o in 0..s.outputs.len() {
+            let suffix = super::theory::suffix(&s.outputs, o);
+            for figure in ["htf_data", "htf_difference"] {
+                names.extend(["svg", "png"].map(|ext| format!("{figure}{suffix}.{ext}")));
+            }
+        }
     }
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut outdir = open(&dir, force, &names)?;
@@ -88,6 +101,17 @@ pub fn run(
         Some(_) => ((s.options.burn_in / dt).ceil() as usize).min(n / 4)..n,
         None => ((n as f64 * s.options.fit_fraction) as usize).min(n)..n,
     };
+    // The HTFs the data hold against the models' (the same estimator on their simulations),
+    // on the held-out data of a model with a forcing period.
+    let htf = s.model.period().map(|p| {
+        htfid_diagnose::estimated_comparison(
+            shown,
+            held_out.clone(),
+            p,
+            &d.simulated,
+            d.simulated_extended.as_deref(),
+        )
+    });
     // Every output's validation of the last of the models `models` gives for it.
     let validate_with =
         |models: fn(&ModelDiagnosis, usize) -> Vec<crate::validation::Simulated<'_>>| {
@@ -197,6 +221,7 @@ pub fn run(
         "validation_final": validation_final_json,
         "options": options,
         "error_waterfall": steps,
+        "residual_bins": super::diagnose_model_evidence::bins_json(&s, &d),
     });
     let mut json = json;
     if let Some(found) = &d.discovered {
@@ -208,10 +233,30 @@ pub fn run(
     if let Some(noise) = d.input_noise {
         json["input_noise"] = serde_json::to_value(noise)?;
     }
+    match &htf {
+        Some(Ok(cmp)) => {
+            let by_output = |c: &htfid_diagnose::EstimatedComparison| {
+                super::diagnose_evidence::htf_json(&c.differences)
+            };
+            json["htf_difference"] = cmp.first().map_or(serde_json::Value::Null, by_output);
+            json["htf_difference_by_output"] = serde_json::Value::Object(
+                s.outputs
+                    .iter()
+                    .zip(cmp)
+                    .map(|(name, c)| (name.clone(), by_output(c)))
+                    .collect(),
+            );
+        }
+        Some(Err(e)) => {
+            json["htf_difference"] = serde_json::Value::Null;
+            json["htf_difference_note"] = serde_json::Value::String(e.to_string());
+        }
+        None => {}
+    }
     outdir.write_text("diagnosis.json", &json_text(&json))?;
     outdir.write_text(
         "report.md",
-        &report(&s, &d, &checks, checks_final.as_deref()),
+        &report(&s, &d, &checks, checks_final.as_deref(), htf.as_ref()),
     )?;
     // A few forcing periods at the end of the held-out part: measured, configured, refitted.
     let win = crate::validation::window(held_out.clone(), dt, s.model.period());
@@ -306,6 +351,9 @@ pub fn run(
         crate::plots::write(&mut outdir, "resid", &fig)?;
     }
     super::diagnose_model_evidence::draw(&mut outdir, &s, &d, &steps, shown, held_out.clone())?;
+    if let Some(Ok(cmp)) = &htf {
+        super::diagnose_model_evidence::draw_htf(&mut outdir, &s, &d, cmp)?;
+    }
     let written = outdir.commit()?;
     let unit = |name: &str| parameter_unit(&s, name);
     crate::results::diagnose_model(&json, &unit, &dir, &written);
@@ -580,6 +628,7 @@ fn report(
     d: &ModelDiagnosis,
     checks: &[crate::validation::OutputValidation],
     checks_final: Option<&[crate::validation::OutputValidation]>,
+    htf: Option<&Result<Vec<htfid_diagnose::EstimatedComparison>, htfid_diagnose::DiagnoseError>>,
 ) -> String {
     let mut r = Report::new(&format!("Diagnosis: {}", s.name));
     r.para(&decision(s, d, checks, checks_final));
@@ -587,7 +636,7 @@ fn report(
     data_section(&mut r, s);
     effects_sections(&mut r, s, d);
     errors_and_parameters(&mut r, s, d, checks, checks_final);
-    figures_section(&mut r, s);
+    figures_section(&mut r, s, d, htf);
     r.finish()
 }
 
@@ -603,7 +652,12 @@ fn where_boundary(effect: &str) -> String {
 
 /// The evidence figures (beside `compare` and `resid`, shown with the validation), each with
 /// what it shows.
-fn figures_section(r: &mut Report, s: &ModelDiagnoseSettings) {
+fn figures_section(
+    r: &mut Report,
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    htf: Option<&Result<Vec<htfid_diagnose::EstimatedComparison>, htfid_diagnose::DiagnoseError>>,
+) {
     r.section("Where the error sits");
     r.figure(
         "residual_time.png",
@@ -618,6 +672,33 @@ fn figures_section(r: &mut Report, s: &ModelDiagnoseSettings) {
             "orbit.png",
             "The orbit folded over the forcing period, with ±2 standard errors across the periods",
         );
+    }
+    if !htfid_diagnose::second_order_pairs(&s.model).is_empty() {
+        let words = super::diagnose_model_evidence::bins_words(s, d);
+        if !words.is_empty() {
+            r.para(&words.join(" "));
+        }
+        r.figure(
+            "residual_bins.png",
+            "The residual acceleration against position, velocity and forcing phase, with ±2 \
+             standard errors of each bin's mean",
+        );
+    }
+    match htf {
+        Some(Ok(cmp)) => {
+            r.para(&super::diagnose_model_evidence::htf_words(s, d, cmp));
+            r.figure(
+                "htf_data.png",
+                "The HTFs estimated from the held-out data, ±2 standard errors, against the \
+                 models' (the same estimator on their simulations)",
+            );
+            r.figure(
+                "htf_difference.png",
+                "Per harmonic, the data's HTF minus each model's, against the estimate's noise",
+            );
+        }
+        Some(Err(e)) => r.para(&format!("The HTFs are not compared with the data's: {e}.")),
+        None => {}
     }
     r.figure(
         "error_waterfall.png",

@@ -8,23 +8,30 @@ use std::ops::Range;
 
 use anyhow::Result;
 use htfid_data::{OutputDir, TimeSeries};
-use htfid_diagnose::{amplitude_spectrum, ErrorStep, ModelDiagnosis};
+use htfid_diagnose::{
+    amplitude_spectrum, ErrorStep, EstimatedComparison, ModelDiagnosis, PairResidual,
+    DIFFERENCE_SIGMAS,
+};
 use htfid_number::sig;
 use htfid_plot::{
     grid_figure, spectrum_panel, stacked_figure, Panel, Series, SpectrumScale, Style,
 };
+use serde_json::{json, Value};
 
-use super::diagnose_evidence::{fold_sampled, means_on, rms_per_block, waterfall_figure};
+use super::diagnose_evidence::{
+    bins_panels, fold_sampled, means_on, rms_per_block, strongest_in, waterfall_figure, BinsFigure,
+};
 use super::diagnose_model::models_shown;
 use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::plots;
 
 /// The figures this module writes (each as `.svg` and `.png`); `orbit` only for a model with a
 /// forcing period.
-pub const FIGURES: [&str; 4] = [
+pub const FIGURES: [&str; 5] = [
     "residual_time",
     "residual_spectrum",
     "orbit",
+    "residual_bins",
     "error_waterfall",
 ];
 
@@ -216,6 +223,33 @@ pub fn draw(
         plots::write(out, "orbit", &fig)?;
     }
 
+    // Where the equations miss the data: one set of panels per output that reads a position.
+    let mut panels = Vec::new();
+    for (i, p) in d.residual_bins.iter().enumerate() {
+        let u = acceleration_unit(s, p).unwrap_or_else(|| "output units".to_string());
+        let u = u.trim_end_matches("/s^2");
+        let ext_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+        panels.extend(bins_panels(&BinsFigure {
+            position: format!("position {} ({u})", p.output),
+            unit: u,
+            block_words: &block_words_of(p, period),
+            nominal: &p.nominal,
+            extended: p.extended.as_ref().zip(ext_label.as_deref()),
+            period,
+            first: i == 0,
+        }));
+    }
+    if !panels.is_empty() {
+        let fig = stacked_figure(
+            format!(
+                "{}: residual acceleration, measured minus model (held-out data)",
+                s.name
+            ),
+            panels,
+        );
+        plots::write(out, "residual_bins", &fig)?;
+    }
+
     // The held-out error, step by step.
     let fig = waterfall_figure(
         &s.name,
@@ -233,4 +267,216 @@ pub fn draw(
         }),
     );
     plots::write(out, "error_waterfall", &fig)
+}
+
+/// What a block of the binned residual's standard errors is, in words.
+fn block_words_of(p: &PairResidual, period: Option<f64>) -> String {
+    match period {
+        Some(_) => "one forcing period".to_string(),
+        None => format!("{} s, ten natural periods", sig(p.block_s, 3)),
+    }
+}
+
+/// The unit of a pair's residual acceleration: its output's unit per s^2, when known.
+fn acceleration_unit(s: &ModelDiagnoseSettings, p: &PairResidual) -> Option<String> {
+    let o = s.model.outputs().iter().position(|o| o.name == p.output)?;
+    s.format
+        .unit(&s.outputs[o])
+        .or(s.model.outputs()[o].unit.as_deref())
+        .map(|u| format!("{u}/s^2"))
+}
+
+/// One pair's `residual_bins` object of `diagnosis.json`.
+fn pair_json(s: &ModelDiagnoseSettings, p: &PairResidual) -> Value {
+    json!({
+        "quantity": "acceleration",
+        "unit": acceleration_unit(s, p),
+        "output": p.output,
+        "position": p.position,
+        "velocity": p.velocity,
+        "block_s": p.block_s,
+        "band_stderrs": htfid_plot::BIN_BAND_STDERRS,
+        "nominal": p.nominal,
+        "extended": p.extended,
+    })
+}
+
+/// `residual_bins` of `diagnosis.json`: the first pair's object, with `by_output` holding
+/// every pair's by its output's name; `null` for a model without a pair.
+pub fn bins_json(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> Value {
+    let Some(first) = d.residual_bins.first() else {
+        return Value::Null;
+    };
+    let mut v = pair_json(s, first);
+    let by_output: serde_json::Map<String, Value> = d
+        .residual_bins
+        .iter()
+        .map(|p| (p.output.clone(), pair_json(s, p)))
+        .collect();
+    v["by_output"] = Value::Object(by_output);
+    v
+}
+
+/// Where each pair's refitted residual acceleration varies most, in words (one sentence per
+/// output that reads a position).
+pub fn bins_words(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> Vec<String> {
+    let several = d.residual_bins.len() > 1;
+    d.residual_bins
+        .iter()
+        .filter_map(|p| {
+            let u = acceleration_unit(s, p).unwrap_or_else(|| "output units".to_string());
+            let whose = if several {
+                format!(" of `{}`", p.output)
+            } else {
+                String::new()
+            };
+            strongest_in(
+                &p.nominal,
+                p.extended.as_ref(),
+                p.block_s,
+                u.trim_end_matches("/s^2"),
+                &whose,
+            )
+        })
+        .collect()
+}
+
+/// The HTF's unit of output `o`: the output's unit over the input's, when both are known.
+fn htf_unit(s: &ModelDiagnoseSettings, o: usize) -> Option<String> {
+    let out = s
+        .format
+        .unit(&s.outputs[o])
+        .or(s.model.outputs()[o].unit.as_deref())?;
+    let input = s.format.unit(&s.input).or(s.model.input_unit())?;
+    Some(format!("{out}/{input}"))
+}
+
+/// `htf_data` and `htf_difference` (suffixed by the output's name after the first) for every
+/// output: the data's HTFs with ±2 standard errors against the refitted and the final model's,
+/// and per harmonic the difference against the estimate's noise.
+pub fn draw_htf(
+    out: &mut OutputDir,
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    cmp: &[EstimatedComparison],
+) -> Result<()> {
+    use crate::plots::Curve;
+    let ext_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+    let ext_difference = ext_label.as_ref().map(|l| format!("{l}: measured - model"));
+    for (o, c) in cmp.iter().enumerate() {
+        let suffix = super::theory::suffix(&s.outputs, o);
+        let unit = htf_unit(s, o);
+        let per_harmonic: Vec<(i32, Vec<Curve<'_>>)> = c
+            .differences
+            .iter()
+            .filter_map(|diff| {
+                let m = c.measured.harmonic(diff.n)?;
+                let nom = c.nominal.harmonic(diff.n)?;
+                let mut curves = vec![
+                    Curve {
+                        label: "measured (Siddiqi estimate)",
+                        omega: m.omegas,
+                        values: m.values,
+                        style: Style::Line,
+                        stderr: Some(m.stderr),
+                    },
+                    Curve {
+                        label: "refitted, same estimator",
+                        omega: nom.omegas,
+                        values: nom.values,
+                        style: Style::Line,
+                        stderr: None,
+                    },
+                ];
+                if let (Some(e), Some(label)) = (&c.extended, &ext_label) {
+                    let ext = e.harmonic(diff.n)?;
+                    curves.push(Curve {
+                        label,
+                        omega: ext.omegas,
+                        values: ext.values,
+                        style: Style::Dashed,
+                        stderr: None,
+                    });
+                }
+                Some((diff.n, curves))
+            })
+            .collect();
+        let fig = plots::with_htf_unit(
+            plots::harmonics(
+                &format!(
+                    "{}: HTFs of {} from the held-out data against the models'",
+                    s.name, s.outputs[o]
+                ),
+                &per_harmonic,
+            ),
+            unit.as_deref(),
+        );
+        plots::write(out, &format!("htf_data{suffix}"), &fig)?;
+        let fig = super::diagnose_evidence::htf_difference_figure(
+            &format!(
+                "{}: HTF of {} from the data minus each model's (the same estimator), per harmonic",
+                s.name, s.outputs[o]
+            ),
+            &c.differences,
+            "refitted: measured - model",
+            ext_difference.as_deref(),
+            unit.as_deref(),
+        );
+        plots::write(out, &format!("htf_difference{suffix}"), &fig)?;
+    }
+    Ok(())
+}
+
+/// Where the data's HTFs differ from the refitted and the final model's beyond the noise, in
+/// words, output by output.
+pub fn htf_words(
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    cmp: &[EstimatedComparison],
+) -> String {
+    let Some(first) = cmp.first() else {
+        return String::new();
+    };
+    let mut text = format!(
+        "The HTFs `G_-2 .. G_2` estimated from {} held-out forcing periods (Siddiqi's estimator, \
+         output frequencies {} to {} rad/s) against each model's, estimated the same way from \
+         its simulation with the measured input: the difference is the estimate of the \
+         residual's response, and beyond {DIFFERENCE_SIGMAS} standard errors it is more than \
+         the noise.",
+        first.periods,
+        sig(first.band.0, 3),
+        sig(first.band.1, 3)
+    );
+    for (o, c) in cmp.iter().enumerate() {
+        let share = |f: fn(&htfid_diagnose::HarmonicDifference) -> f64| {
+            let n = c.differences.len().max(1) as f64;
+            c.differences.iter().map(f).sum::<f64>() / n
+        };
+        let worst = c
+            .differences
+            .iter()
+            .max_by(|a, b| a.nominal_outside().total_cmp(&b.nominal_outside()));
+        text.push_str(&format!(
+            " For `{}`, {} of the refitted model's points lie outside the noise{}",
+            s.outputs[o],
+            pct(share(|h| h.nominal_outside())),
+            worst.map_or(String::new(), |w| format!(
+                " (most in `G_{}`: {})",
+                w.n,
+                pct(w.nominal_outside())
+            ))
+        ));
+        if d.extended.is_some() {
+            text.push_str(&format!(
+                ", {} of the final model's",
+                pct(share(|h| h.extended_outside()))
+            ));
+        }
+        text.push('.');
+    }
+    text
+}
+
+fn pct(x: f64) -> String {
+    format!("{} %", sig(100.0 * x, 3))
 }

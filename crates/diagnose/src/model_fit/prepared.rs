@@ -17,7 +17,7 @@ use crate::sensor::Sensor;
 use crate::term::{StateStats, TermEffect};
 use crate::{DiagnoseError, TimeSeries};
 
-fn sim_failure(reason: impl ToString) -> DiagnoseError {
+pub(super) fn sim_failure(reason: impl ToString) -> DiagnoseError {
     DiagnoseError::Simulation {
         time: f64::NAN,
         reason: reason.to_string(),

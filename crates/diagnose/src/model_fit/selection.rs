@@ -499,6 +499,24 @@ impl Selection<'_, '_> {
         Ok((m, terms, boundary, names))
     }
 
+    /// The model and boundary of a fit `tried`: the refitted model with its trials' terms,
+    /// every parameter at the fitted value, and its boundary effects.
+    pub(super) fn realised(&self, tried: &Tried) -> Result<(Model, Boundary), DiagnoseError> {
+        let (m, _, boundary, names) = self.set_model(&tried.set)?;
+        let values = &tried.candidate.parameters;
+        let model_values: Vec<(&str, f64)> = values
+            .iter()
+            .filter(|(n, _)| m.parameter_index(n).is_some())
+            .map(|(n, v)| (n.as_str(), *v))
+            .collect();
+        let m = m.with_parameters(&model_values).map_err(model_error)?;
+        let p: Vec<f64> = names
+            .iter()
+            .flat_map(|n| n.iter().map(|n| values.get(n).copied().unwrap_or(f64::NAN)))
+            .collect();
+        Ok((m, Boundary::with_all(&boundary, &p, self.outputs.len())))
+    }
+
     /// The joint fit of the trials `set`: all their parameters, the free ones and the start
     /// together, those in `known` (fitted before) from their values, from the start `x0`.
     fn fit_set(
