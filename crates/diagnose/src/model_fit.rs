@@ -839,7 +839,12 @@ fn refit(
     }
     let x_configured = est.fit_state(model, &est.guess, &ideal)?;
     let (configured, simulated_configured) = score_on(est, val, cut, model, &x_configured, &ideal)?;
-    let reasons = mismatch_reasons(est, model, &simulated_configured);
+    // The check reads the fitted samples: with a separate held-out record the shown
+    // simulation is that record's, so the estimation record is simulated for it.
+    let reasons = match val {
+        None => mismatch_reasons(est, model, &simulated_configured),
+        Some(_) => mismatch_reasons(est, model, &est.simulate(model, &x_configured, &ideal)?),
+    };
     if !reasons.is_empty() {
         return Err(DiagnoseError::ModelMismatch { reasons });
     }

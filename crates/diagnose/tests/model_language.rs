@@ -860,3 +860,33 @@ fn the_binned_residual_acceleration_shows_the_missing_friction_as_its_step() {
         );
     }
 }
+
+/// A separate held-out record shorter than the estimation record: the check that the
+/// configured model describes the data reads the estimation record's own simulation (it read
+/// the held-out one's, past whose end it indexed). The nominal hopper's record, split 70/30
+/// into two records, names nothing.
+#[test]
+fn a_shorter_held_out_record_is_diagnosed() {
+    let scenario = Scenario {
+        record_s: 90.0,
+        ..Scenario::default()
+    };
+    let r = generate(&scenario).unwrap();
+    let cut = r.t.len() * 7 / 10;
+    let part = |range: std::ops::Range<usize>, name: &str| {
+        TimeSeries::new(
+            r.t[range.clone()].to_vec(),
+            r.f[range.clone()].to_vec(),
+            r.x[range].to_vec(),
+            name,
+        )
+        .unwrap()
+    };
+    let est = part(0..cut, "estimation");
+    let val = part(cut..r.t.len(), "validation");
+    assert!(val.len() < est.len());
+    let d = diagnose_model(&hopper(), &est, Some(&val), &options()).unwrap();
+    assert_eq!(d.cause, ModelCause::None, "{}", candidate_table(&d));
+    // The held-out simulations are the validation record's.
+    assert_eq!(d.simulated[0].len(), val.len());
+}
