@@ -650,8 +650,9 @@ pub fn diagnose_model(
         .as_ref()
         .map_or(0.0, |_| 1.0 - final_nrmse / refit.refitted.validation());
     let gain_vs_configured = 1.0 - final_nrmse / refit.configured.validation();
-    // Where the equations miss the data, for the refitted and the final model.
-    let realised = current.as_ref().map(|c| sel.realised(c)).transpose()?;
+    // Where the equations miss the data, for the refitted and the final model: evidence, so a
+    // model that cannot be realised or simulated for it leaves the bins out, not the answer.
+    let realised = current.as_ref().and_then(|c| sel.realised(c).ok());
     let residual_bins = residual_bins::residual_bins(
         &est,
         val.as_ref(),
@@ -670,7 +671,8 @@ pub fn diagnose_model(
             _ => None,
         }
         .as_ref(),
-    )?;
+    )
+    .unwrap_or_default();
     let (extended, simulated_extended) = match current {
         Some(mut c) => {
             let sim = c.simulated.take();

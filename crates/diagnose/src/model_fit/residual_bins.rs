@@ -115,7 +115,8 @@ pub(super) fn residual_bins(
         on.states_on(s.model, &x0, s.boundary, rows.clone())
     };
     let nominal_states = held_out(nominal)?;
-    let extended_states = extended.map(held_out).transpose()?;
+    // The final model's bins are left out, the refitted one's kept, when it fails to simulate.
+    let extended_states = extended.and_then(|s| held_out(s).ok());
     let dt = on.dt;
     let mut out = Vec::new();
     for (o, q, v) in found {
