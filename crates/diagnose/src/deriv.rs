@@ -137,6 +137,26 @@ pub(crate) fn acceleration_kernel(half: usize, dt: f64) -> Vec<f64> {
     w
 }
 
+/// Velocity and acceleration at sample `k` of `x` (sampled every `dt`) by five-point central
+/// differences (`2 <= k < x.len() - 2`): error `O(dt^4)`, 0.3 % of the acceleration at a tenth
+/// of the sampling rate, where a three-point second difference is 2 % low.
+pub(crate) fn five_point(x: &[f64], k: usize, dt: f64) -> (f64, f64) {
+    let v = (8.0 * (x[k + 1] - x[k - 1]) - (x[k + 2] - x[k - 2])) / (12.0 * dt);
+    let a = (16.0 * (x[k + 1] + x[k - 1]) - (x[k + 2] + x[k - 2]) - 30.0 * x[k]) / (12.0 * dt * dt);
+    (v, a)
+}
+
+/// `signal` smoothed by `kernel` (of `2 half + 1` weights, [`acceleration_kernel`]) about
+/// sample `k` (`half <= k < signal.len() - half`).
+pub(crate) fn smoothed_at(kernel: &[f64], signal: &[f64], k: usize) -> f64 {
+    let half = kernel.len() / 2;
+    kernel
+        .iter()
+        .enumerate()
+        .map(|(i, w)| w * signal[k + i - half])
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -22,7 +22,9 @@ use std::ops::Range;
 use htfid_hybrid::HybridSystem;
 use serde::{Deserialize, Serialize};
 
-use crate::deriv::{acceleration_kernel, savitzky_golay, window_half_width};
+use crate::deriv::{
+    acceleration_kernel, five_point, savitzky_golay, smoothed_at, window_half_width,
+};
 use crate::sim::MeasuredForce;
 use crate::{DiagnoseError, Diagnosis, FittedModel, Interpolation, TimeSeries};
 
@@ -251,9 +253,7 @@ pub fn residual_acceleration(
                 if k < 2 || k + 2 >= n {
                     return f64::NAN;
                 }
-                let v = (8.0 * (xs[k + 1] - xs[k - 1]) - (xs[k + 2] - xs[k - 2])) / (12.0 * dt);
-                let a = (16.0 * (xs[k + 1] + xs[k - 1]) - (xs[k + 2] + xs[k - 2]) - 30.0 * xs[k])
-                    / (12.0 * dt * dt);
+                let (v, a) = five_point(xs, k, dt);
                 hopper.vector_field(hopper.mode_of(v), t[start + k], &[xs[k], v], &mut d);
                 a - d[1]
             })
@@ -262,11 +262,7 @@ pub fn residual_acceleration(
             if k < half + 2 || k + half + 2 >= n {
                 continue;
             }
-            let smoothed: f64 = kernel
-                .iter()
-                .enumerate()
-                .map(|(i, w)| w * error[k + i - half])
-                .sum();
+            let smoothed = smoothed_at(&kernel, &error, k);
             out.t.push(t[start + k]);
             out.x.push(q.x);
             out.v.push(q.v);

@@ -95,6 +95,18 @@ pub struct HtfComparison {
 /// Per harmonic, a model's `G_n` at a list of frequencies.
 type Curves = Vec<Vec<Complex64>>;
 
+/// Samples per forcing period: an error unless it is a whole number (the split and the
+/// estimator need `N dt = P T` exactly).
+fn samples_per_period(period: f64, dt: f64) -> Result<usize, DiagnoseError> {
+    let per = period / dt;
+    if (per - per.round()).abs() > 1e-6 {
+        return Err(htf_error(format!(
+            "the forcing period {period} s is {per:.4} samples, not a whole number"
+        )));
+    }
+    Ok(per.round() as usize)
+}
+
 fn htf_error(reason: impl Into<String>) -> DiagnoseError {
     DiagnoseError::Htf {
         reason: reason.into(),
@@ -113,13 +125,7 @@ pub fn htf_comparison(
 ) -> Result<HtfComparison, DiagnoseError> {
     let period = spec.period;
     let dt = record.dt();
-    let per = period / dt;
-    if (per - per.round()).abs() > 1e-6 {
-        return Err(htf_error(format!(
-            "the forcing period {period} s is {per:.4} samples, not a whole number"
-        )));
-    }
-    let per = per.round() as usize;
+    let per = samples_per_period(period, dt)?;
     let wp = 2.0 * PI / period;
     let u: Vec<f64> = record
         .time()
@@ -264,13 +270,7 @@ pub fn estimated_comparison(
     extended: Option<&[Vec<f64>]>,
 ) -> Result<Vec<EstimatedComparison>, DiagnoseError> {
     let dt = record.dt();
-    let per = period / dt;
-    if (per - per.round()).abs() > 1e-6 {
-        return Err(htf_error(format!(
-            "the forcing period {period} s is {per:.4} samples, not a whole number"
-        )));
-    }
-    let per = per.round() as usize;
+    let per = samples_per_period(period, dt)?;
     let wp = 2.0 * PI / period;
     let top = ESTIMATED_HARMONICS
         .iter()

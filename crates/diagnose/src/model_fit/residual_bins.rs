@@ -24,7 +24,9 @@ use serde::Serialize;
 
 use super::prepared::Prepared;
 use crate::boundary::Boundary;
-use crate::deriv::{acceleration_kernel, savitzky_golay, window_half_width};
+use crate::deriv::{
+    acceleration_kernel, five_point, savitzky_golay, smoothed_at, window_half_width,
+};
 use crate::evidence::{quantile_range, BinnedResidual, ResidualSamples};
 use crate::DiagnoseError;
 
@@ -220,9 +222,7 @@ fn pair_residual(
             if k < 2 || k + 2 >= n {
                 return f64::NAN;
             }
-            let vel = (8.0 * (x[k + 1] - x[k - 1]) - (x[k + 2] - x[k - 2])) / (12.0 * dt);
-            let acc = (16.0 * (x[k + 1] + x[k - 1]) - (x[k + 2] + x[k - 2]) - 30.0 * x[k])
-                / (12.0 * dt * dt);
+            let (vel, acc) = five_point(x, k, dt);
             let mut s = states[k].clone();
             s[q] = x[k];
             s[v] = vel;
@@ -237,11 +237,7 @@ fn pair_residual(
         if k < half + 2 || k + half + 2 >= n || near_impact(t[k]) {
             continue;
         }
-        let smoothed: f64 = kernel
-            .iter()
-            .enumerate()
-            .map(|(i, w)| w * error[k + i - half])
-            .sum();
+        let smoothed = smoothed_at(&kernel, &error, k);
         if !smoothed.is_finite() {
             continue;
         }
