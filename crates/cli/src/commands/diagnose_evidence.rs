@@ -170,6 +170,7 @@ pub fn draw_bins(
         extended: ev.extended.as_ref().map(|e| (e, ext_label.as_str())),
         period: forcing_period(s),
         first: true,
+        prefix: String::new(),
     });
     if panels.is_empty() {
         // Too few held-out samples to fill a bin: no figure (the report says nothing of bins).
@@ -201,6 +202,8 @@ pub struct BinsFigure<'a> {
     pub period: Option<f64>,
     /// Whether these are the figure's first panels (the legend, and the blocks' words).
     pub first: bool,
+    /// Put before each panel's title: the pair's output where a figure shows several.
+    pub prefix: String,
 }
 
 /// The panels of one pair's binned residual acceleration: against position, velocity and the
@@ -248,11 +251,11 @@ pub fn bins_panels(f: &BinsFigure<'_>) -> Vec<Panel> {
         }
         let title = if panels.is_empty() {
             format!(
-                "{title} (bin means; blocks of {} independent)",
-                f.block_words
+                "{}{title} (bin means; blocks of {} independent)",
+                f.prefix, f.block_words
             )
         } else {
-            title.to_string()
+            format!("{}{title}", f.prefix)
         };
         let mut p = binned_panel(&title, &x_label, &y_label, &series);
         if first {
@@ -586,9 +589,14 @@ pub fn strongest_in(
     let Some((what, st)) = cands.iter().filter(|(_, st)| st.bins > 0).max_by(|a, b| {
         (a.1.chi_square / a.1.bins as f64).total_cmp(&(b.1.chi_square / b.1.bins as f64))
     }) else {
+        let of = if whose.is_empty() {
+            String::new()
+        } else {
+            format!(" of the residual acceleration{whose}")
+        };
         return Some(format!(
-            "The held-out data hold {few}: `residual_bins.png` shows the means alone, and no \
-             bin is said to stand off zero."
+            "The held-out data hold {few}{of}: `residual_bins.png` shows the means alone, and \
+             no bin is said to stand off zero."
         ));
     };
     let ext = extended.map(|e| {

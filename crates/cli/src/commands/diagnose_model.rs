@@ -697,7 +697,13 @@ fn figures_section(
                 "Per harmonic, the data's HTF minus each model's, against the estimate's noise",
             );
         }
-        Some(Err(e)) => r.para(&format!("The HTFs are not compared with the data's: {e}.")),
+        Some(Err(e)) => {
+            // The error reads "the data's HTFs cannot be compared with the models': ...".
+            let text = e.to_string();
+            let mut chars = text.chars();
+            let first = chars.next().map(|c| c.to_uppercase().to_string());
+            r.para(&format!("{}{}.", first.unwrap_or_default(), chars.as_str()));
+        }
         None => {}
     }
     r.figure(

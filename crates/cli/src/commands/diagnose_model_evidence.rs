@@ -237,6 +237,11 @@ pub fn draw(
             extended: p.extended.as_ref().zip(ext_label.as_deref()),
             period,
             first: i == 0,
+            prefix: if d.residual_bins.len() > 1 {
+                format!("{}: ", p.output)
+            } else {
+                String::new()
+            },
         }));
     }
     if !panels.is_empty() {
