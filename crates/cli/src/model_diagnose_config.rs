@@ -150,6 +150,18 @@ pub fn names_a_model_file(path: &Path) -> bool {
 }
 
 impl ModelDiagnoseSettings {
+    /// Output `o`'s unit: the data's (`data.units`), else the model's.
+    pub fn output_unit(&self, o: usize) -> Option<&str> {
+        self.format
+            .unit(&self.outputs[o])
+            .or(self.model.outputs()[o].unit.as_deref())
+    }
+
+    /// The input's unit: the data's (`data.units`), else the model's.
+    pub fn input_unit(&self) -> Option<&str> {
+        self.format.unit(&self.input).or(self.model.input_unit())
+    }
+
     pub fn from_file(path: &Path, data: Option<PathBuf>) -> Result<Self, ConfigError> {
         let (raw, src): (RawModelDiagnoseConfig, Source) = load(path, Kind::Diagnosis)?;
         if let Some(f) = &raw.forcing {

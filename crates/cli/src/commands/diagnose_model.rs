@@ -262,11 +262,8 @@ pub fn run(
     let win = crate::validation::window(held_out.clone(), dt, s.model.period());
     let mut panels: Vec<Panel> = Vec::new();
     for (o, name) in s.outputs.iter().enumerate() {
-        // The unit the data are measured in (data.units), else the model's.
         let unit = s
-            .format
-            .unit(name)
-            .or(s.model.outputs()[o].unit.as_deref())
+            .output_unit(o)
             .map_or(String::new(), |u| format!(" ({u})"));
         // Beside the configured and the refitted model, the model with the chosen effect.
         let models = models_shown(&d, o);
@@ -499,14 +496,11 @@ fn parameter_unit(s: &ModelDiagnoseSettings, name: &str) -> Option<String> {
     if s.model.parameter_index(name).is_some() {
         return s.model.parameter_unit(name).map(str::to_string);
     }
-    let input = s.format.unit(&s.input).or(s.model.input_unit());
     let output = |output: &str| {
         let o = s.outputs.iter().position(|n| n == output)?;
-        s.format
-            .unit(output)
-            .or(s.model.outputs()[o].unit.as_deref())
+        s.output_unit(o)
     };
-    boundary_unit(name, input, output)
+    boundary_unit(name, s.input_unit(), output)
 }
 
 /// The unit of a boundary effect's parameter `name`: `delay`, `tau`, `tau_s` in s,
@@ -673,7 +667,7 @@ fn figures_section(
             "The orbit folded over the forcing period, with ±2 standard errors across the periods",
         );
     }
-    if !htfid_diagnose::second_order_pairs(&s.model).is_empty() {
+    if super::diagnose_model_evidence::bins_drawn(d) {
         let words = super::diagnose_model_evidence::bins_words(s, d);
         if !words.is_empty() {
             r.para(&words.join(" "));

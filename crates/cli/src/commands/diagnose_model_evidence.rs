@@ -58,9 +58,7 @@ pub fn draw(
     let dt = shown.dt();
     let t = &shown.time()[held_out.clone()];
     let unit = |o: usize| {
-        s.format
-            .unit(&s.outputs[o])
-            .or(s.model.outputs()[o].unit.as_deref())
+        s.output_unit(o)
             .map_or(String::new(), |u| format!(" ({u})"))
     };
     let residual = |sim: &[f64], o: usize| -> Vec<f64> {
@@ -225,10 +223,9 @@ pub fn draw(
 
     // Where the equations miss the data: one set of panels per output that reads a position.
     let mut panels = Vec::new();
+    let ext_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
     for (i, p) in d.residual_bins.iter().enumerate() {
-        let u = acceleration_unit(s, p).unwrap_or_else(|| "output units".to_string());
-        let u = u.trim_end_matches("/s^2");
-        let ext_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+        let u = position_unit(s, p).unwrap_or("output units");
         panels.extend(bins_panels(&BinsFigure {
             position: format!("position {} ({u})", p.output),
             unit: u,
@@ -244,7 +241,7 @@ pub fn draw(
             },
         }));
     }
-    if !panels.is_empty() {
+    if bins_drawn(d) {
         let fig = stacked_figure(
             format!(
                 "{}: residual acceleration, measured minus model (held-out data)",
@@ -274,28 +271,33 @@ pub fn draw(
     plots::write(out, "error_waterfall", &fig)
 }
 
+/// Whether `residual_bins.png` is drawn: some pair's refitted residual fills a bin.
+pub fn bins_drawn(d: &ModelDiagnosis) -> bool {
+    d.residual_bins.iter().any(|p| {
+        let b = &p.nominal;
+        !(b.by_position.is_empty() && b.by_velocity.is_empty() && b.by_phase.is_empty())
+    })
+}
+
 /// What a block of the binned residual's standard errors is, in words.
 fn block_words_of(p: &PairResidual, period: Option<f64>) -> String {
     match period {
         Some(_) => "one forcing period".to_string(),
-        None => format!("{} s, ten natural periods", sig(p.block_s, 3)),
+        None => format!("{} s", sig(p.block_s, 3)),
     }
 }
 
-/// The unit of a pair's residual acceleration: its output's unit per s^2, when known.
-fn acceleration_unit(s: &ModelDiagnoseSettings, p: &PairResidual) -> Option<String> {
+/// The unit of a pair's position: its output's, when known.
+fn position_unit<'s>(s: &'s ModelDiagnoseSettings, p: &PairResidual) -> Option<&'s str> {
     let o = s.model.outputs().iter().position(|o| o.name == p.output)?;
-    s.format
-        .unit(&s.outputs[o])
-        .or(s.model.outputs()[o].unit.as_deref())
-        .map(|u| format!("{u}/s^2"))
+    s.output_unit(o)
 }
 
 /// One pair's `residual_bins` object of `diagnosis.json`.
 fn pair_json(s: &ModelDiagnoseSettings, p: &PairResidual) -> Value {
     json!({
         "quantity": "acceleration",
-        "unit": acceleration_unit(s, p),
+        "unit": position_unit(s, p).map(|u| format!("{u}/s^2")),
         "output": p.output,
         "position": p.position,
         "velocity": p.velocity,
@@ -329,31 +331,20 @@ pub fn bins_words(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> Vec<String> 
     d.residual_bins
         .iter()
         .filter_map(|p| {
-            let u = acceleration_unit(s, p).unwrap_or_else(|| "output units".to_string());
+            let u = position_unit(s, p).unwrap_or("output units");
             let whose = if several {
                 format!(" of `{}`", p.output)
             } else {
                 String::new()
             };
-            strongest_in(
-                &p.nominal,
-                p.extended.as_ref(),
-                p.block_s,
-                u.trim_end_matches("/s^2"),
-                &whose,
-            )
+            strongest_in(&p.nominal, p.extended.as_ref(), p.block_s, u, &whose)
         })
         .collect()
 }
 
 /// The HTF's unit of output `o`: the output's unit over the input's, when both are known.
 fn htf_unit(s: &ModelDiagnoseSettings, o: usize) -> Option<String> {
-    let out = s
-        .format
-        .unit(&s.outputs[o])
-        .or(s.model.outputs()[o].unit.as_deref())?;
-    let input = s.format.unit(&s.input).or(s.model.input_unit())?;
-    Some(format!("{out}/{input}"))
+    Some(format!("{}/{}", s.output_unit(o)?, s.input_unit()?))
 }
 
 /// `htf_data` and `htf_difference` (suffixed by the output's name after the first) for every

@@ -63,6 +63,8 @@ pub(super) struct Simulated<'m> {
 
 /// A model's simulation on the held-out samples.
 pub(super) struct Held {
+    /// The model driven by the input through its boundary.
+    driven: Model,
     /// The mode at each sample.
     modes: Vec<Mode>,
     /// The state at each sample.
@@ -124,10 +126,7 @@ pub(super) fn residual_bins(
     for (o, q, v) in found {
         let y = &on.rec.outputs()[o][rows.clone()];
         let t = &on.rec.time()[rows.clone()];
-        let driven = nominal
-            .model
-            .with_input(Some(nominal.boundary.input(&on.signal)));
-        let omega = natural_rate(&driven, q, v, t, &nominal_states);
+        let omega = natural_rate(q, v, t, &nominal_states);
         // The smoother's pass band reaches twice the natural frequency; without a restoring
         // force, ten times the forcing frequency (a window of a tenth of its period or less,
         // short beside the flights between impacts), else a tenth of the sampling rate.
@@ -142,10 +141,9 @@ pub(super) fn residual_bins(
             None if omega > 0.0 => NATURAL_PERIODS_PER_BLOCK * 2.0 * std::f64::consts::PI / omega,
             None => NATURAL_PERIODS_PER_BLOCK * (2 * half + 1) as f64 * dt,
         };
-        let samples = |s: &Simulated<'_>, states: &Held| {
-            let driven = s.model.with_input(Some(s.boundary.input(&on.signal)));
+        let samples = |s: &Simulated<'_>, held: &Held| {
             let position = undo_sensor(s.boundary, o, y);
-            pair_residual(&driven, (q, v), t, &position, dt, states, half)
+            pair_residual((q, v), t, &position, dt, held, half)
         };
         let nom = samples(nominal, &nominal_states);
         let (xr, vr) = (quantile_range(&nom.x), quantile_range(&nom.v));
@@ -178,8 +176,8 @@ fn undo_sensor(b: &Boundary, o: usize, y: &[f64]) -> Vec<f64> {
 
 /// The pair's natural rate (rad/s) on the samples: the root of the RMS of `-d(v')/dq` over
 /// the simulated states, 0 when the model has no restoring force there.
-fn natural_rate(driven: &Model, q: usize, v: usize, t: &[f64], held: &Held) -> f64 {
-    let (modes, states) = (&held.modes, &held.states);
+fn natural_rate(q: usize, v: usize, t: &[f64], held: &Held) -> f64 {
+    let (driven, modes, states) = (&held.driven, &held.modes, &held.states);
     let n = driven.states().len();
     let mut jac = vec![0.0; n * n];
     let stride = (states.len() / 2000).max(1);
@@ -196,12 +194,11 @@ fn natural_rate(driven: &Model, q: usize, v: usize, t: &[f64], held: &Held) -> f
     (sum / count as f64).sqrt().sqrt()
 }
 
-/// The equation error of the pair `(q, v)` of `driven` at every sample whose smoothing window
+/// The equation error of the pair `(q, v)` of the model of `held` at every sample whose smoothing window
 /// lies inside the record and clear of the model's impacts (two samples beyond the window
 /// either side): measured acceleration minus the model's `v'`, smoothed (see the module's
 /// docs). `x` is the measured position at times `t`; `held` the model's simulation there.
 fn pair_residual(
-    driven: &Model,
     (q, v): (usize, usize),
     t: &[f64],
     x: &[f64],
@@ -209,7 +206,7 @@ fn pair_residual(
     held: &Held,
     half: usize,
 ) -> ResidualSamples {
-    let (modes, states) = (&held.modes, &held.states);
+    let (driven, modes, states) = (&held.driven, &held.modes, &held.states);
     let reach = (half + 4) as f64 * dt;
     let near_impact = |tk: f64| {
         let from = held.jumps.partition_point(|&j| j < tk - reach);
@@ -283,9 +280,11 @@ impl Prepared<'_> {
             })
             .map(|e| e.time)
             .collect();
+        let states = (0..times.len()).map(|i| traj.state(i).to_vec()).collect();
         Ok(Held {
-            modes: traj.modes.clone(),
-            states: (0..times.len()).map(|i| traj.state(i).to_vec()).collect(),
+            driven,
+            modes: traj.modes,
+            states,
             jumps,
         })
     }

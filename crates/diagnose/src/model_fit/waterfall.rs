@@ -48,8 +48,7 @@ impl ModelDiagnosis {
         let beside = self.parameters_beside.as_ref().filter(|p| p.named);
         // The effects in the order chosen, the candidate `parameter_error` among them; a
         // parameter error beside them is its own last step.
-        let names: Vec<String> = self.chosen().into_iter().map(String::from).collect();
-        let effects: Vec<&String> = names.iter().collect();
+        let effects = self.chosen();
         let end = beside.map_or(extended.nrmse_validation, |p| p.nrmse_reset);
         // The score of the fit of the first `i` effects together, as the selection made it.
         let prefix = |i: usize| -> Option<f64> {
@@ -93,10 +92,6 @@ impl ModelDiagnosis {
 }
 
 /// Effects' names as the selection names their joint fit: `"a + b"`.
-fn joined(effects: &[&String]) -> String {
-    effects
-        .iter()
-        .map(|e| e.as_str())
-        .collect::<Vec<_>>()
-        .join(" + ")
+fn joined(effects: &[&str]) -> String {
+    effects.join(" + ")
 }
