@@ -1026,6 +1026,7 @@ fn every_shipped_config_is_run_by_a_test() {
         "paper-improved-model.toml",
         "estimate-hopper.toml",
         "diagnose-hopper-model.toml",
+        "silverbox-model.toml",
     ];
     let this = fs::read_to_string(root().join("tests/cli.rs")).unwrap();
     for entry in fs::read_dir(root().join("configs")).unwrap() {
@@ -4624,5 +4625,150 @@ fn a_wrong_parameter_error_list_is_refused_at_its_line() {
             error.starts_with(&at) && error.contains(message),
             "{list}: {error}"
         );
+    }
+}
+
+/// Real measured data through the model-file diagnosis: Silverbox against a linear
+/// spring-mass-damper written in the model language (`configs/silverbox-model.toml`, the fitted
+/// and held-out sections as rows of the one published file). The cubic spring must be named,
+/// its coefficient near the published Duffing fit's, the held-out error near the published
+/// grey-box figure. Before the fits of a term started from the equation error, this answer was
+/// `unexplained`: on thousands of lightly damped cycles the fit of a stiffness law from zero
+/// stayed in the refit's basin. The shipped config as it is, on three of the eight multisine
+/// periods it fits and one of its held-out section's (2 min against 9 on 2 cores; the answer and
+/// `k3_y` are the whole sections', `docs/diagnosis.md`).
+#[test]
+fn silverbox_is_diagnosed_as_a_stiffness_law_through_a_model_file() {
+    let data = root().join("../shared/data/silverbox/SNLS80mV.csv");
+    assert!(
+        data.exists(),
+        "Silverbox data missing at {}",
+        data.display()
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = fs::read_to_string(root().join("configs/silverbox-model.toml")).unwrap();
+    let config = shipped
+        .replace("rows = [40650, 105712]", "rows = [40650, 65226]")
+        .replace(
+            "validation_rows = [105712, 127400]",
+            "validation_rows = [105712, 113904]",
+        )
+        .replace(
+            "\"../../shared/data/silverbox/SNLS80mV.csv\"",
+            &format!("{:?}", data.to_str().unwrap()),
+        )
+        .replace(
+            "\"../models/silverbox.toml\"",
+            &format!(
+                "{:?}",
+                root().join("models/silverbox.toml").to_str().unwrap()
+            ),
+        );
+    for changed in ["rows = [40650, 65226]", "rows = [105712, 113904]"] {
+        assert!(
+            config.contains(changed),
+            "the shipped config changed: {changed} not set"
+        );
+    }
+    assert!(!config.contains("\"../"), "a relative path left: {config}");
+    let path = tmp.path().join("silverbox-model.toml");
+    fs::write(&path, &config).unwrap();
+    let out = tmp.path().join("sb");
+    htfid_ok(&[
+        "diagnose",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let d = diagnosis(&out);
+    assert_eq!(d["rows"], serde_json::json!([40650, 65226]));
+    assert_eq!(d["validation_rows"], serde_json::json!([105712, 113904]));
+    let causes: Vec<&str> = d["causes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|c| c["effect"].as_str())
+        .collect();
+    assert!(
+        causes.contains(&"nonlinear_stiffness(y)"),
+        "causes {causes:?}, cause {}",
+        d["cause"]
+    );
+    // The published Duffing fit's cubic coefficient over the mass, 7.47e5 V^-2 s^-2, from a
+    // fit by another method (an estimate, not an exact truth): within 10 %.
+    let k3 = d["parameters"]["k3_y"].as_f64().unwrap();
+    assert!((k3 / 7.47e5 - 1.0).abs() < 0.10, "k3_y = {k3:e}");
+    // Held-out RMSE (output RMS about 54 mV): the published linear model about 7 mV, the
+    // Duffing model about 1 mV.
+    let rmse = |m: &str| d[m]["rmse_validation"][0].as_f64().unwrap();
+    assert!(
+        (0.005..0.01).contains(&rmse("refitted")),
+        "linear {}",
+        rmse("refitted")
+    );
+    let final_nrmse = d["extended"]["nrmse"].as_f64().unwrap();
+    let refitted_nrmse = d["refitted"]["nrmse"].as_f64().unwrap();
+    assert!(
+        final_nrmse * rmse("refitted") / refitted_nrmse < 1.5e-3,
+        "final held-out NRMSE {final_nrmse}"
+    );
+}
+
+/// `data.rows` and `data.validation_rows` of a model-file diagnosis: a range past the record's
+/// end, a held-out range that meets the fitted one in the same file and a range that is not
+/// `[start, end)` are refused with the key, nothing written.
+#[test]
+fn model_diagnosis_rows_are_checked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let base = fs::read_to_string(root().join("configs/diagnose-hopper-model.toml")).unwrap();
+    let base = base
+        .replace(
+            "file = \"../data/hopper-protocol.csv\"",
+            &format!(
+                "file = {:?}",
+                root().join("data/hopper-protocol.csv").to_str().unwrap()
+            ),
+        )
+        .replace(
+            "file = \"../models/hopper.toml\"",
+            &format!(
+                "file = {:?}",
+                root().join("models/hopper.toml").to_str().unwrap()
+            ),
+        );
+    let cases: &[(&str, &[&str])] = &[
+        (
+            "rows = [0, 99999999]",
+            &["data.rows", "reaches past the end", "hopper-protocol.csv"],
+        ),
+        (
+            "rows = [0, 2000]\nvalidation_rows = [1500, 3000]",
+            &["data.validation_rows", "meet the fitted rows [0, 2000)"],
+        ),
+        (
+            "validation_rows = [1500, 3000]",
+            &["data.validation_rows", "all of the file"],
+        ),
+        ("rows = [2000, 1000]", &["data.rows", "0 <= start < end"]),
+        ("rows = [5]", &["data.rows", "two sample indices"]),
+    ];
+    for (i, (rows, expect)) in cases.iter().enumerate() {
+        let text = base.replace("outputs = [\"x\"]", &format!("outputs = [\"x\"]\n{rows}"));
+        assert_ne!(text, base);
+        let config = tmp.path().join(format!("c{i}.toml"));
+        fs::write(&config, text).unwrap();
+        let out = tmp.path().join(format!("o{i}"));
+        let o = htfid(&[
+            "diagnose",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{rows}: accepted");
+        let err = stderr(&o);
+        for e in *expect {
+            assert!(err.contains(e), "{rows}: {e:?} not in {err}");
+        }
+        assert!(!out.exists() || fs::read_dir(&out).unwrap().next().is_none());
     }
 }

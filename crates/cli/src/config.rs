@@ -185,6 +185,22 @@ impl Source {
         }
     }
 
+    /// Rows `[start, end)` of a record, 0-based sample indices with `0 <= start < end`; that
+    /// `end` lies inside the record is checked when it is read.
+    pub fn rows(&self, value: &Spanned<Vec<i64>>, key: &str) -> Result<Range<usize>, ConfigError> {
+        match value.get_ref().as_slice() {
+            &[a, b] if a >= 0 && b > a => Ok(a as usize..b as usize),
+            v => Err(self.error(
+                Some(&value.span()),
+                key,
+                format!(
+                    "must be [start, end): two sample indices with 0 <= start < end (got [{}])",
+                    v.iter().map(i64::to_string).collect::<Vec<_>>().join(", ")
+                ),
+            )),
+        }
+    }
+
     pub fn positive(&self, value: &Spanned<f64>, key: &str) -> Result<f64, ConfigError> {
         self.number(value, key, "> 0", |v| v > 0.0)
     }

@@ -31,6 +31,8 @@ struct RawData {
     outputs: Spanned<Vec<String>>,
     time_tolerance: Option<Spanned<f64>>,
     validation: Option<Spanned<String>>,
+    rows: Option<Spanned<Vec<i64>>>,
+    validation_rows: Option<Spanned<Vec<i64>>>,
     delimiter: Option<Spanned<String>>,
     matrix: Option<Spanned<String>>,
     columns: Option<Spanned<Vec<String>>>,
@@ -93,6 +95,11 @@ pub struct ModelDiagnoseSettings {
     pub file: PathBuf,
     /// A separate held-out record (same columns), when given.
     pub validation: Option<PathBuf>,
+    /// `data.rows`: the rows of `file` that are the fitted record (all of it when `None`).
+    pub rows: Option<std::ops::Range<usize>>,
+    /// `data.validation_rows`: the rows of the held-out record, of `validation` when given,
+    /// else of `file` (then they must not meet `rows`).
+    pub validation_rows: Option<std::ops::Range<usize>>,
     pub time: Option<String>,
     pub sample_rate: Option<f64>,
     pub input: String,
@@ -374,11 +381,42 @@ impl ModelDiagnoseSettings {
                 .user_terms
                 .push(user_term(&src, &model, raw, i, &options.user_terms)?);
         }
+        let rows = d
+            .rows
+            .as_ref()
+            .map(|r| src.rows(r, "data.rows"))
+            .transpose()?;
+        let validation_rows = d
+            .validation_rows
+            .as_ref()
+            .map(|r| src.rows(r, "data.validation_rows"))
+            .transpose()?;
+        if let (Some(v), None) = (&validation_rows, &d.validation) {
+            let fitted = rows.clone().unwrap_or(0..usize::MAX);
+            if v.start < fitted.end && fitted.start < v.end {
+                return Err(src.error(
+                    d.validation_rows.as_ref().map(|r| r.span()).as_ref(),
+                    "data.validation_rows",
+                    format!(
+                        "the held-out rows [{}, {}) of data.file meet the fitted rows{}; give \
+                         data.rows apart from them",
+                        v.start,
+                        v.end,
+                        match &rows {
+                            Some(r) => format!(" [{}, {})", r.start, r.end),
+                            None => " (all of the file, data.rows not given)".into(),
+                        }
+                    ),
+                ));
+            }
+        }
         Ok(ModelDiagnoseSettings {
             name,
             path: path.to_path_buf(),
             file: data.unwrap_or_else(|| dir.join(d.file.get_ref())),
             validation: d.validation.as_ref().map(|v| dir.join(v.get_ref())),
+            rows,
+            validation_rows,
             time: d.time.as_ref().map(|t| t.get_ref().clone()),
             sample_rate: match &d.sample_rate {
                 Some(v) => Some(src.positive(v, "data.sample_rate")?),

@@ -1,4 +1,5 @@
-//! Local polynomial (Savitzky-Golay) smoothing and differentiation of the measured position.
+//! Local polynomial (Savitzky-Golay) smoothing and differentiation of the measured position,
+//! and a zero-phase spectral low-pass with exact derivatives.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -157,6 +158,84 @@ pub(crate) fn smoothed_at(kernel: &[f64], signal: &[f64], k: usize) -> f64 {
         .sum()
 }
 
+/// A zero-phase low-pass applied through the FFT of a whole record, with its exact
+/// derivatives: gain 1 up to `pass` (Hz), a raised-cosine fall to 0 at `stop`. The
+/// `order`-th derivative multiplies each line by `(j omega)^order` beside the gain, so for a
+/// signal band-limited below `stop` it is the derivative of the filtered signal with no error
+/// of a difference quotient (a five-point acceleration is 14 % low at a third of the sampling
+/// rate). The line through the record's end points is taken out before the transform and its
+/// part put back after, so the record is not read as jumping at its wrap-around; what is left
+/// of that jump rings for a few periods of the transition band at either end.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SpectralLowPass {
+    pub pass: f64,
+    pub stop: f64,
+}
+
+impl SpectralLowPass {
+    /// The filter's gain at `f` (Hz, `>= 0`).
+    fn gain(&self, f: f64) -> f64 {
+        if f <= self.pass {
+            1.0
+        } else if f >= self.stop {
+            0.0
+        } else {
+            let s = (f - self.pass) / (self.stop - self.pass);
+            0.5 * (1.0 + (std::f64::consts::PI * s).cos())
+        }
+    }
+
+    /// The `order`-th derivative (0, 1 or 2) of `x` (sampled every `dt`) filtered.
+    pub(crate) fn apply(&self, x: &[f64], dt: f64, order: u32) -> Vec<f64> {
+        use rustfft::{num_complex::Complex64, FftPlanner};
+        let n = x.len();
+        if n < 2 {
+            return vec![0.0; n];
+        }
+        let slope = (x[n - 1] - x[0]) / ((n - 1) as f64 * dt);
+        let line = |k: usize| x[0] + slope * k as f64 * dt;
+        let mut buf: Vec<Complex64> = (0..n)
+            .map(|k| Complex64::new(x[k] - line(k), 0.0))
+            .collect();
+        let mut planner = FftPlanner::<f64>::new();
+        planner.plan_fft_forward(n).process(&mut buf);
+        let df = 1.0 / (n as f64 * dt);
+        for (i, c) in buf.iter_mut().enumerate() {
+            // The signed frequency of line i; the Nyquist line of an even length has no sign,
+            // and its odd derivatives are not real: it is dropped.
+            let signed = if 2 * i <= n {
+                i as f64
+            } else {
+                i as f64 - n as f64
+            };
+            if 2 * i == n && order % 2 == 1 {
+                *c = Complex64::new(0.0, 0.0);
+                continue;
+            }
+            let f = signed * df;
+            let jw = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f);
+            *c *= jw.powu(order) * (self.gain(f.abs()) / n as f64);
+        }
+        planner.plan_fft_inverse(n).process(&mut buf);
+        (0..n)
+            .map(|k| {
+                buf[k].re
+                    + match order {
+                        0 => line(k),
+                        1 => slope,
+                        _ => 0.0,
+                    }
+            })
+            .collect()
+    }
+
+    /// Samples at either end of a record in which the wrap-around's ringing lasts: eight
+    /// periods of the transition band's width.
+    pub(crate) fn edge(&self, dt: f64) -> usize {
+        (8.0 / ((self.stop - self.pass) * dt)).ceil() as usize
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -206,5 +285,61 @@ mod tests {
                 smoothed
             );
         }
+    }
+
+    #[test]
+    fn the_spectral_low_pass_differentiates_a_band_limited_signal_exactly() {
+        // x = 0.3 + 0.2 t + sin(2 pi 3 t) + 0.5 cos(2 pi 11.3 t + 1) sampled at 100 Hz: both
+        // lines lie inside the pass band (20 Hz), 11.3 Hz is a third of the way to Nyquist,
+        // where a five-point acceleration is 3 % low. Away from the ends (the ringing of the
+        // non-periodic record's wrap-around) value, velocity and acceleration must match
+        // the analytic ones to 1e-3 of the acceleration's size (about 2.5e3), the level the
+        // ringing leaves, and well inside the five-point error.
+        let dt = 0.01;
+        let n = 4000;
+        let (w1, w2) = (
+            2.0 * std::f64::consts::PI * 3.0,
+            2.0 * std::f64::consts::PI * 11.3,
+        );
+        let t = |k: usize| k as f64 * dt;
+        let x: Vec<f64> = (0..n)
+            .map(|k| 0.3 + 0.2 * t(k) + (w1 * t(k)).sin() + 0.5 * (w2 * t(k) + 1.0).cos())
+            .collect();
+        let filter = SpectralLowPass {
+            pass: 20.0,
+            stop: 30.0,
+        };
+        let (x0, x1, x2) = (
+            filter.apply(&x, dt, 0),
+            filter.apply(&x, dt, 1),
+            filter.apply(&x, dt, 2),
+        );
+        let edge = filter.edge(dt);
+        assert!(edge < n / 4);
+        let scale = 0.5 * w2 * w2;
+        let mut worst = 0.0f64;
+        for k in edge..n - edge {
+            let v = 0.2 + w1 * (w1 * t(k)).cos() - 0.5 * w2 * (w2 * t(k) + 1.0).sin();
+            let a = -w1 * w1 * (w1 * t(k)).sin() - 0.5 * w2 * w2 * (w2 * t(k) + 1.0).cos();
+            worst = worst
+                .max((x0[k] - x[k]).abs() * w2 * w2)
+                .max((x1[k] - v).abs() * w2)
+                .max((x2[k] - a).abs());
+        }
+        assert!(
+            worst < 1e-3 * scale,
+            "worst error {worst:e} against {scale:e}"
+        );
+        // The five-point acceleration at the same samples errs by more.
+        let five = (edge..n - edge)
+            .map(|k| {
+                let a = -w1 * w1 * (w1 * t(k)).sin() - 0.5 * w2 * w2 * (w2 * t(k) + 1.0).cos();
+                (five_point(&x, k, dt).1 - a).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            five > 10.0 * worst,
+            "five-point {five:e}, spectral {worst:e}"
+        );
     }
 }

@@ -12,6 +12,7 @@ use crate::{Cause, DiagnoseError, TimeSeries};
 use std::collections::BTreeMap;
 
 mod causes;
+mod equation_error;
 mod joint;
 mod prepared;
 mod residual_bins;

@@ -54,10 +54,16 @@ pub fn run(
     }
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut outdir = open(&dir, force, &names)?;
-    let record = read_model_record(&s, &s.file)?;
-    let validation = match &s.validation {
-        Some(path) => Some(read_model_record(&s, path)?),
-        None => None,
+    let record = read_rows(&s, &s.file, s.rows.clone(), "data.rows")?;
+    let validation = match (&s.validation, &s.validation_rows) {
+        (Some(path), rows) => Some(read_rows(&s, path, rows.clone(), "data.validation_rows")?),
+        (None, Some(rows)) => Some(read_rows(
+            &s,
+            &s.file,
+            Some(rows.clone()),
+            "data.validation_rows",
+        )?),
+        (None, None) => None,
     };
     crate::progress::line(&format!(
         "diagnosing {} ({} samples) against model `{}`, refitting {:?}",
@@ -191,7 +197,13 @@ pub fn run(
         "name": s.name,
         "config": s.path.display().to_string(),
         "data": s.file.display().to_string(),
-        "validation_data": s.validation.as_ref().map(|p| p.display().to_string()),
+        "validation_data": s
+            .validation
+            .as_ref()
+            .or(s.validation_rows.as_ref().map(|_| &s.file))
+            .map(|p| p.display().to_string()),
+        "rows": s.rows.as_ref().map(|r| [r.start, r.end]),
+        "validation_rows": s.validation_rows.as_ref().map(|r| [r.start, r.end]),
         "units": s.format.units_json(),
         "model": s.model.name(),
         "cause": d.cause,
@@ -559,6 +571,30 @@ pub(super) fn models_shown(d: &ModelDiagnosis, o: usize) -> Vec<crate::validatio
 }
 
 /// The record with one column per model output, each read from `file`.
+/// The record in `file`, or its `rows` (configured at `key`) when given.
+fn read_rows(
+    s: &ModelDiagnoseSettings,
+    file: &std::path::Path,
+    rows: Option<std::ops::Range<usize>>,
+    key: &str,
+) -> Result<TimeSeries> {
+    let record = read_model_record(s, file)?;
+    let Some(rows) = rows else {
+        return Ok(record);
+    };
+    if rows.end > record.len() {
+        anyhow::bail!(
+            "{}: {key}: [{}, {}) reaches past the end of \"{}\", which has {} samples",
+            s.path.display(),
+            rows.start,
+            rows.end,
+            file.display(),
+            record.len()
+        );
+    }
+    Ok(record.slice(rows)?)
+}
+
 fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<TimeSeries> {
     let mut parts = Vec::with_capacity(s.outputs.len());
     for column in &s.outputs {
@@ -1109,9 +1145,15 @@ fn notes(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
 /// The config, the data, what was refitted and what held out.
 fn data_section(r: &mut Report, s: &ModelDiagnoseSettings) {
     r.section("Data");
-    let held_out = match &s.validation {
-        Some(p) => format!("the separate record `{}`", shown_path(p)),
-        None => format!(
+    let rows = |r: &Option<std::ops::Range<usize>>| {
+        r.as_ref().map_or(String::new(), |r| {
+            format!(", rows {} to {}", r.start, r.end - 1)
+        })
+    };
+    let held_out = match (&s.validation, &s.validation_rows) {
+        (Some(p), r) => format!("the separate record `{}`{}", shown_path(p), rows(r)),
+        (None, Some(_)) => format!("`{}`{}", shown_path(&s.file), rows(&s.validation_rows)),
+        (None, None) => format!(
             "the last {} of the record",
             percent(1.0 - s.options.fit_fraction, 2)
         ),
@@ -1125,9 +1167,10 @@ fn data_section(r: &mut Report, s: &ModelDiagnoseSettings) {
     };
     let mut items = vec![
         format!(
-            "Config: `{}`; data: `{}`.",
+            "Config: `{}`; data: `{}`{}.",
             shown_path(&s.path),
-            shown_path(&s.file)
+            shown_path(&s.file),
+            rows(&s.rows)
         ),
         if s.options.free.is_empty() {
             "Refitted with every candidate: nothing (the model as configured).".to_string()

@@ -64,13 +64,21 @@ pub(super) struct Simulated<'m> {
 /// A model's simulation on the held-out samples.
 pub(super) struct Held {
     /// The model driven by the input through its boundary.
-    driven: Model,
+    pub driven: Model,
     /// The mode at each sample.
-    modes: Vec<Mode>,
+    pub modes: Vec<Mode>,
     /// The state at each sample.
-    states: Vec<Vec<f64>>,
+    pub states: Vec<Vec<f64>>,
     /// Times of the transitions whose reset moves the state (impacts).
-    jumps: Vec<f64>,
+    pub jumps: Vec<f64>,
+}
+
+impl Held {
+    /// Whether a smoothing window of `reach` (s) either side of `t` meets an impact.
+    pub(super) fn near_impact(&self, t: f64, reach: f64) -> bool {
+        let from = self.jumps.partition_point(|&j| j < t - reach);
+        self.jumps.get(from).is_some_and(|&j| j <= t + reach)
+    }
 }
 
 /// The second-order pairs `(output, q, v)` of `model` whose equation error the diagnosis bins
@@ -127,15 +135,7 @@ pub(super) fn residual_bins(
         let y = &on.rec.outputs()[o][rows.clone()];
         let t = &on.rec.time()[rows.clone()];
         let omega = natural_rate(q, v, t, &nominal_states);
-        // The smoother's pass band reaches twice the natural frequency; without a restoring
-        // force, ten times the forcing frequency (a window of a tenth of its period or less,
-        // short beside the flights between impacts), else a tenth of the sampling rate.
-        let f_window = if omega > 0.0 {
-            omega / (2.0 * std::f64::consts::PI)
-        } else {
-            period.map_or(0.05 / dt, |p| 5.0 / p)
-        };
-        let half = window_half_width(f_window, dt);
+        let half = smoothing_half_width(omega, period, dt);
         let block_s = match period {
             Some(p) => p,
             None if omega > 0.0 => NATURAL_PERIODS_PER_BLOCK * 2.0 * std::f64::consts::PI / omega,
@@ -165,9 +165,22 @@ pub(super) fn residual_bins(
     Ok(out)
 }
 
+/// The half-width of the smoothing of a pair's equation error whose natural rate is `omega`
+/// (rad/s): the smoother's pass band reaches twice the natural frequency; without a restoring
+/// force, ten times the forcing frequency (a window of a tenth of its `period` or less, short
+/// beside the flights between impacts), else a tenth of the sampling rate.
+pub(super) fn smoothing_half_width(omega: f64, period: Option<f64>, dt: f64) -> usize {
+    let f_window = if omega > 0.0 {
+        omega / (2.0 * std::f64::consts::PI)
+    } else {
+        period.map_or(0.05 / dt, |p| 5.0 / p)
+    };
+    window_half_width(f_window, dt)
+}
+
 /// The measured output `y` with output `o`'s sensor offset and gain undone (a sensor lag is
 /// not: it shows as a residual).
-fn undo_sensor(b: &Boundary, o: usize, y: &[f64]) -> Vec<f64> {
+pub(super) fn undo_sensor(b: &Boundary, o: usize, y: &[f64]) -> Vec<f64> {
     match b.sensors.get(o) {
         Some(s) => y.iter().map(|&v| (v - s.b) / s.g).collect(),
         None => y.to_vec(),
@@ -176,7 +189,7 @@ fn undo_sensor(b: &Boundary, o: usize, y: &[f64]) -> Vec<f64> {
 
 /// The pair's natural rate (rad/s) on the samples: the root of the RMS of `-d(v')/dq` over
 /// the simulated states, 0 when the model has no restoring force there.
-fn natural_rate(q: usize, v: usize, t: &[f64], held: &Held) -> f64 {
+pub(super) fn natural_rate(q: usize, v: usize, t: &[f64], held: &Held) -> f64 {
     let (driven, modes, states) = (&held.driven, &held.modes, &held.states);
     let n = driven.states().len();
     let mut jac = vec![0.0; n * n];
@@ -208,10 +221,6 @@ fn pair_residual(
 ) -> ResidualSamples {
     let (driven, modes, states) = (&held.driven, &held.modes, &held.states);
     let reach = (half + 4) as f64 * dt;
-    let near_impact = |tk: f64| {
-        let from = held.jumps.partition_point(|&j| j < tk - reach);
-        held.jumps.get(from).is_some_and(|&j| j <= tk + reach)
-    };
     let n = x.len();
     let mut d = vec![0.0; driven.states().len()];
     let error: Vec<f64> = (0..n)
@@ -231,7 +240,7 @@ fn pair_residual(
     let kernel = acceleration_kernel(half, dt);
     let mut out = ResidualSamples::default();
     for (k, kin) in savitzky_golay(x, 0, n, dt, half, 4) {
-        if k < half + 2 || k + half + 2 >= n || near_impact(t[k]) {
+        if k < half + 2 || k + half + 2 >= n || held.near_impact(t[k], reach) {
             continue;
         }
         let smoothed = smoothed_at(&kernel, &error, k);

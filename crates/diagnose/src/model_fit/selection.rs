@@ -321,8 +321,28 @@ impl Selection<'_, '_> {
                         .filter_map(|n| extended.parameter_index(n))
                         .collect();
                     let mut extended = extended;
-                    if let TermStart::Points(points) = &term.start {
-                        extended = est.best_point(&extended, &added, points, &base.state);
+                    match &term.start {
+                        TermStart::Points(points) => {
+                            extended = est.best_point(&extended, &added, points, &base.state);
+                        }
+                        // From the better of zero and the equation error's estimate, with
+                        // the free parameters estimated beside it: refitted without the term,
+                        // they have taken up what of it they could, and on a long record of a
+                        // lightly damped system the fit from zero stays in that basin.
+                        TermStart::Given => {
+                            let free: Vec<String> = names.iter().map(|n| n.to_string()).collect();
+                            if let Some(p) =
+                                est.equation_error_start(&extended, &free, &added, &base.state)
+                            {
+                                let all: Vec<String> =
+                                    free.into_iter().chain(added.clone()).collect();
+                                let given: Vec<f64> =
+                                    all.iter().filter_map(|n| extended.parameter(n)).collect();
+                                extended =
+                                    est.best_point(&extended, &all, &[given, p], &base.state);
+                            }
+                        }
+                        TermStart::BothSigns => {}
                     }
                     let mut scales = joint.scales.clone();
                     scales.extend(self.samples.term_scales(&extended, &est.signal, term));
@@ -575,6 +595,20 @@ impl Selection<'_, '_> {
                 if let Some(j) = all.iter().position(|a| a == name) {
                     m = est.best_shift(&m, name, scales[j], x0, surface);
                 }
+            }
+        }
+        // ... or from the equation error's estimate, the other parameters estimated beside it,
+        // when that is better still.
+        for term in &terms {
+            let names = term.parameter_names();
+            if term.start != TermStart::Given || known.contains_key(&names[0]) {
+                continue;
+            }
+            let free: Vec<String> = all.iter().filter(|a| !names.contains(a)).cloned().collect();
+            if let Some(p) = est.equation_error_start(&m, &free, &names, x0) {
+                let order: Vec<String> = free.into_iter().chain(names).collect();
+                let current: Vec<f64> = order.iter().filter_map(|n| m.parameter(n)).collect();
+                m = est.best_point(&m, &order, &[current, p], x0);
             }
         }
         let refs: Vec<&str> = all.iter().map(String::as_str).collect();
