@@ -625,6 +625,21 @@ fn diagnosis(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&fs::read_to_string(dir.join("diagnosis.json")).unwrap()).unwrap()
 }
 
+/// Writes `config` as `dir/NAME.toml`, diagnoses it into `dir/NAME` and reads its
+/// `diagnosis.json`.
+fn diagnose_text(dir: &Path, name: &str, config: &str) -> serde_json::Value {
+    let path = dir.join(format!("{name}.toml"));
+    fs::write(&path, config).unwrap();
+    let out = dir.join(name);
+    htfid_ok(&[
+        "diagnose",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    diagnosis(&out)
+}
+
 /// The hopper record (made by `htfid simulate configs/hopper-truth.toml`, whose truth has flight
 /// damping c_f = 0.2 that the nominal model lacks) is diagnosed as flight damping.
 #[test]
@@ -937,17 +952,23 @@ fn asymmetric_friction_is_simulated_as_its_mean_and_a_constant_force() {
     }
 }
 
-/// Real measured data: the Silverbox benchmark must be diagnosed as a cubic spring, with a
-/// simulation error near the published grey-box figure (~1 mV; linear ~7 mV). The data file
-/// lives in ../shared; a missing file fails this test.
-#[test]
-fn silverbox_is_diagnosed_as_cubic_stiffness() {
+/// The Silverbox record in ../shared; a missing file fails the test that asks for it.
+fn silverbox_data() -> PathBuf {
     let data = root().join("../shared/data/silverbox/SNLS80mV.csv");
     assert!(
         data.exists(),
         "Silverbox data missing at {}",
         data.display()
     );
+    data
+}
+
+/// Real measured data: the Silverbox benchmark must be diagnosed as a cubic spring, with a
+/// simulation error near the published grey-box figure (~1 mV; linear ~7 mV). The data file
+/// lives in ../shared; a missing file fails this test.
+#[test]
+fn silverbox_is_diagnosed_as_cubic_stiffness() {
+    let data = silverbox_data();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sb");
     htfid_ok(&[
@@ -1403,19 +1424,7 @@ fn model_config_errors_are_located() {
     for (from, to, needles) in cases {
         let path = tmp.path().join("edited.toml");
         fs::write(&path, base.replacen(from, to, 1)).unwrap();
-        let out = tmp.path().join("out");
-        let o = htfid(&[
-            "simulate",
-            path.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(!o.status.success(), "{to}");
-        let err = stderr(&o);
-        for n in *needles {
-            assert!(err.contains(n), "{to}: {err}");
-        }
-        assert!(!out.exists() || fs::read_dir(&out).unwrap().next().is_none());
+        assert_refused("simulate", &path, &tmp.path().join("out"), needles, to);
     }
     // An override naming no parameter is reported at its own line.
     let path = tmp.path().join("edited.toml");
@@ -2137,16 +2146,8 @@ fn a_users_own_term_is_a_candidate() {
              mode = \"free\"\nterm = \"{term}\"\nparameters = {{ cf = 0.0 }}\n"
         )
     };
+    let d = diagnose_text(tmp.path(), "terms", &with_term("-cf*v"));
     let path = tmp.path().join("terms.toml");
-    fs::write(&path, with_term("-cf*v")).unwrap();
-    let out = tmp.path().join("d");
-    htfid_ok(&[
-        "diagnose",
-        path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let d = diagnosis(&out);
     assert_eq!(d["cause"], "air_in_flight", "{}", d["candidates"]);
     let cf = d["extended"]["parameters"]["cf"].as_f64().unwrap();
     assert!((cf / 0.2 - 1.0).abs() < 0.05, "{cf}");
@@ -4639,12 +4640,7 @@ fn a_wrong_parameter_error_list_is_refused_at_its_line() {
 /// `k3_y` are the whole sections', `docs/diagnosis.md`).
 #[test]
 fn silverbox_is_diagnosed_as_a_stiffness_law_through_a_model_file() {
-    let data = root().join("../shared/data/silverbox/SNLS80mV.csv");
-    assert!(
-        data.exists(),
-        "Silverbox data missing at {}",
-        data.display()
-    );
+    let data = silverbox_data();
     let tmp = tempfile::tempdir().unwrap();
     let shipped = fs::read_to_string(root().join("configs/silverbox-model.toml")).unwrap();
     let config = shipped
@@ -4671,16 +4667,7 @@ fn silverbox_is_diagnosed_as_a_stiffness_law_through_a_model_file() {
         );
     }
     assert!(!config.contains("\"../"), "a relative path left: {config}");
-    let path = tmp.path().join("silverbox-model.toml");
-    fs::write(&path, &config).unwrap();
-    let out = tmp.path().join("sb");
-    htfid_ok(&[
-        "diagnose",
-        path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let d = diagnosis(&out);
+    let d = diagnose_text(tmp.path(), "silverbox-model", &config);
     assert_eq!(d["rows"], serde_json::json!([40650, 65226]));
     assert_eq!(d["validation_rows"], serde_json::json!([105712, 113904]));
     let causes: Vec<&str> = d["causes"]
@@ -4757,18 +4744,70 @@ fn model_diagnosis_rows_are_checked() {
         assert_ne!(text, base);
         let config = tmp.path().join(format!("c{i}.toml"));
         fs::write(&config, text).unwrap();
-        let out = tmp.path().join(format!("o{i}"));
-        let o = htfid(&[
+        assert_refused(
             "diagnose",
-            config.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(!o.status.success(), "{rows}: accepted");
-        let err = stderr(&o);
-        for e in *expect {
-            assert!(err.contains(e), "{rows}: {e:?} not in {err}");
-        }
-        assert!(!out.exists() || fs::read_dir(&out).unwrap().next().is_none());
+            &config,
+            &tmp.path().join(format!("o{i}")),
+            expect,
+            rows,
+        );
     }
+}
+
+/// Runs `htfid COMMAND CONFIG --out OUT`, which must fail with each of `needles` in its error
+/// and leave `out` absent or empty; `what` names the case in a failure.
+fn assert_refused(command: &str, config: &Path, out: &Path, needles: &[&str], what: &str) {
+    let o = htfid(&[
+        command,
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success(), "{what}: accepted");
+    let err = stderr(&o);
+    for n in needles {
+        assert!(err.contains(n), "{what}: {n:?} not in {err}");
+    }
+    assert!(!out.exists() || fs::read_dir(out).unwrap().next().is_none());
+}
+
+/// The independent generator's hardening Duffing record (`tests/oracle/real_like`) through the
+/// model-file diagnosis (`tests/fixtures/real-like/duffing-model.toml`: a linear
+/// spring-mass-damper in a model file, every parameter free): the stiffness law is named and
+/// its coefficient, over the mass, matches the generator's `k3 / m` to 1 % (the built-in
+/// diagnosis's tolerance on the same record); the damping the model file configures (1.0 N s/m)
+/// is named as off, at the generator's 0.8.
+#[test]
+fn an_independent_duffing_record_is_diagnosed_through_a_model_file() {
+    let dir = root().join("tests/fixtures/real-like");
+    let truth: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let p = &truth["duffing_hardening.csv"]["parameters"];
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("duffing");
+    htfid_ok(&[
+        "diagnose",
+        dir.join("duffing-model.toml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let d = diagnosis(&out);
+    assert_eq!(d["cause"], "nonlinear_stiffness(x)", "{}", d["causes"]);
+    let k3_over_m = p["k3_N_per_m3"].as_f64().unwrap() / p["m_kg"].as_f64().unwrap();
+    let k3 = d["parameters"]["k3_x"].as_f64().unwrap();
+    assert!(
+        (k3 / k3_over_m - 1.0).abs() < 0.01,
+        "k3_x {k3} against {k3_over_m}"
+    );
+    let c = d["parameters"]["c"].as_f64().unwrap();
+    let c_true = p["c_Ns_per_m"].as_f64().unwrap();
+    assert!((c / c_true - 1.0).abs() < 0.01, "c {c} against {c_true}");
+    let named: Vec<&str> = d["causes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|c| c["effect"].as_str())
+        .collect();
+    assert_eq!(named, ["nonlinear_stiffness(x)", "parameter_error"]);
 }

@@ -1,16 +1,17 @@
 //! Where a candidate term's output-error fit starts: the least-squares estimate of its
-//! parameters from the equation error on the estimation record.
+//! parameters, and of the free parameters beside it, from the equation error on the
+//! estimation record.
 //!
-//! An output-error fit of a term that starts at zero (the model as it was) walks the cost
-//! down a valley that, on a long record of a lightly damped system, is narrow and full of
-//! local minima: each change of the term shifts the phase of thousands of cycles. On
-//! Silverbox (about 7000 cycles of a 68 Hz resonance) the fit of a cubic spring from zero stops
-//! after one step, at a tenth of its value, and the diagnosis names the wrong effect. The
-//! equation error has no such memory: at each sample, the measured acceleration less the
-//! model's `v'` at the measured position and velocity is linear in a term's coefficients, so
-//! one least-squares solve estimates them. The estimate is biased by the noise of the
-//! differentiated output, and by the other states, taken from the simulation; it is a start,
-//! and the output-error fit from the better of it and zero decides.
+//! An output-error fit of a term that starts at zero (the model as it was) walks a cost that,
+//! on a long record of a lightly damped system, is far from convex: each change of the term
+//! shifts the phase of thousands of cycles, and the refitted free parameters have taken up what
+//! of the term they could. On Silverbox (about 7 300 fitted cycles of a 68 Hz resonance) the
+//! fit of a cubic spring from zero stopped after one step, and the diagnosis named the wrong
+//! effect. The equation error has no such memory: at each sample, the measured acceleration
+//! less the model's `v'` at the measured position and velocity is linear in a term's
+//! coefficients, so one least-squares solve estimates them. The estimate is biased by the
+//! noise of the differentiated output and by the other states, taken from the simulation; it
+//! is a start, and the output-error fit from the better of it and zero decides.
 
 use htfid_hybrid::HybridSystem;
 use htfid_lang::Model;
