@@ -968,7 +968,7 @@ fn silverbox_data() -> PathBuf {
 /// lives in ../shared; a missing file fails this test.
 #[test]
 fn silverbox_is_diagnosed_as_cubic_stiffness() {
-    let data = silverbox_data();
+    silverbox_data();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sb");
     htfid_ok(&[
