@@ -20,9 +20,12 @@ impl ModelDiagnosis {
     /// nothing is free, `refit` false: then the refit only fits the initial state); one step
     /// per named effect in the order chosen, each ending at the held-out score of the fit of
     /// that effect beside those before it, as the selection fitted it (the first round alone,
-    /// the pairs, the later rounds; the last at the final fit); `parameter_error` beside the
-    /// effects from the final fit with the moved parameters set back to it; and the final
-    /// level. Every level is a measured score. Where the backward pass left a set of effects
+    /// the pairs, the later rounds; the last at the final fit); with nothing refitted,
+    /// `parameter_error` beside the effects from the final fit with the moved parameters set
+    /// back to it (the last effect's step then ends there); and the final level. With free
+    /// parameters refitted, their move from the configured values is the `refitted` step and
+    /// every effect's fit moves them again, so a parameter error beside the effects has no
+    /// step of its own: set back, they would raise the error above the refit's. Every level is a measured score. Where the backward pass left a set of effects
     /// whose prefix the selection never fitted (an effect dropped from between them), the
     /// effects from there on are one step, named `"a + b"`.
     pub fn error_waterfall(&self, refit: bool) -> Vec<ErrorStep> {
@@ -45,7 +48,10 @@ impl ModelDiagnosis {
             steps.push(level("final", refitted));
             return steps;
         };
-        let beside = self.parameters_beside.as_ref().filter(|p| p.named);
+        let beside = self
+            .parameters_beside
+            .as_ref()
+            .filter(|p| p.named && !refit);
         // The effects in the order chosen, the candidate `parameter_error` among them; a
         // parameter error beside them is its own last step.
         let effects = self.chosen();
