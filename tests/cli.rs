@@ -4696,6 +4696,28 @@ fn silverbox_is_diagnosed_as_a_stiffness_law_through_a_model_file() {
         assert_eq!(pair[0]["after"], pair[1]["before"], "{names:?}");
     }
     assert_eq!(steps[steps.len() - 2]["after"], d["extended"]["nrmse"]);
+    // Every final parameter without a standard error is named in the report's note on what
+    // the record cannot tell apart, and the note is there only then.
+    let report = fs::read_to_string(tmp.path().join("silverbox-model/report.md")).unwrap();
+    let note = report
+        .split("\n\n")
+        .find(|p| p.starts_with("**The record cannot tell some"));
+    let unresolved: Vec<&String> = d["stderr"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(_, e)| e.is_null())
+        .map(|(n, _)| n)
+        .collect();
+    match note {
+        Some(note) => {
+            assert!(!unresolved.is_empty(), "{note}");
+            for n in &unresolved {
+                assert!(note.contains(&format!("`{n}`")), "{n} not in {note}");
+            }
+        }
+        None => assert!(unresolved.is_empty(), "{unresolved:?} not named"),
+    }
     // The published Duffing fit's cubic coefficient over the mass, 7.47e5 V^-2 s^-2, from a
     // fit by another method (an estimate, not an exact truth): within 10 %.
     let k3 = d["parameters"]["k3_y"].as_f64().unwrap();

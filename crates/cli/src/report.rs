@@ -464,7 +464,7 @@ fn harmonic_keys_of_list(v: &Value) -> Vec<i64> {
 }
 
 /// `a, b and c`.
-fn join_and(items: &[String]) -> String {
+pub fn join_and(items: &[String]) -> String {
     match items.len() {
         0 => String::new(),
         1 => items[0].clone(),

@@ -1099,6 +1099,24 @@ fn notes(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
             s.options.max_iterations
         ));
     }
+    // Parameters the final fit cannot tell apart: no standard error.
+    let unresolved: Vec<String> = d
+        .parameters
+        .keys()
+        .filter(|n| !d.stderr.get(*n).is_some_and(|e| e.is_finite()))
+        .map(|n| format!("`{n}`"))
+        .collect();
+    if !unresolved.is_empty() {
+        r.para(&format!(
+            "**The record cannot tell some of the final model's parameters apart**: {} have no \
+             standard error (the final fit's covariance is singular, or its residual has no \
+             degrees of freedom left). Other values of them fit as well; hold one of them fixed \
+             (`model.free`, or leave out the effect that adds it) to read the others. A sensor's \
+             gain beside a free mass, stiffness and damping is one such case: it only rescales \
+             the state, which they undo.",
+            crate::report::join_and(&unresolved)
+        ));
+    }
     if unconverged > 0 {
         r.para(&format!(
             "{unconverged} of the candidate fits stopped at their limit of {} iterations \
