@@ -1619,6 +1619,57 @@ fn an_outsiders_drag_beside_a_sensor_gain_error_is_named() {
     assert!(((g - 1.0) / 0.05 - 1.0).abs() < 0.1, "g {g}");
 }
 
+/// The same outside record through the model-file diagnosis
+/// (`tests/fixtures/outsider/p3-sensor-gain-drag/diagnose-model.toml`: `models/hopper.toml`, `k`
+/// and `c` refitted): both effects are named, each parameter within 10 % of the truth in its
+/// `truth.json` (offset 0.002 m, gain 1.05, drag 10), and `k` and `c` come back to the
+/// generator's 200 and 2 within 1 %.
+#[test]
+fn an_outsiders_drag_beside_a_sensor_gain_error_is_named_through_a_model_file() {
+    let dir = root().join("tests/fixtures/outsider/p3-sensor-gain-drag");
+    let truth: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("d");
+    htfid_ok(&[
+        "diagnose",
+        dir.join("diagnose-model.toml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let d = diagnosis(&out);
+    let mut named: Vec<&str> = d["causes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|c| c["effect"].as_str())
+        .collect();
+    named.sort_unstable();
+    assert_eq!(
+        named,
+        ["quadratic_drag(v)", "sensor_offset_gain"],
+        "{}",
+        d["causes"]
+    );
+    let within = |key: &str, want: f64, tol: f64| {
+        let got = d["parameters"][key].as_f64().unwrap();
+        assert!((got / want - 1.0).abs() < tol, "{key} {got} against {want}");
+    };
+    let effects = &truth["effects"];
+    within("b_x", effects["sensor_offset"].as_f64().unwrap(), 0.1);
+    let gain = effects["sensor_gain"].as_f64().unwrap();
+    let g = d["parameters"]["g_x"].as_f64().unwrap();
+    assert!(
+        ((g - 1.0) / (gain - 1.0) - 1.0).abs() < 0.1,
+        "g_x {g} against {gain}"
+    );
+    // The generator's drag `c2 |v| v` over the mass (1 kg): the model file's `drag_v`.
+    within("drag_v", effects["c2"].as_f64().unwrap(), 0.1);
+    within("k", truth["nominal_truth"]["k"].as_f64().unwrap(), 0.01);
+    within("c", truth["nominal_truth"]["c"].as_f64().unwrap(), 0.01);
+}
+
 /// An outside tester's forced oscillator with a one-sided soft stop (a model file of theirs),
 /// recorded by their own simulator with the stop's stiffness 1.5 times the model's, which is
 /// not refitted (`tests/fixtures/outsider/p4-contact-stiffness`: `kc` 1500 N/m against the
