@@ -622,7 +622,33 @@ fn edited_chirp_band_runs() {
 }
 
 fn diagnosis(dir: &Path) -> serde_json::Value {
-    serde_json::from_str(&fs::read_to_string(dir.join("diagnosis.json")).unwrap()).unwrap()
+    read_json(&dir.join("diagnosis.json"))
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// `htfid diagnose CONFIG --out OUT --quiet`, which must succeed, and its `diagnosis.json`.
+fn diagnose_quietly(config: &Path, out: &Path) -> serde_json::Value {
+    htfid_ok(&[
+        "diagnose",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    diagnosis(out)
+}
+
+/// The effects of a diagnosis's `causes`, strongest first.
+fn cause_names(d: &serde_json::Value) -> Vec<&str> {
+    d["causes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|c| c["effect"].as_str())
+        .collect()
 }
 
 /// Writes `config` as `dir/NAME.toml`, diagnoses it into `dir/NAME` and reads its
@@ -1627,24 +1653,10 @@ fn an_outsiders_drag_beside_a_sensor_gain_error_is_named() {
 #[test]
 fn an_outsiders_drag_beside_a_sensor_gain_error_is_named_through_a_model_file() {
     let dir = root().join("tests/fixtures/outsider/p3-sensor-gain-drag");
-    let truth: serde_json::Value =
-        serde_json::from_str(&fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let truth = read_json(&dir.join("truth.json"));
     let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("d");
-    htfid_ok(&[
-        "diagnose",
-        dir.join("diagnose-model.toml").to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    let d = diagnosis(&out);
-    let mut named: Vec<&str> = d["causes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|c| c["effect"].as_str())
-        .collect();
+    let d = diagnose_quietly(&dir.join("diagnose-model.toml"), &tmp.path().join("d"));
+    let mut named = cause_names(&d);
     named.sort_unstable();
     assert_eq!(
         named,
@@ -4721,12 +4733,7 @@ fn silverbox_is_diagnosed_as_a_stiffness_law_through_a_model_file() {
     let d = diagnose_text(tmp.path(), "silverbox-model", &config);
     assert_eq!(d["rows"], serde_json::json!([40650, 65226]));
     assert_eq!(d["validation_rows"], serde_json::json!([105712, 113904]));
-    let causes: Vec<&str> = d["causes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|c| c["effect"].as_str())
-        .collect();
+    let causes = cause_names(&d);
     assert!(
         causes.contains(&"nonlinear_stiffness(y)"),
         "causes {causes:?}, cause {}",
@@ -4868,19 +4875,10 @@ fn assert_refused(command: &str, config: &Path, out: &Path, needles: &[&str], wh
 #[test]
 fn an_independent_duffing_record_is_diagnosed_through_a_model_file() {
     let dir = root().join("tests/fixtures/real-like");
-    let truth: serde_json::Value =
-        serde_json::from_str(&fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let truth = read_json(&dir.join("truth.json"));
     let p = &truth["duffing_hardening.csv"]["parameters"];
     let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("duffing");
-    htfid_ok(&[
-        "diagnose",
-        dir.join("duffing-model.toml").to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    let d = diagnosis(&out);
+    let d = diagnose_quietly(&dir.join("duffing-model.toml"), &tmp.path().join("duffing"));
     assert_eq!(d["cause"], "nonlinear_stiffness(x)", "{}", d["causes"]);
     let k3_over_m = p["k3_N_per_m3"].as_f64().unwrap() / p["m_kg"].as_f64().unwrap();
     let k3 = d["parameters"]["k3_x"].as_f64().unwrap();
@@ -4891,11 +4889,8 @@ fn an_independent_duffing_record_is_diagnosed_through_a_model_file() {
     let c = d["parameters"]["c"].as_f64().unwrap();
     let c_true = p["c_Ns_per_m"].as_f64().unwrap();
     assert!((c / c_true - 1.0).abs() < 0.01, "c {c} against {c_true}");
-    let named: Vec<&str> = d["causes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|c| c["effect"].as_str())
-        .collect();
-    assert_eq!(named, ["nonlinear_stiffness(x)", "parameter_error"]);
+    assert_eq!(
+        cause_names(&d),
+        ["nonlinear_stiffness(x)", "parameter_error"]
+    );
 }

@@ -164,6 +164,17 @@ impl ModelDiagnoseSettings {
             .or(self.model.outputs()[o].unit.as_deref())
     }
 
+    /// The file the held-out record is read from: `validation`, else `file` when
+    /// `validation_rows` name a section of it; `None` when the held-out data are the fitted
+    /// record's tail.
+    pub fn held_out_file(&self) -> Option<&Path> {
+        match (&self.validation, &self.validation_rows) {
+            (Some(path), _) => Some(path),
+            (None, Some(_)) => Some(&self.file),
+            (None, None) => None,
+        }
+    }
+
     /// The input's unit: the data's (`data.units`), else the model's.
     pub fn input_unit(&self) -> Option<&str> {
         self.format.unit(&self.input).or(self.model.input_unit())

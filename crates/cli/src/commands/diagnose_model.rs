@@ -55,15 +55,14 @@ pub fn run(
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut outdir = open(&dir, force, &names)?;
     let record = read_rows(&s, &s.file, s.rows.clone(), "data.rows")?;
-    let validation = match (&s.validation, &s.validation_rows) {
-        (Some(path), rows) => Some(read_rows(&s, path, rows.clone(), "data.validation_rows")?),
-        (None, Some(rows)) => Some(read_rows(
+    let validation = match s.held_out_file() {
+        Some(path) => Some(read_rows(
             &s,
-            &s.file,
-            Some(rows.clone()),
+            path,
+            s.validation_rows.clone(),
             "data.validation_rows",
         )?),
-        (None, None) => None,
+        None => None,
     };
     crate::progress::line(&format!(
         "diagnosing {} ({} samples) against model `{}`, refitting {:?}",
@@ -197,11 +196,7 @@ pub fn run(
         "name": s.name,
         "config": s.path.display().to_string(),
         "data": s.file.display().to_string(),
-        "validation_data": s
-            .validation
-            .as_ref()
-            .or(s.validation_rows.as_ref().map(|_| &s.file))
-            .map(|p| p.display().to_string()),
+        "validation_data": s.held_out_file().map(|p| p.display().to_string()),
         "rows": s.rows.as_ref().map(|r| [r.start, r.end]),
         "validation_rows": s.validation_rows.as_ref().map(|r| [r.start, r.end]),
         "units": s.format.units_json(),
@@ -570,7 +565,6 @@ pub(super) fn models_shown(d: &ModelDiagnosis, o: usize) -> Vec<crate::validatio
     models
 }
 
-/// The record with one column per model output, each read from `file`.
 /// The record in `file`, or its `rows` (configured at `key`) when given.
 fn read_rows(
     s: &ModelDiagnoseSettings,
@@ -595,6 +589,7 @@ fn read_rows(
     Ok(record.slice(rows)?)
 }
 
+/// The record with one column per model output, each read from `file`.
 fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<TimeSeries> {
     let mut parts = Vec::with_capacity(s.outputs.len());
     for column in &s.outputs {
@@ -1168,9 +1163,13 @@ fn data_section(r: &mut Report, s: &ModelDiagnoseSettings) {
             format!(", rows {} to {}", r.start, r.end - 1)
         })
     };
-    let held_out = match (&s.validation, &s.validation_rows) {
-        (Some(p), r) => format!("the separate record `{}`{}", shown_path(p), rows(r)),
-        (None, Some(_)) => format!("`{}`{}", shown_path(&s.file), rows(&s.validation_rows)),
+    let held_out = match (&s.validation, s.held_out_file()) {
+        (Some(p), _) => format!(
+            "the separate record `{}`{}",
+            shown_path(p),
+            rows(&s.validation_rows)
+        ),
+        (None, Some(p)) => format!("`{}`{}", shown_path(p), rows(&s.validation_rows)),
         (None, None) => format!(
             "the last {} of the record",
             percent(1.0 - s.options.fit_fraction, 2)

@@ -18,7 +18,7 @@ use htfid_lang::Model;
 use nalgebra::{DMatrix, DVector};
 
 use super::prepared::Prepared;
-use super::residual_bins::{natural_rate, second_order_pairs};
+use super::residual_bins::{natural_rate, resolved_frequency, second_order_pairs};
 use crate::boundary::Boundary;
 use crate::deriv::SpectralLowPass;
 
@@ -27,6 +27,26 @@ use crate::deriv::SpectralLowPass;
 const MAX_ROWS: usize = 20_000;
 
 impl Prepared<'_> {
+    /// `model`, or `model` with `free` and `added` at their equation-error estimate
+    /// ([`Prepared::equation_error_start`]) when that has the lower output error from `x0`.
+    pub(super) fn better_with_equation_error(
+        &self,
+        model: &Model,
+        free: &[String],
+        added: &[String],
+        x0: &[f64],
+    ) -> Model {
+        let Some(estimate) = self.equation_error_start(model, free, added, x0) else {
+            return model.clone();
+        };
+        let names: Vec<String> = free.iter().chain(added).cloned().collect();
+        let current: Option<Vec<f64>> = names.iter().map(|n| model.parameter(n)).collect();
+        match current {
+            Some(current) => self.best_point(model, &names, &[current, estimate], x0),
+            None => model.clone(),
+        }
+    }
+
     /// The start of an output-error fit of the parameters `added` beside `free` (parameters of
     /// `model`, fitted before without `added`), from the state `x0` at the record's start:
     /// their equation-error estimate, each clamped to its bounds.
@@ -41,7 +61,7 @@ impl Prepared<'_> {
     /// that does not enter the pairs' equations keeps its value. `None` when the model has no
     /// second-order pair, fails to simulate, or one of `added` does not enter the pairs'
     /// equations.
-    pub(super) fn equation_error_start(
+    fn equation_error_start(
         &self,
         model: &Model,
         free: &[String],
@@ -69,15 +89,9 @@ impl Prepared<'_> {
         let mut df = vec![0.0; n * k];
         for (o, q, v) in pairs {
             let x = &self.rec.outputs()[o][self.rows.clone()];
-            // The band: up to twice the natural frequency (without a restoring force, ten
-            // times the forcing's), at most 0.6 of Nyquist; the velocity at which the model is
+            // The band: up to twice the resolved frequency, at most 0.6 of Nyquist; the velocity at which the model is
             // read passes everything the band does.
-            let omega = natural_rate(q, v, t, &held);
-            let f_n = if omega > 0.0 {
-                omega / (2.0 * std::f64::consts::PI)
-            } else {
-                period.map_or(0.05 / self.dt, |p| 5.0 / p)
-            };
+            let f_n = resolved_frequency(natural_rate(q, v, t, &held), period, self.dt);
             let nyquist = 0.5 / self.dt;
             let pass = (2.0 * f_n).min(0.6 * nyquist);
             let band = SpectralLowPass {

@@ -135,7 +135,8 @@ pub(super) fn residual_bins(
         let y = &on.rec.outputs()[o][rows.clone()];
         let t = &on.rec.time()[rows.clone()];
         let omega = natural_rate(q, v, t, &nominal_states);
-        let half = smoothing_half_width(omega, period, dt);
+        // The smoother's pass band reaches twice that frequency.
+        let half = window_half_width(resolved_frequency(omega, period, dt), dt);
         let block_s = match period {
             Some(p) => p,
             None if omega > 0.0 => NATURAL_PERIODS_PER_BLOCK * 2.0 * std::f64::consts::PI / omega,
@@ -165,22 +166,20 @@ pub(super) fn residual_bins(
     Ok(out)
 }
 
-/// The half-width of the smoothing of a pair's equation error whose natural rate is `omega`
-/// (rad/s): the smoother's pass band reaches twice the natural frequency; without a restoring
-/// force, ten times the forcing frequency (a window of a tenth of its `period` or less, short
-/// beside the flights between impacts), else a tenth of the sampling rate.
-pub(super) fn smoothing_half_width(omega: f64, period: Option<f64>, dt: f64) -> usize {
-    let f_window = if omega > 0.0 {
+/// The frequency (Hz) to which the evidence of a pair whose natural rate is `omega` (rad/s)
+/// is resolved: the natural frequency; without a restoring force, five times the forcing
+/// frequency (short beside the flights between impacts), else a twentieth of the sampling rate.
+pub(super) fn resolved_frequency(omega: f64, period: Option<f64>, dt: f64) -> f64 {
+    if omega > 0.0 {
         omega / (2.0 * std::f64::consts::PI)
     } else {
         period.map_or(0.05 / dt, |p| 5.0 / p)
-    };
-    window_half_width(f_window, dt)
+    }
 }
 
 /// The measured output `y` with output `o`'s sensor offset and gain undone (a sensor lag is
 /// not: it shows as a residual).
-pub(super) fn undo_sensor(b: &Boundary, o: usize, y: &[f64]) -> Vec<f64> {
+fn undo_sensor(b: &Boundary, o: usize, y: &[f64]) -> Vec<f64> {
     match b.sensors.get(o) {
         Some(s) => y.iter().map(|&v| (v - s.b) / s.g).collect(),
         None => y.to_vec(),

@@ -331,16 +331,12 @@ impl Selection<'_, '_> {
                         // lightly damped system the fit from zero stays in that basin.
                         TermStart::Given => {
                             let free: Vec<String> = names.iter().map(|n| n.to_string()).collect();
-                            if let Some(p) =
-                                est.equation_error_start(&extended, &free, &added, &base.state)
-                            {
-                                let all: Vec<String> =
-                                    free.into_iter().chain(added.clone()).collect();
-                                let given: Vec<f64> =
-                                    all.iter().filter_map(|n| extended.parameter(n)).collect();
-                                extended =
-                                    est.best_point(&extended, &all, &[given, p], &base.state);
-                            }
+                            extended = est.better_with_equation_error(
+                                &extended,
+                                &free,
+                                &added,
+                                &base.state,
+                            );
                         }
                         TermStart::BothSigns => {}
                     }
@@ -605,11 +601,7 @@ impl Selection<'_, '_> {
                 continue;
             }
             let free: Vec<String> = all.iter().filter(|a| !names.contains(a)).cloned().collect();
-            if let Some(p) = est.equation_error_start(&m, &free, &names, x0) {
-                let order: Vec<String> = free.into_iter().chain(names).collect();
-                let current: Vec<f64> = order.iter().filter_map(|n| m.parameter(n)).collect();
-                m = est.best_point(&m, &order, &[current, p], x0);
-            }
+            m = est.better_with_equation_error(&m, &free, &names, x0);
         }
         let refs: Vec<&str> = all.iter().map(String::as_str).collect();
         let index_x: Vec<usize> = refs
