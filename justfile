@@ -2,9 +2,9 @@
 
 default: test
 
-# Format check, lints as errors, docs, the whole test suite, the wide hidden-effect sweeps of
-# both diagnoses and the full fuzz suite.
-test: fmt-check clippy doc tests sweep model-sweep model-sweep-configured fuzz
+# Format check, lints as errors, docs, the whole test suite, the diagnosis's wide hidden-effect
+# sweeps (two protocols) and the full fuzz suite.
+test: fmt-check clippy doc tests model-sweep model-sweep-configured fuzz
 
 # Alias kept for CI scripts.
 ci: test
@@ -22,18 +22,14 @@ doc:
 tests:
     cargo test --release --workspace --locked
 
-# The diagnosis's wide sweep: 200 records of the independent truth generator (htfid-truth):
-# single and compound effects, sensor-side effects, effects outside the library, clean data.
-sweep:
-    cargo test --release --locked -p htfid-diagnose --test independent -- --ignored --nocapture
-
-# The model-file diagnosis on the same generator's 77 core records, the records side by side,
-# with the floors measured on them (about 20 minutes on 2 cores).
+# The diagnosis on 77 core records of the independent truth generator (htfid-truth): single
+# and compound effects, sensor-side effects, effects outside the library, clean data; the
+# records side by side, with the floors measured on them (about 20 minutes on 2 cores).
 model-sweep:
     cargo test --release --locked -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture
 
-# The same records with the built-in diagnosis's protocol: nothing refitted, an error of m, k
-# or c the candidate parameter_error (about 13 minutes on 2 cores).
+# The same records with nothing refitted: an error of m, k or c is the candidate
+# parameter_error (about 13 minutes on 2 cores).
 model-sweep-configured:
     HTFID_MODEL_SWEEP_PROTOCOL=configured cargo test --release --locked -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture
 

@@ -331,14 +331,6 @@ fn a_time_column_in_milliseconds_is_refused_up_front() {
             "configs/diagnose-hopper.toml",
             &[
                 "sampled every 1.000e1 s",
-                "natural period of the nominal model",
-            ],
-        ),
-        (
-            "diagnose",
-            "configs/diagnose-hopper-model.toml",
-            &[
-                "sampled every 1.000e1 s",
                 "forcing period of model `hopper`",
             ],
         ),
@@ -405,7 +397,7 @@ fn multisine_lines_beyond_the_nyquist_frequency_are_refused() {
 }
 
 /// A configured model off by orders of magnitude is refused before the fits (which would run
-/// hundreds of simulations of it): the forcing amplitude of the model-file diagnosis set to 1e9.
+/// hundreds of simulations of it): the forcing amplitude of the diagnosis's model set to 1e9.
 #[test]
 fn a_model_off_by_orders_of_magnitude_is_refused_before_the_fit() {
     let tmp = tempfile::tempdir().unwrap();
@@ -413,7 +405,7 @@ fn a_model_off_by_orders_of_magnitude_is_refused_before_the_fit() {
     let model = root().join("models/hopper.toml");
     let c = edited(
         tmp.path(),
-        "diagnose-hopper-model.toml",
+        "diagnose-hopper.toml",
         &[
             ("a = 0.0", "a = 1e9"),
             (

@@ -424,6 +424,7 @@ fn check_kind(source: &Source, kind: Kind) -> Result<(), ConfigError> {
             "this is an experiment config (it has [{k}]); `htfid diagnose` needs a diagnosis \
              config with a [data] table (see configs/diagnose-hopper.toml)"
         ),
+        (Kind::Diagnosis, true, _) => return check_model_file(source, &table),
         _ => return Ok(()),
     };
     Err(ConfigError {
@@ -432,6 +433,39 @@ fn check_kind(source: &Source, kind: Kind) -> Result<(), ConfigError> {
         column: None,
         key: "config".into(),
         message,
+    })
+}
+
+/// A diagnosis reads its model from a model file: a `[model]` of inline keys (the form
+/// `simulate`, `theory` and `run` read for the built-in hopper) is refused with the way to
+/// write it, at the line of `[model]`.
+fn check_model_file(source: &Source, table: &toml::Table) -> Result<(), ConfigError> {
+    let Some(model) = table.get("model").and_then(toml::Value::as_table) else {
+        return Ok(());
+    };
+    if model.contains_key("file") {
+        return Ok(());
+    }
+    let line = source
+        .text
+        .lines()
+        .position(|l| l.trim_start().starts_with("[model]"))
+        .map(|i| i + 1);
+    let inline: Vec<&str> = model.keys().map(String::as_str).collect();
+    Err(ConfigError {
+        path: source.path.clone(),
+        line,
+        column: line.map(|_| 1),
+        key: "model.file".into(),
+        message: format!(
+            "is missing (the inline keys here: {}): `htfid diagnose` reads its model from a \
+             file in the model language (docs/models.md), as `file = \"../models/hopper.toml\"` \
+             for the paper's hopper or `file = \"../models/spring-mass-damper.toml\"` for a \
+             spring-mass-damper with an offset on its input; the parameters' values go in \
+             [model.parameters] and `free` stays in [model] (docs/config.md, \"Diagnosis \
+             configs\", shows each old key in the new form)",
+            inline.join(", ")
+        ),
     })
 }
 

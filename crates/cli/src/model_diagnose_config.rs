@@ -87,7 +87,7 @@ struct RawTerm {
     parameters: Spanned<toml::Table>,
 }
 
-/// Resolved settings of a model-file diagnosis.
+/// Resolved settings of a diagnosis.
 #[derive(Debug, Clone)]
 pub struct ModelDiagnoseSettings {
     pub name: String,
@@ -145,15 +145,6 @@ fn parameter_names(
         return Err(src.error(Some(&list.span()), key, problem));
     }
     Ok(list.get_ref().clone())
-}
-
-/// Whether the config at `path` names a model file in `[model]` (so it takes this path).
-pub fn names_a_model_file(path: &Path) -> bool {
-    std::fs::read_to_string(path)
-        .ok()
-        .and_then(|t| t.parse::<toml::Table>().ok())
-        .and_then(|t| t.get("model").and_then(|m| m.as_table()).cloned())
-        .is_some_and(|m| m.contains_key("file"))
 }
 
 impl ModelDiagnoseSettings {
@@ -369,11 +360,23 @@ impl ModelDiagnoseSettings {
                         .map(|e| e.name())
                         .chain(htfid_diagnose::TermKind::ALL.iter().map(|k| k.name()))
                         .collect();
+                    // The names of the effects' earlier form, with what they are now.
+                    let now = match name.as_str() {
+                        "cubic_stiffness" => Some("nonlinear_stiffness"),
+                        "flight_damping" => Some("mode_damping"),
+                        "switch_threshold" => Some("guard_shift"),
+                        "asymmetric_friction" => Some("coulomb_friction beside input_offset"),
+                        "parameter_error" => Some("diagnose.parameter_error = [...]"),
+                        _ => None,
+                    };
+                    let hint = now
+                        .map(|n| format!(" (\"{name}\" is now {n})"))
+                        .unwrap_or_default();
                     return Err(src.error(
                         Some(&list.span()),
                         "diagnose.effects",
                         format!(
-                            "unknown effect \"{name}\" for a model file; expected some of {}",
+                            "unknown effect \"{name}\"{hint}; expected some of {}",
                             known.join(", ")
                         ),
                     ));

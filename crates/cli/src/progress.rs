@@ -167,59 +167,6 @@ impl Stages {
     }
 }
 
-/// Counted work (`total` steps) with a bar and an ETA on a terminal; plain lines otherwise.
-#[derive(Debug)]
-pub struct Counter {
-    bar: Option<ProgressBar>,
-    started: Instant,
-}
-
-impl Counter {
-    pub fn new(what: &str, total: u64) -> Self {
-        let bar = (mode() == Mode::Terminal).then(|| {
-            show(
-                ProgressBar::new(total)
-                    .with_style(
-                        ProgressStyle::with_template(
-                            "{msg} [{bar:30}] {pos}/{len} {elapsed} (ETA {eta})",
-                        )
-                        .expect("a valid template")
-                        .progress_chars("=> "),
-                    )
-                    .with_message(what.to_string()),
-            )
-        });
-        Counter {
-            bar,
-            started: Instant::now(),
-        }
-    }
-
-    /// Reports `msg`, counting one more step done when `done`.
-    pub fn step(&self, msg: &str, done: bool) {
-        match &self.bar {
-            Some(bar) => {
-                bar.println(format!("[htfid] {msg}"));
-                if done {
-                    bar.inc(1);
-                }
-            }
-            None => line(&format!(
-                "{:6.1} s  {msg}",
-                self.started.elapsed().as_secs_f64()
-            )),
-        }
-    }
-}
-
-impl Drop for Counter {
-    fn drop(&mut self) {
-        if let Some(bar) = &self.bar {
-            hide(bar);
-        }
-    }
-}
-
 /// `12.3 ms` or `4.56 s`.
 fn duration(ms: f64) -> String {
     if ms < 1000.0 {

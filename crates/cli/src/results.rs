@@ -450,77 +450,8 @@ pub fn estimate(summary: &Value, dir: &Path, files: &[PathBuf]) {
     t.print();
 }
 
-/// `htfid diagnose` against the built-in hopper: the cause, its parameters and the gain. The
-/// hopper's units (m, N, kg, ...) are shown only when `hopper_units` (the record is the hopper's
-/// own position and force); another record (volts, say) gets bare numbers.
-pub fn diagnose(d: &Value, hopper_units: bool, dir: &Path, files: &[PathBuf]) {
-    let unit = |name: &str| {
-        if !hopper_units {
-            return None;
-        }
-        match name {
-            // In a diagnosis `g` is the sensor's gain and `b` its offset.
-            "g" => None,
-            "b" => Some("m"),
-            "tau_s" => Some("s"),
-            "input_offset" => Some("N"),
-            _ => hopper_unit(name),
-        }
-    };
-    let mut t = Table::new(format!(
-        "htfid diagnose {}: done in {} s",
-        d["data"]["file"].as_str().unwrap_or(""),
-        sig(f(&d["elapsed_s"]), 3)
-    ));
-    t.row("cause", d["cause"].as_str().unwrap_or("?"));
-    t.row(
-        "gain",
-        format!(
-            "{} lower RMS error on held-out data than the nominal model",
-            pct(f(&d["gain"]))
-        ),
-    );
-    let w = &d["held_out_on_windows"];
-    if w.is_object() {
-        t.row(
-            "on windows",
-            format!(
-                "{} lower RMS error on held-out windows of two natural periods (a threshold \
-                 among the speed's extremes: see report.md)",
-                pct(f(&w["gain"]))
-            ),
-        );
-    }
-    if let Some(params) = d["parameters"].as_object() {
-        let lines = params
-            .iter()
-            .map(|(name, v)| format!("{name} = {}", pm(f(v), f(&d["stderr"][name]), unit(name))))
-            .collect();
-        t.rows("parameters", lines);
-    }
-    for (label, key) in [("nominal", "nominal"), ("extended", "extended")] {
-        let s = &d[key];
-        t.row(
-            label,
-            format!(
-                "held-out NRMSE {}, RMSE {}{}",
-                pct(f(&s["nrmse"])),
-                sig(f(&s["rmse"]), 4),
-                if hopper_units { " m" } else { "" }
-            ),
-        );
-    }
-    t.row("results", location(dir, files));
-    t.print();
-}
-
-/// `htfid diagnose` with a model file: the cause, the refitted parameters and the gain.
-pub fn diagnose_model(
-    d: &Value,
-    unit: &dyn Fn(&str) -> Option<String>,
-    dir: &Path,
-    files: &[PathBuf],
-) {
+/// `htfid diagnose`: the cause, the refitted parameters and the gain.
+pub fn diagnose(d: &Value, unit: &dyn Fn(&str) -> Option<String>, dir: &Path, files: &[PathBuf]) {
     let mut t = Table::new(format!(
         "htfid diagnose {}: model {}",
         d["name"].as_str().unwrap_or(""),

@@ -1,7 +1,7 @@
 //! Effects on the boundary of any model: on its input (an offset, a delay, a first-order lag
 //! of the actuator) and on its measured outputs (an offset and a gain, a first-order lag of
 //! the sensor). They need nothing of the model's equations, so they apply to every model
-//! written in the model language, as they do to the built-in hopper.
+//! written in the model language.
 
 use std::sync::Arc;
 
@@ -39,7 +39,7 @@ impl BoundaryEffect {
         BoundaryEffect::SensorLag,
     ];
 
-    /// The name used in results and configs (as for the built-in hopper's effects).
+    /// The name used in results and configs.
     pub fn name(self) -> &'static str {
         match self {
             BoundaryEffect::InputOffset => "input_offset",

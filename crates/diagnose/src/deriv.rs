@@ -1,7 +1,7 @@
 //! Local polynomial (Savitzky-Golay) smoothing and differentiation of the measured position,
 //! and a zero-phase spectral low-pass with exact derivatives.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// Position, velocity and acceleration of a local polynomial fit at one sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -9,45 +9,6 @@ pub(crate) struct Kinematics {
     pub x: f64,
     pub v: f64,
     pub a: f64,
-}
-
-/// A least-squares polynomial of degree `degree` through the samples `x[lo..hi]` (step `dt`),
-/// evaluated with its first two derivatives at sample `at`. `None` when the window has no more
-/// samples than coefficients.
-pub(crate) fn local_fit(
-    x: &[f64],
-    lo: usize,
-    hi: usize,
-    at: usize,
-    dt: f64,
-    degree: usize,
-) -> Option<Kinematics> {
-    let hi = hi.min(x.len());
-    let m = hi.checked_sub(lo)?;
-    let p = degree + 1;
-    if m <= p {
-        return None;
-    }
-    // Abscissae in samples relative to `at`, scaled to [-1, 1] for conditioning.
-    let half = ((m as f64) / 2.0).max(1.0);
-    let vander = DMatrix::from_fn(m, p, |i, j| {
-        let s = ((lo + i) as f64 - at as f64) / half;
-        s.powi(j as i32)
-    });
-    let y = DVector::from_iterator(m, x[lo..hi].iter().copied());
-    // nalgebra's SVD panics on non-finite entries: such data have no derivative.
-    if !y.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    let coef = vander.svd(true, true).solve(&y, 1e-12).ok()?;
-    let c1 = if p > 1 { coef[1] } else { 0.0 };
-    let c2 = if p > 2 { coef[2] } else { 0.0 };
-    let scale = half * dt;
-    Some(Kinematics {
-        x: coef[0],
-        v: c1 / scale,
-        a: 2.0 * c2 / (scale * scale),
-    })
 }
 
 /// Savitzky-Golay filter of half-width `half` and degree `degree`: smoothed value, first and
@@ -260,10 +221,6 @@ mod tests {
             assert_abs_diff_eq!(kin.v, 2.0 - 6.0 * t + 1.5 * t * t, epsilon = 1e-8);
             assert_abs_diff_eq!(kin.a, -6.0 + 3.0 * t, epsilon = 1e-6);
         }
-        let k = local_fit(&x, 0, 12, 0, dt, 3).unwrap();
-        assert_abs_diff_eq!(k.x, 1.0, epsilon = 1e-10);
-        assert_abs_diff_eq!(k.v, 2.0, epsilon = 1e-8);
-        assert_abs_diff_eq!(k.a, -6.0, epsilon = 1e-6);
     }
 
     #[test]

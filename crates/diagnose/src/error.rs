@@ -1,5 +1,3 @@
-use htfid_model::ModelError;
-
 /// Errors of the diagnosis. Every variant carries the numbers that explain it.
 #[non_exhaustive]
 #[derive(Debug, thiserror::Error)]
@@ -32,58 +30,12 @@ pub enum DiagnoseError {
     /// An option is out of range.
     #[error("{name} must be {expected} (got {value})")]
     InvalidOption {
-        /// Option name as in [`DiagnoseOptions`](crate::DiagnoseOptions).
+        /// Option name as in [`ModelFitOptions`](crate::ModelFitOptions).
         name: &'static str,
         /// What was expected.
         expected: &'static str,
         /// The value given.
         value: f64,
-    },
-    /// A fit or validation range is empty or leaves the record.
-    #[error("{which} range {start}..{end} is empty or leaves the record of {len} samples")]
-    InvalidRange {
-        /// `fit` or `validation`.
-        which: &'static str,
-        /// First sample (inclusive).
-        start: usize,
-        /// Last sample (exclusive).
-        end: usize,
-        /// Record length.
-        len: usize,
-    },
-    /// A validation range shares samples with a fit range: it would not be held out.
-    #[error(
-        "validation range {val_start}..{val_end} overlaps fit range {fit_start}..{fit_end}; \
-         held-out data must not be fitted"
-    )]
-    OverlappingRanges {
-        /// Fit range start.
-        fit_start: usize,
-        /// Fit range end (exclusive).
-        fit_end: usize,
-        /// Validation range start.
-        val_start: usize,
-        /// Validation range end (exclusive).
-        val_end: usize,
-    },
-    /// After removing the burn-in, a range keeps too few samples.
-    #[error(
-        "{which} range {start}..{end} keeps {kept} samples after the {burn_in_s} s burn-in; \
-         at least {min} are needed"
-    )]
-    RangeTooShort {
-        /// `fit` or `validation`.
-        which: &'static str,
-        /// First sample.
-        start: usize,
-        /// Last sample (exclusive).
-        end: usize,
-        /// Samples left after the burn-in.
-        kept: usize,
-        /// Burn-in used (s).
-        burn_in_s: f64,
-        /// Smallest accepted number.
-        min: usize,
     },
     /// The measured output does not change over a range: a record without motion says
     /// nothing about the dynamics, and every normalised error of it divides by zero.
@@ -93,7 +45,7 @@ pub enum DiagnoseError {
          that the system was excited"
     )]
     ConstantOutput {
-        /// `fit` or `validation` (or the output's name for a model file).
+        /// The output's name.
         which: String,
         /// First sample.
         start: usize,
@@ -102,30 +54,7 @@ pub enum DiagnoseError {
         /// The constant value.
         value: f64,
     },
-    /// The same nominal parameter is listed twice as free.
-    #[error("nominal parameter {name} is listed twice in `free`")]
-    DuplicateFree {
-        /// Parameter name.
-        name: &'static str,
-    },
-    /// The same candidate effect is listed twice.
-    #[error("candidate effect {name} is listed twice")]
-    DuplicateCandidate {
-        /// Effect name.
-        name: &'static str,
-    },
-    /// The nominal model is invalid.
-    #[error(transparent)]
-    Model(#[from] ModelError),
-    /// The nominal model cannot be simulated on the data.
-    #[error("simulating the nominal model failed at t = {time} s: {reason}")]
-    NominalSimulation {
-        /// Time of the failure (s).
-        time: f64,
-        /// What went wrong.
-        reason: String,
-    },
-    /// The limit cycle a model-file diagnosis starts the record on cannot be found at the
+    /// The limit cycle a diagnosis starts the record on cannot be found at the
     /// diagnosis's integrator tolerance.
     #[error(
         "the model's limit cycle, where the record starts, was not found at the diagnosis's \
@@ -173,7 +102,7 @@ pub enum DiagnoseError {
         /// Each reason, with the output and the check that found it.
         reasons: Vec<String>,
     },
-    /// The fit of the nominal model failed.
+    /// The fit of the configured model's free parameters failed.
     #[error("fitting the nominal model failed: {reason}")]
     NominalFit {
         /// What went wrong.

@@ -1,32 +1,16 @@
 //! Evidence a scientist reads: where in the state and in the forcing cycle the model's error
 //! sits, and how the held-out error falls from the configured model to the final one.
 //!
-//! - [`residual_acceleration`]: the measured acceleration (five-point differences) minus the
-//!   model's acceleration at the measured states with the measured force, smoothed by the
-//!   kernel the screening's Savitzky-Golay derivative filter applies to a true acceleration. A force the model lacks, divided by the mass, shows here
-//!   as a function of the state: a cubic spring as `-k3 x^3 / m` against position, Coulomb
-//!   friction as a step against velocity.
 //! - [`binned_means`]: the mean of a residual in bins of position, velocity or forcing phase,
 //!   with the standard error of each bin mean. Samples close in time are correlated (the
 //!   smoother alone spans several samples), so the standard error treats blocks of
 //!   consecutive samples as the independent units (a cluster-robust variance): each block's
 //!   samples in a bin contribute their summed deviation from the bin mean.
-//! - [`error_waterfall`]: the held-out RMSE from the configured model through the refit of
-//!   its free parameters and each selected effect to the final model.
 //! - [`amplitude_spectrum`]: where in frequency a residual's error sits.
 //! - [`period_average`]: a signal folded over the forcing period, with the standard error of
 //!   each phase bin's mean across the periods.
 
-use std::ops::Range;
-
-use htfid_hybrid::HybridSystem;
 use serde::{Deserialize, Serialize};
-
-use crate::deriv::{
-    acceleration_kernel, five_point, savitzky_golay, smoothed_at, window_half_width,
-};
-use crate::sim::MeasuredForce;
-use crate::{DiagnoseError, Diagnosis, FittedModel, Interpolation, TimeSeries};
 
 /// The mean of a residual over the samples whose explanatory variable falls in `[lo, hi)`
 /// (the last bin includes `hi`).
@@ -200,78 +184,6 @@ pub struct ResidualSamples {
     pub residual: Vec<f64>,
 }
 
-/// The residual acceleration of `model` on `record`: at every sample of `ranges` after the
-/// first `skip_s` seconds (and whose smoothing window lies inside the range), the measured
-/// acceleration minus the model's, smoothed. At each sample the equation error is the
-/// five-point central second difference of the measured position minus the model's
-/// acceleration at the measured position and its five-point central-difference velocity, driven
-/// by the measured force read as the simulation reads it (`interpolation`); it is then smoothed
-/// by the kernel with which the screening's Savitzky-Golay second derivative smooths a true
-/// acceleration (its window: a pass band of about twice the model's natural frequency). Both
-/// sides see one smoothing, so the residual is the missing force over the mass, smoothed, at
-/// every frequency the data hold. The sensor's offset and gain are undone first; a sensor lag is
-/// not (it shows as a residual). The samples are binned by the Savitzky-Golay smoothed
-/// position and velocity.
-///
-/// Why not the Savitzky-Golay acceleration against the model at the smoothed states (as the
-/// screening does): the smoother's response to a position differs from its response to the
-/// position's second derivative, and the three-point second difference inside the
-/// Savitzky-Golay filter is `2 %` low at a tenth of the sampling rate; beside a stiff spring
-/// (`k / m` = 1.8e5 s^-2 on the Silverbox record) either error, times the stiffness, leaves a
-/// term linear in position of hundreds of V/s^2, larger than the structure sought. The
-/// five-point differences are `0.3 %` off there.
-pub fn residual_acceleration(
-    record: &TimeSeries,
-    model: &FittedModel,
-    ranges: &[Range<usize>],
-    skip_s: f64,
-    interpolation: Interpolation,
-) -> Result<ResidualSamples, DiagnoseError> {
-    let (t, dt) = (record.time(), record.dt());
-    let input = MeasuredForce::new(t[0], dt, record.input(), interpolation);
-    let p = model.params;
-    let hopper = input.drive(p, model.damper, model.effects)?;
-    let s = model.sensor;
-    let x: Vec<f64> = record.output().iter().map(|&y| (y - s.b) / s.g).collect();
-    let f_n = p.natural_rate() / (2.0 * std::f64::consts::PI);
-    let half = window_half_width(f_n, dt);
-    let kernel = acceleration_kernel(half, dt);
-    let skip = (skip_s / dt - 1e-9).ceil().max(0.0) as usize;
-    let mut out = ResidualSamples::default();
-    let mut d = [0.0; 2];
-    for r in ranges {
-        let end = r.end.min(record.len());
-        let start = r.start.min(end);
-        // Smoothed within the range alone: the ranges are the data the diagnosis judged.
-        let kin = savitzky_golay(&x[start..end], skip, end - start, dt, half, 4);
-        // The equation error at every sample, from five-point central differences of the
-        // measured position (see the docs above), then smoothed by the kernel.
-        let xs = &x[start..end];
-        let n = xs.len();
-        let error: Vec<f64> = (0..n)
-            .map(|k| {
-                if k < 2 || k + 2 >= n {
-                    return f64::NAN;
-                }
-                let (v, a) = five_point(xs, k, dt);
-                hopper.vector_field(hopper.mode_of(v), t[start + k], &[xs[k], v], &mut d);
-                a - d[1]
-            })
-            .collect();
-        for &(k, q) in &kin {
-            if k < half + 2 || k + half + 2 >= n {
-                continue;
-            }
-            let smoothed = smoothed_at(&kernel, &error, k);
-            out.t.push(t[start + k]);
-            out.x.push(q.x);
-            out.v.push(q.v);
-            out.residual.push(smoothed);
-        }
-    }
-    Ok(out)
-}
-
 /// Binned residual acceleration against position, velocity and (with a forcing period) the
 /// forcing phase, for one model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -296,8 +208,8 @@ pub const STATE_BINS: usize = 24;
 pub const PHASE_BINS: usize = 20;
 
 impl BinnedResidual {
-    /// Bins `samples` (see [`residual_acceleration`]) in blocks of `block_s` seconds, by phase
-    /// of `period` when it is given and positive. The state bins span `x_range` and `v_range`
+    /// Bins `samples` (a residual acceleration at each scored sample) in blocks of `block_s`
+    /// seconds, by phase of `period` when it is given and positive. The state bins span `x_range` and `v_range`
     /// when given (so that two models share their bins), else the samples' own quantiles.
     pub fn new(
         samples: &ResidualSamples,
@@ -361,68 +273,6 @@ pub struct ErrorStep {
     pub after: f64,
 }
 
-/// The held-out RMSE from the configured model to the final one: the level of the configured
-/// model (left out when it could not be scored), the refit of the free parameters down to the
-/// nominal fit's level, one step per selected effect (strongest first) down to the final
-/// model's level, and that level. The levels are measured; only the split of the last fall
-/// between several effects is apportioned, in mean square, by their shares of the explained
-/// error (`gain_share`, each effect's removal cost with the rest refitted, normalised), since
-/// the effects were fitted jointly and have no order of their own.
-pub fn error_waterfall(d: &Diagnosis) -> Vec<ErrorStep> {
-    let mut steps = Vec::new();
-    let level = |step: &str, v: f64| ErrorStep {
-        step: step.to_string(),
-        before: v,
-        after: v,
-    };
-    let nominal = d.nominal.rmse;
-    if !nominal.is_finite() {
-        return steps;
-    }
-    if d.configured.rmse.is_finite() {
-        steps.push(level("configured", d.configured.rmse));
-        steps.push(ErrorStep {
-            step: "refitted".to_string(),
-            before: d.configured.rmse,
-            after: nominal,
-        });
-    } else {
-        steps.push(level("refitted", nominal));
-    }
-    let effects: Vec<_> = d
-        .causes
-        .iter()
-        .filter(|c| c.effect != "parameter_error")
-        .collect();
-    let end = if effects.is_empty() || !d.extended.rmse.is_finite() {
-        nominal
-    } else {
-        d.extended.rmse
-    };
-    if !effects.is_empty() && end.is_finite() {
-        let total_share: f64 = effects.iter().map(|c| c.gain_share.max(0.0)).sum();
-        let fall = nominal.powi(2) - end.powi(2);
-        let mut ms = nominal.powi(2);
-        for (i, c) in effects.iter().enumerate() {
-            let before = ms.max(0.0).sqrt();
-            ms = if i + 1 == effects.len() {
-                end.powi(2)
-            } else if total_share > 0.0 {
-                ms - fall * c.gain_share.max(0.0) / total_share
-            } else {
-                ms - fall / effects.len() as f64
-            };
-            steps.push(ErrorStep {
-                step: c.effect.clone(),
-                before,
-                after: ms.max(0.0).sqrt(),
-            });
-        }
-    }
-    steps.push(level("final", end));
-    steps
-}
-
 /// One-sided amplitude spectrum of `x` sampled every `dt` s, its mean removed, through a Hann
 /// window: `(omega, amplitude)` for the bins `1..n/2`, `omega` in rad/s and `amplitude = 4
 /// |X_k| / n` (a sine of amplitude `a` on a bin reads `a`). Empty below 16 samples.
@@ -451,9 +301,7 @@ pub fn amplitude_spectrum(x: &[f64], dt: f64) -> (Vec<f64>, Vec<f64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Cause, NominalModel, Score};
     use approx::assert_abs_diff_eq;
-    use std::collections::BTreeMap;
 
     /// A sine on a bin reads its amplitude at its frequency (the Hann window's coherent gain
     /// of one half is undone), and a constant does not show.
@@ -590,189 +438,5 @@ mod tests {
             3.0 * (0.875f64.powi(2) + 0.25f64.powi(2) / 12.0),
             epsilon = 1e-3
         );
-    }
-
-    #[test]
-    fn the_residual_acceleration_of_a_missing_cubic_spring_is_minus_k3_x_cubed_over_m() {
-        // Truth written here, not by the model code: m x'' + c x' + k x + k3 x^3 = f, plain RK4
-        // with four sub-steps per sample. The nominal linear model lacks the cubic spring, so its
-        // residual acceleration is -k3 x^3 / m, a known function of position that the position
-        // bins must return within their bands.
-        // The forcing and its third harmonics stay inside the smoother's pass band (about twice
-        // the natural frequency, 3.2 Hz here), as the method assumes.
-        let (m, c, k, k3) = (1.0, 0.8, 400.0, 4.0e4);
-        let force = |t: f64| 4.0 * (2.3 * t).sin() + 4.0 * (7.1 * t).sin() + 2.4 * (11.3 * t).cos();
-        let accel = |t: f64, x: f64, v: f64| (force(t) - c * v - k * x - k3 * x * x * x) / m;
-        let (dt, n) = (0.005, 8000);
-        let (mut x, mut v) = (0.0, 0.0);
-        let (mut ts, mut fs, mut xs) = (vec![], vec![], vec![]);
-        for i in 0..n {
-            let t = i as f64 * dt;
-            ts.push(t);
-            fs.push(force(t));
-            xs.push(x);
-            let h = dt / 4.0;
-            for j in 0..4 {
-                let s = t + j as f64 * h;
-                let (k1x, k1v) = (v, accel(s, x, v));
-                let (xm, vm) = (x + 0.5 * h * k1x, v + 0.5 * h * k1v);
-                let (k2x, k2v) = (vm, accel(s + 0.5 * h, xm, vm));
-                let (xm, vm) = (x + 0.5 * h * k2x, v + 0.5 * h * k2v);
-                let (k3x, k3v) = (vm, accel(s + 0.5 * h, xm, vm));
-                let (k4x, k4v) = (v + h * k3v, accel(s + h, x + h * k3x, v + h * k3v));
-                x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-                v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-            }
-        }
-        let record = TimeSeries::new(ts, fs, xs, "test").unwrap();
-        let nominal = NominalModel::linear_spring_mass_damper(m, k, c).unwrap();
-        let model = FittedModel {
-            params: nominal.measured_params(),
-            damper: nominal.damper,
-            effects: nominal.effects,
-            sensor: nominal.sensor,
-        };
-        let samples = residual_acceleration(
-            &record,
-            &model,
-            std::slice::from_ref(&(0..n)),
-            5.0,
-            Interpolation::default(),
-        )
-        .unwrap();
-        assert!(samples.t.len() > 6000);
-        let binned = BinnedResidual::new(&samples, 1.0, None, None, None);
-        let peak = binned
-            .by_position
-            .iter()
-            .map(|b| (k3 * b.centre.powi(3) / m).abs())
-            .fold(0.0, f64::max);
-        assert!(peak > 0.5, "the cubic force must be visible: {peak}");
-        // The truth at the same samples, binned the same way (the binning is checked by hand
-        // above).
-        let truth: Vec<f64> = samples.x.iter().map(|x| -k3 / m * x.powi(3)).collect();
-        let block: Vec<usize> = samples.t.iter().map(|t| t.floor() as usize).collect();
-        let (lo, hi) = quantile_range(&samples.x);
-        let expected = binned_means(&samples.x, &truth, &block, STATE_BINS, (lo, hi));
-        assert_eq!(expected.len(), binned.by_position.len());
-        // The outermost bins hold samples of fewer than `MIN_BLOCKS` one-second blocks and have
-        // no standard error; their few samples are held to 5 % of the peak (here they are off
-        // by 2.4 %).
-        let with_se = binned
-            .by_position
-            .iter()
-            .filter(|b| b.stderr.is_finite())
-            .count();
-        assert!(
-            with_se + 4 >= STATE_BINS,
-            "{with_se} bins with a standard error"
-        );
-        for (b, e) in binned.by_position.iter().zip(&expected) {
-            let tolerance = if b.stderr.is_finite() {
-                3.0 * b.stderr + 0.01 * peak
-            } else {
-                0.05 * peak
-            };
-            assert!(
-                (b.mean - e.mean).abs() < tolerance,
-                "bin [{:.4}, {:.4}): mean {:.4}, truth {:.4}, stderr {:.4}",
-                b.lo,
-                b.hi,
-                b.mean,
-                e.mean,
-                b.stderr
-            );
-        }
-        // Velocity bins carry no structure of their own beyond what position lends them: the
-        // position bins stand further from zero.
-        let (sx, sv) = (
-            Structure::of(&binned.by_position),
-            Structure::of(&binned.by_velocity),
-        );
-        assert!(sx.max_mean - sx.min_mean > 1.5 * peak);
-        assert!(binned.by_phase.is_empty());
-        assert!(sv.bins > 0);
-    }
-
-    fn diagnosis(
-        configured: f64,
-        nominal: f64,
-        extended: f64,
-        causes: &[(&str, f64)],
-    ) -> Diagnosis {
-        let score = |rmse: f64| Score { nrmse: rmse, rmse };
-        Diagnosis {
-            cause: causes.first().map_or("none", |c| c.0).to_string(),
-            parameters: BTreeMap::new(),
-            stderr: BTreeMap::new(),
-            nominal: score(nominal),
-            extended: score(extended),
-            gain: 1.0 - extended / nominal,
-            candidates: Vec::new(),
-            evidence: Vec::new(),
-            causes: causes
-                .iter()
-                .map(|(e, s)| Cause {
-                    effect: e.to_string(),
-                    parameters: BTreeMap::new(),
-                    stderr: BTreeMap::new(),
-                    gain_share: *s,
-                })
-                .collect(),
-            alternatives: Vec::new(),
-            configured: score(configured),
-            gain_vs_configured: 1.0 - extended / configured,
-            mismatch: Vec::new(),
-            discovered: None,
-            held_out_on_windows: None,
-        }
-    }
-
-    #[test]
-    fn the_waterfall_by_hand() {
-        // Configured 5, refitted 4, two effects with shares 0.6 (plus a parameter error with
-        // 0.1, not an effect) and 0.3, final 2: the mean-square fall 16 - 4 = 12 splits 8 : 4,
-        // so the first effect ends at sqrt(16 - 8) = sqrt(8).
-        let d = diagnosis(
-            5.0,
-            4.0,
-            2.0,
-            &[
-                ("cubic_stiffness", 0.6),
-                ("parameter_error", 0.1),
-                ("coulomb_friction", 0.3),
-            ],
-        );
-        let w = error_waterfall(&d);
-        let names: Vec<&str> = w.iter().map(|s| s.step.as_str()).collect();
-        assert_eq!(
-            names,
-            [
-                "configured",
-                "refitted",
-                "cubic_stiffness",
-                "coulomb_friction",
-                "final"
-            ]
-        );
-        assert_abs_diff_eq!(w[0].after, 5.0);
-        assert_abs_diff_eq!(w[1].before, 5.0);
-        assert_abs_diff_eq!(w[1].after, 4.0);
-        assert_abs_diff_eq!(w[2].before, 4.0);
-        assert_abs_diff_eq!(w[2].after, 8f64.sqrt(), epsilon = 1e-12);
-        assert_abs_diff_eq!(w[3].before, 8f64.sqrt(), epsilon = 1e-12);
-        assert_abs_diff_eq!(w[3].after, 2.0);
-        assert_abs_diff_eq!(w[4].after, 2.0);
-        // No effect: configured, refitted, final at the refitted level.
-        let w = error_waterfall(&diagnosis(5.0, 4.0, 4.0, &[("parameter_error", 1.0)]));
-        assert_eq!(w.len(), 3);
-        assert_abs_diff_eq!(w[2].after, 4.0);
-        // A configured model that could not be scored is left out.
-        let w = error_waterfall(&diagnosis(f64::NAN, 4.0, 3.0, &[("flight_damping", 1.0)]));
-        let names: Vec<&str> = w.iter().map(|s| s.step.as_str()).collect();
-        assert_eq!(names, ["refitted", "flight_damping", "final"]);
-        assert!(w
-            .iter()
-            .all(|s| s.before.is_finite() && s.after.is_finite()));
     }
 }

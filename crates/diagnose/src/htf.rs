@@ -1,41 +1,21 @@
-//! The data's harmonic transfer functions against the models': Siddiqi's estimate from the
-//! record's excited periods, about the measured orbit (the period average), against the exact
-//! HTFs of the nominal and the extended model about their own limit cycles, and the difference
-//! per harmonic measured against the estimate's noise.
+//! The data's harmonic transfer functions against the models': Siddiqi's estimator, at a
+//! fixed weight, on the held-out record's excited periods and on each model's simulation with
+//! the measured input. The estimator is linear in the output, so the difference of two
+//! estimates is the estimate of the residual's response; it is measured per harmonic against
+//! the estimate's noise.
 
 use std::f64::consts::PI;
 
 use htfid_estimate::{deviation_record, siddiqi, split_periodic, Alpha, HtfEstimate};
-use htfid_model::Hopper;
-use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 use num_complex::Complex64;
 
-use crate::{DiagnoseError, FittedModel, TimeSeries};
+use crate::{DiagnoseError, TimeSeries};
 
 /// A difference counts as outside the estimate's noise beyond this many standard errors.
 pub const DIFFERENCE_SIGMAS: f64 = 2.0;
 
 /// Fewest whole excited periods the estimate is made from.
 const MIN_PERIODS: usize = 10;
-
-/// What to compare.
-#[derive(Debug, Clone)]
-pub struct HtfComparisonSpec {
-    /// The configured forcing `A cos(2 pi t / T)`: its amplitude `A` (N), removed from the
-    /// measured force to leave the excitation, and its period `T` (s), a whole number of
-    /// samples.
-    pub forcing_amplitude: f64,
-    /// `T`, s.
-    pub period: f64,
-    /// Harmonics `n` of `G_n`.
-    pub harmonics: Vec<i32>,
-    /// Output band of the estimate, rad/s.
-    pub band: (f64, f64),
-    /// Regularisation weight of Siddiqi's estimator.
-    pub alpha: f64,
-    /// Frequencies (rad/s) at which the models' exact HTFs are returned, for plotting.
-    pub theory_omegas: Vec<f64>,
-}
 
 /// The measured HTF of one harmonic minus each model's, at the estimate's frequencies.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,23 +58,6 @@ impl HarmonicDifference {
     }
 }
 
-/// The data's HTFs against the models'.
-#[derive(Debug, Clone)]
-pub struct HtfComparison {
-    /// Siddiqi's estimate from the record.
-    pub estimate: HtfEstimate,
-    /// Per harmonic (in the spec's order), the nominal model's exact `G_n` at the spec's
-    /// `theory_omegas`.
-    pub nominal_theory: Vec<Vec<Complex64>>,
-    /// The same for the extended model.
-    pub extended_theory: Vec<Vec<Complex64>>,
-    /// Per harmonic, measured minus each model at the estimate's frequencies.
-    pub differences: Vec<HarmonicDifference>,
-}
-
-/// Per harmonic, a model's `G_n` at a list of frequencies.
-type Curves = Vec<Vec<Complex64>>;
-
 /// Samples per forcing period: an error unless it is a whole number (the split and the
 /// estimator need `N dt = P T` exactly).
 fn samples_per_period(period: f64, dt: f64) -> Result<usize, DiagnoseError> {
@@ -113,118 +76,9 @@ fn htf_error(reason: impl Into<String>) -> DiagnoseError {
     }
 }
 
-/// Compares the HTFs of `record` (its input the applied force, its first output the position)
-/// with those of the `nominal` and `extended` models of a diagnosis. The estimate uses the whole
-/// periods from the period boundary at or before the first excited sample (where the force
-/// minus the forcing first exceeds a thousandth of its peak) to the end, at least 10.
-pub fn htf_comparison(
-    record: &TimeSeries,
-    nominal: &FittedModel,
-    extended: &FittedModel,
-    spec: &HtfComparisonSpec,
-) -> Result<HtfComparison, DiagnoseError> {
-    let period = spec.period;
-    let dt = record.dt();
-    let per = samples_per_period(period, dt)?;
-    let wp = 2.0 * PI / period;
-    let u: Vec<f64> = record
-        .time()
-        .iter()
-        .zip(record.input())
-        .map(|(&t, &f)| f - spec.forcing_amplitude * (wp * t).cos())
-        .collect();
-    let peak = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let first = u
-        .iter()
-        .position(|v| v.abs() > 1e-3 * peak)
-        .ok_or_else(|| htf_error("no excitation in the record"))?;
-    // Start on a period boundary at or before the first excited sample.
-    let t0 = record.time()[first];
-    let start = first - ((t0.rem_euclid(period) / dt).round() as usize).min(first);
-    let periods = (record.len() - start) / per;
-    if periods < MIN_PERIODS {
-        return Err(htf_error(format!(
-            "{periods} excited periods, at least {MIN_PERIODS} needed"
-        )));
-    }
-    let end = start + periods * per;
-    // The measured orbit is the period average of the excited window; the estimator sees the
-    // deviations from it.
-    let t_start = record.time()[start];
-    let estimate_error = |e: htfid_estimate::Error| htf_error(e.to_string());
-    let x = split_periodic(&record.output()[start..end], dt, t_start, period, 10)
-        .map_err(estimate_error)?;
-    let u = split_periodic(&u[start..end], dt, t_start, period, 5).map_err(estimate_error)?;
-    let rec = deviation_record(u.deviation, x.deviation, dt, t_start).map_err(estimate_error)?;
-    let estimate = siddiqi(
-        &rec,
-        period,
-        &spec.harmonics,
-        spec.band,
-        Alpha::Fixed(spec.alpha),
-    )
-    .map_err(estimate_error)?;
-    // Each model's HTFs about its own limit cycle (`LinearisedHtf`: closed form where the
-    // linearisation is constant per chart, the periodic response otherwise), at the
-    // theory grid and at the estimate's frequencies.
-    let opts = htfid_hybrid::Options::default();
-    let theory = |m: &FittedModel| -> Result<(Curves, Curves), DiagnoseError> {
-        let mut params = m.params;
-        params.forcing_amplitude = spec.forcing_amplitude;
-        params.period = period;
-        let hopper = Hopper::with_effects(params, m.damper, m.effects)?;
-        let cycle = hopper
-            .limit_cycle(&Default::default(), &opts)
-            .map_err(|e| htf_error(format!("limit cycle: {e}")))?;
-        let htf = LinearisedHtf::new(&hopper, &cycle.cycle, &opts)
-            .map_err(|e| htf_error(format!("linearisation: {e}")))?;
-        let g = htf.channel(0).map_err(|e| htf_error(e.to_string()))?;
-        let on_grid = spec
-            .harmonics
-            .iter()
-            .map(|&n| spec.theory_omegas.iter().map(|&w| g.g(n, w)).collect())
-            .collect();
-        let at_estimate = spec
-            .harmonics
-            .iter()
-            .map(|&n| {
-                estimate
-                    .rows()
-                    .filter(|r| r.n == n)
-                    .map(|r| g.g(n, r.omega))
-                    .collect()
-            })
-            .collect();
-        Ok((on_grid, at_estimate))
-    };
-    let (nominal_theory, nominal_at) = theory(nominal)?;
-    let (extended_theory, extended_at) = theory(extended)?;
-    let differences = spec
-        .harmonics
-        .iter()
-        .zip(nominal_at.iter().zip(&extended_at))
-        .map(|(&n, (g0, g1))| {
-            let rows: Vec<_> = estimate.rows().filter(|r| r.n == n).collect();
-            HarmonicDifference {
-                n,
-                omega: rows.iter().map(|r| r.omega).collect(),
-                stderr: rows.iter().map(|r| r.stderr).collect(),
-                nominal: rows.iter().zip(g0).map(|(r, g)| r.value - g).collect(),
-                extended: rows.iter().zip(g1).map(|(r, g)| r.value - g).collect(),
-            }
-        })
-        .collect();
-    Ok(HtfComparison {
-        estimate,
-        nominal_theory,
-        extended_theory,
-        differences,
-    })
-}
-
-/// Harmonics of a model-file diagnosis's HTF comparison.
+/// Harmonics of a diagnosis's HTF comparison.
 pub const ESTIMATED_HARMONICS: [i32; 5] = [-2, -1, 0, 1, 2];
-/// Siddiqi's weight of that comparison, as in [`htf_comparison`]'s configs.
+/// Siddiqi's weight of that comparison.
 pub const ESTIMATED_ALPHA: f64 = 1.0;
 
 /// One output's HTFs estimated from a record against those estimated from models' simulations.

@@ -5,10 +5,11 @@
 use htfid_lang::Model;
 use serde::Serialize;
 
+use crate::agreement::{Agreement, Plain};
 use crate::boundary::{Boundary, BoundaryEffect};
-use crate::decide::{Agreement, Plain};
 use crate::term::{term_library, TermEffect, TermKind};
-use crate::{Cause, DiagnoseError, TimeSeries};
+use crate::{DiagnoseError, TimeSeries};
+use serde::Deserialize;
 use std::collections::BTreeMap;
 
 mod causes;
@@ -26,6 +27,30 @@ pub use residual_bins::{second_order_pairs, PairResidual};
 use selection::{correlation_inflation, parameter_scales, rivals_by_bic, score_on, Selection};
 
 pub use search::{ModelDiscovered, ModelDiscoveredTerm};
+
+/// One effect of the selected model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Cause {
+    /// The effect's name (`coulomb_friction`, ..., `parameter_error`).
+    pub effect: String,
+    /// Its fitted parameters.
+    pub parameters: BTreeMap<String, f64>,
+    /// Their standard errors.
+    pub stderr: BTreeMap<String, f64>,
+    /// Its share of the held-out mean-square error that the selected model explains, in
+    /// `[0, 1]`; the shares of all causes add up to 1.
+    pub gain_share: f64,
+}
+
+/// The measured input's own noise, as it enters the noise floor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct InputNoise {
+    /// Standard deviation of the input's white noise, in the input's units: the level of its
+    /// spectrum in the noise band.
+    pub sigma: f64,
+    /// RMS response of the refitted model to white noise of that level, in NRMSE units.
+    pub propagated: f64,
+}
 
 /// How a model is refitted.
 #[derive(Debug, Clone)]
@@ -65,7 +90,7 @@ pub struct ModelFitOptions {
     pub rival_margin: f64,
     /// Of the effects within `rival_margin` held out, the one with the lowest BIC on the fit
     /// data is named; the others are its rivals only when their BIC is within this margin of
-    /// it (as the built-in diagnosis's `bic_margin`, default 10: a likelihood ratio of about 10
+    /// it (default 10: a likelihood ratio of about 10
     /// at equal parameter counts). Near the noise floor the held-out NRMSEs of a right and a
     /// wrong effect differ by a few percent, while the fit data still tell them apart by
     /// hundreds.
@@ -78,33 +103,28 @@ pub struct ModelFitOptions {
     pub min_explained: f64,
     /// Held-out NRMSE below which a model explains the data (the simulation's own accuracy
     /// on noise-free records: the input read between its samples, the integrator's
-    /// tolerance): no effect is claimed and nothing is unexplained below it. Default 1e-4, as
-    /// the built-in diagnosis's `resolution`.
+    /// tolerance): no effect is claimed and nothing is unexplained below it. Default 1e-4.
     pub resolution: f64,
     /// Most effects named together (forward selection stops there); at least 1.
     pub max_effects: usize,
-    /// As the built-in diagnosis's
-    /// [`input_noise_share`](crate::DiagnoseOptions::input_noise_share): the measured input's
+    /// The measured input's
     /// own noise, read from its spectrum, is propagated through the refitted model into the
     /// noise floor unless white noise of that level would carry more than this share of the
     /// input's variance; 0 leaves it out. Default 0.1.
     pub input_noise_share: f64,
-    /// As the built-in diagnosis's
-    /// [`input_noise_flatness`](crate::DiagnoseOptions::input_noise_flatness): the input's
+    /// The input's
     /// noise band is read as white noise only where its quarters' levels lie within this
     /// factor of each other, `>= 1`. Default 1.5.
     pub input_noise_flatness: f64,
     /// Band of the residual's (and the input's) spectrum whose level is the noise floor, as
-    /// fractions of the Nyquist frequency, `0 < lo < hi <= 1`. Default (0.6, 0.95), as the
-    /// built-in diagnosis's [`noise_band`](crate::DiagnoseOptions::noise_band).
+    /// fractions of the Nyquist frequency, `0 < lo < hi <= 1`. Default (0.6, 0.95).
     pub noise_band: (f64, f64),
     /// A second effect is tried beside the best one while the best one's held-out residual
     /// stays above this many times the noise floor, `>= 1`: below it a second effect could
     /// not gain `min_gain`. Default 1.2.
     pub second_effect_floor_ratio: f64,
     /// A fit stops at a step that improves its likelihood ratio by less than this, `> 0`
-    /// (as the built-in diagnosis's [`fit_tolerance`](crate::DiagnoseOptions::fit_tolerance),
-    /// default 0.01): a step worth less cannot change a test, and below it the simulations'
+    /// (default 0.01): a step worth less cannot change a test, and below it the simulations'
     /// own error (`rtol`) moves the cost as much as the parameters do.
     pub fit_tolerance: f64,
     /// Most iterations of the refit of the free parameters, `>= 1`. Default 200.
@@ -213,7 +233,7 @@ pub struct ParametersBeside {
     pub named: bool,
 }
 
-/// What a model-file diagnosis names (in JSON, its [`ModelCause::name`]).
+/// What a diagnosis names (in JSON, its [`ModelCause::name`]).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ModelCause {
     /// An effect (on the boundary, or a term in the model's equations or guards; by its name)

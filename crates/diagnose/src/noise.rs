@@ -89,7 +89,7 @@ fn level(power: &[f64], segments: usize) -> f64 {
 /// Sub-bands whose levels must agree for an input's band to be read as white noise.
 const SUB_BANDS: usize = 4;
 /// The default largest ratio of the highest to the lowest sub-band level of white noise
-/// ([`crate::DiagnoseOptions::input_noise_flatness`]). On the shortest records read (a few
+/// ([`crate::ModelFitOptions::input_noise_flatness`]). On the shortest records read (a few
 /// segments, a few dozen bins per sub-band) the sub-band medians of white noise scatter by
 /// about 5 % each; the tail of an excitation's spectrum falls by a factor 3 or more across
 /// the band.

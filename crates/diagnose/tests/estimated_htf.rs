@@ -1,4 +1,4 @@
-//! The HTF comparison of a model-file diagnosis (`estimated_comparison`) against an analytic
+//! The HTF comparison of a diagnosis (`estimated_comparison`) against an analytic
 //! answer: a linear spring-mass-damper, recorded with a stiffness of 400 N/m and simulated by a
 //! model with 440 N/m, both by this file's own Runge-Kutta integrator. A linear time-invariant
 //! system has `G_0(jw) = H(jw)` and no other harmonic, so the data's HTF minus the model's is

@@ -1,19 +1,18 @@
-//! The model-file diagnosis (`diagnose_model` on `models/hopper.toml`, `k` and `c` free) on the
-//! catalogue of the independent truth generator, the records the built-in diagnosis's sweep
-//! (`independent.rs`) reads: a measurement of how the engine for any model does on data from
-//! equations and an integrator it shares no code with.
+//! The diagnosis (`diagnose_model` on `models/hopper.toml`, `k` and `c` free) on the core
+//! cells of the independent truth generator's catalogue (`htfid-truth`): a measurement of how
+//! the diagnosis does on data from equations and an integrator it shares no code with.
 //!
 //! Ignored (about 20 minutes on 2 cores, the records diagnosed side by side; in `just test`);
 //! run with
 //! `cargo test --release -p htfid-diagnose --test model_language_sweep -- --ignored --nocapture`
 //! (`HTFID_MODEL_SWEEP_N` records, the catalogue's core cells by default; from record
 //! `HTFID_MODEL_SWEEP_FROM`, 0 by default; `HTFID_MODEL_SWEEP_PROTOCOL=configured` for the
-//! built-in diagnosis's protocol, nothing refitted and `m`, `k`, `c` the candidate
+//! protocol with nothing refitted and `m`, `k`, `c` the candidate
 //! `parameter_error`, with floors of its own). It prints one line
 //! per record and a score per group, and holds the floors measured when it was written.
 //!
-//! The model file's library differs from the built-in one: its terms sit at the sites the file
-//! offers (drag, Coulomb friction, a stiffness law and a hard stop on either side on `v'`,
+//! The generator names its effects in its own words; the library's terms sit at the sites the
+//! file offers (drag, Coulomb friction, a stiffness law and a hard stop on either side on `v'`,
 //! damping per mode, the moved switching surface) and on its boundary (input offset, delay and
 //! lag; sensor offset and gain, sensor lag). Asymmetric friction is its Coulomb friction beside
 //! a constant force (the same force law). The generator's own out-of-library effects are out of
@@ -137,7 +136,7 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(0);
-    // `HTFID_MODEL_SWEEP_PROTOCOL=configured`: the built-in diagnosis's protocol, nothing
+    // `HTFID_MODEL_SWEEP_PROTOCOL=configured`: nothing
     // refitted with every candidate and an error of `m`, `k` or `c` a candidate effect of its
     // own (`parameter_error`); by default `k` and `c` are refitted with every candidate.
     let configured = std::env::var("HTFID_MODEL_SWEEP_PROTOCOL").is_ok_and(|p| p == "configured");
@@ -191,7 +190,7 @@ fn the_model_file_diagnosis_on_the_independent_catalogue() {
     assert!(total > 0, "no record was diagnosed");
     if n == htfid_truth::core_size() && from == 0 {
         // The floors measured on the core cells at seed 2026 (`FLOORS`, or
-        // `FLOORS_CONFIGURED` for the built-in diagnosis's protocol): a change that loses a
+        // `FLOORS_CONFIGURED` for the protocol with nothing refitted): a change that loses a
         // record in any group fails here.
         let floors = if configured {
             FLOORS_CONFIGURED

@@ -1,1209 +1,1521 @@
-//! `htfid diagnose CONFIG [--data CSV]`: measured data against the model: what the model gets
-//! wrong, the cause, the extended model and its gain.
+//! `htfid diagnose CONFIG`: read the record and the model file the config names, call
+//! `htfid_diagnose::diagnose_model`, write the findings. The science is in `htfid-diagnose`.
 
-use std::fmt::Write as _;
-use std::ops::Range;
-use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::time::Instant;
+use std::path::PathBuf;
 
-use anyhow::{Context, Result};
-use htfid_data::{OutputDir, TimeSeries};
+use anyhow::Result;
+use htfid_data::TimeSeries;
+use htfid_diagnose::{diagnose_model, ModelCause, ModelDiagnosis};
+use htfid_plot::{stacked_figure, Panel, Role, Series, Style};
+use serde_json::json;
 
-use crate::records::{read_record, Columns};
-use htfid_diagnose::{
-    amplitude_spectrum, diagnose_with_progress, htf_comparison, score_on_record, DiagnoseOptions,
-    DiagnosisReport, Effect, HarmonicDifference, HtfComparisonSpec, NominalModel, NominalParam,
-};
-use htfid_model::Effects;
-use htfid_plot::{
-    grid_figure, spectrum_panel, stacked_figure, time_panel, Panel, Role, Series, SpectrumScale,
-    Style,
-};
-use num_complex::Complex64;
-use serde_json::{json, Value};
-
-use crate::commands::diagnose_evidence as evidence;
+use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::output::{json_text, open, resolve_dir};
-use crate::plots;
-use crate::settings::DiagnoseSettings;
+use crate::records::{read_record, Columns};
+use crate::report::{shown_path, Report};
+use htfid_number::{percent, sig, Quantity};
 
-const PLOTS: [&str; 7] = [
-    "residual_time",
-    "residual_spectrum",
-    "orbit",
-    "compare",
-    "resid",
-    "residual_bins",
-    "error_waterfall",
-];
-
-/// Harmonics of the data-against-theory HTF figure.
-const HTF_HARMONICS: [i32; 5] = [-2, -1, 0, 1, 2];
-/// Output band of the data's HTF figure, rad/s.
-const HTF_BAND: (f64, f64) = (1.0, 40.0);
-
-pub fn run(config: &Path, data: Option<PathBuf>, out: Option<PathBuf>, force: bool) -> Result<()> {
-    if crate::model_diagnose_config::names_a_model_file(config) {
-        return crate::commands::diagnose_model::run(config, data, out, force);
+pub fn run(
+    config: &std::path::Path,
+    data: Option<PathBuf>,
+    out: Option<PathBuf>,
+    force: bool,
+) -> Result<()> {
+    let s = ModelDiagnoseSettings::from_file(config, data)?;
+    crate::limits::check_data_file(&s.path, "data.file", &s.file)?;
+    if let Some(v) = &s.validation {
+        crate::limits::check_data_file(&s.path, "data.validation", v)?;
     }
-    let mut settings = DiagnoseSettings::from_file(config)?;
-    if let Some(d) = data {
-        settings.data.file = d;
-    }
-    crate::limits::check_data_file(&settings.path, "data.file", &settings.data.file)?;
-    let dir = resolve_dir(out, &settings.name);
-    let files: Vec<String> = PLOTS
+    let dir = resolve_dir(out, &s.name);
+    let mut names: Vec<String> = ["diagnosis.json", "report.md"]
         .iter()
-        .flat_map(|p| [format!("{p}.svg"), format!("{p}.png")])
+        .map(|n| n.to_string())
         .collect();
-    let mut names: Vec<&str> = vec!["diagnosis.json", "report.md"];
-    names.extend(files.iter().map(String::as_str));
-    let periodic = settings.params.forcing_amplitude.abs() > 0.0;
-    if periodic {
-        names.extend([
-            "htf_data.svg",
-            "htf_data.png",
-            "htf_difference.svg",
-            "htf_difference.png",
-        ]);
+    // The orbit is drawn for a model with a forcing period only, the binned residual
+    // acceleration for one with an output that reads a position.
+    let pairs = !htfid_diagnose::second_order_pairs(&s.model).is_empty();
+    for figure in ["compare", "resid"]
+        .into_iter()
+        .chain(super::diagnose_evidence::FIGURES)
+        .filter(|f| *f != "orbit" || s.model.period().is_some())
+        .filter(|f| *f != "residual_bins" || pairs)
+    {
+        names.extend([format!("{figure}.svg"), format!("{figure}.png")]);
     }
+    // The HTFs from the data against the models', per output, for a model with a forcing
+    // period.
+    if s.model.period().is_some() {
+        for o in 0..s.outputs.len() {
+            let suffix = super::theory::suffix(&s.outputs, o);
+            for figure in ["htf_data", "htf_difference"] {
+                names.extend(["svg", "png"].map(|ext| format!("{figure}{suffix}.{ext}")));
+            }
+        }
+    }
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut outdir = open(&dir, force, &names)?;
-
-    let started = Instant::now();
-    let record = read_series(&settings)?;
-    check_time_scale(&settings, &record)?;
-    let nominal = nominal_model(&settings)?;
-    let opts = options(&settings, record.len())?;
-    crate::progress::line(&format!(
-        "diagnosing {} ({} samples at {:.6} Hz) against the {} model, {} candidates",
-        settings.data.file.display(),
-        record.len(),
-        1.0 / record.dt(),
-        match settings.damper {
-            htfid_model::DamperLaw::Switching => "switching hopper",
-            htfid_model::DamperLaw::AlwaysOn => "spring-mass-damper",
-        },
-        opts.candidates.len()
-    ));
-    // The library reports the nominal fit and then each candidate as it finishes: a counted
-    // stage of 1 + candidates steps.
-    let counter = Mutex::new(crate::progress::Counter::new(
-        "diagnosis",
-        1 + opts.candidates.len() as u64,
-    ));
-    let progress = |msg: &str| {
-        let counter = counter.lock().unwrap_or_else(|e| e.into_inner());
-        counter.step(msg, !msg.starts_with("fitting"));
+    let record = read_rows(&s, &s.file, s.rows.clone(), "data.rows")?;
+    let validation = match s.held_out_file() {
+        Some(path) => Some(read_rows(
+            &s,
+            path,
+            s.validation_rows.clone(),
+            "data.validation_rows",
+        )?),
+        None => None,
     };
-    let report =
-        diagnose_with_progress(&record, &nominal, &opts, &progress).with_context(|| {
-            format!(
-                "{}: diagnosis of data.file = \"{}\" against [model] failed",
-                settings.path.display(),
-                settings.data.file.display()
+    crate::progress::line(&format!(
+        "diagnosing {} ({} samples) against model `{}`, refitting {:?}",
+        s.file.display(),
+        record.len(),
+        s.model.name(),
+        s.options.free
+    ));
+    let d = crate::progress::Stages::new()
+        .run("output-error fit", || {
+            diagnose_model(&s.model, &record, validation.as_ref(), &s.options)
+        })
+        .map_err(|e| {
+            // The keys a user changes to repair each failure.
+            let key = match &e {
+                htfid_diagnose::DiagnoseError::ScaleMismatch { .. } => {
+                    "model.parameters (or the units of data.outputs)"
+                }
+                htfid_diagnose::DiagnoseError::ModelMismatch { .. } => {
+                    "data.outputs (or data.input, model.parameters)"
+                }
+                htfid_diagnose::DiagnoseError::ConstantOutput { .. } => "data.outputs",
+                htfid_diagnose::DiagnoseError::StartState { .. } => {
+                    "diagnose.rtol (a smaller tolerance), or model.parameters"
+                }
+                _ => "model.parameters",
+            };
+            anyhow::anyhow!(
+                "{}: {key}: diagnosis of \"{}\" failed: {e}",
+                s.path.display(),
+                s.file.display()
             )
         })?;
-    drop(counter);
-
-    let tests = test_scores(&settings, &record, &report, &opts)?;
-    let mut json = serde_json::to_value(&report.diagnosis)?;
-    json["data"] = json!({
-        "file": settings.data.file.display().to_string(),
-        "samples": record.len(),
-        "sample_rate": 1.0 / record.dt(),
-        "fit_ranges": ranges_json(&report.fit_ranges),
-        "validation_ranges": ranges_json(&report.validation_ranges),
-        "units": settings.data.format.units_json(),
-    });
-    json["noise_floor"] = json!(report.noise_floor);
-    if let Some(i) = report.input_noise {
-        json["input_noise"] = serde_json::to_value(i)?;
-    }
-    json["burn_in_s"] = json!(report.burn_in_s);
-    // The settings the decision used, defaults included (the ranges are under `data`).
-    let mut used = serde_json::to_value(&opts)?;
-    if let Some(o) = used.as_object_mut() {
-        o.remove("fit");
-        o.remove("validation");
-    }
-    json["options"] = used;
-    json["nominal_fit"] = serde_json::to_value(report.nominal_fit_score)?;
-    json["nominal_model"] = serde_json::to_value(report.nominal_model)?;
-    json["extended_model"] = serde_json::to_value(report.extended_model)?;
-    if !tests.is_empty() {
-        json["test"] = Value::Array(tests.clone());
-    }
-    let check = validate(&settings, &record, &report);
-    json["validation"] = crate::validation::json(&check, &validation_key(&report));
-    let ev = evidence::compute(&settings, &record, &report, opts.interpolation)?;
-    let (bins, waterfall) = evidence::json(&ev, &settings);
-    json["residual_bins"] = bins;
-    json["error_waterfall"] = waterfall;
-    let mut figures = draw(&mut outdir, &settings, &record, &report)?;
-    draw_validation(&mut outdir, &settings, &record, &report, &check)?;
-    evidence::draw_bins(&mut outdir, &settings, &report, &ev)?;
-    evidence::draw_waterfall(&mut outdir, &settings, &report, &ev)?;
-    let mut htf_diffs = Vec::new();
-    if periodic {
-        figures.htf = match htf_figure(&mut outdir, &settings, &record, &report) {
-            Ok(diffs) => {
-                htf_diffs = diffs;
-                Some(String::new())
-            }
-            Err(e) => Some(format!("{e:#}")),
-        };
-        json["htf_difference"] = evidence::htf_json(&htf_diffs);
-    }
-    json["elapsed_s"] = json!(started.elapsed().as_secs_f64());
-    outdir.write_text("diagnosis.json", &json_text(&json))?;
-    let mut text = report_md(
-        &settings, &record, &report, &tests, &figures, &ev, &htf_diffs,
-    );
-    text.push_str(&crate::validation::report(
-        "## 5. Validation",
-        &[&check],
-        &format!("{} model", ext_label(&report)),
-        &format!("input `{}`", settings.data.input),
-    ));
-    if report.input_noise.is_some() {
-        text.push('\n');
-        text.push_str(&crate::validation::noisy_input_note(&format!(
-            "`{}`",
-            settings.data.input
-        )));
-    }
-    outdir.write_text("report.md", &text)?;
-    let written = outdir.commit()?;
-    crate::results::diagnose(&json, htf_unit(&settings).is_some(), &dir, &written);
-    Ok(())
-}
-
-/// Units of the record: the hopper's SI units (m, N) when its columns are the hopper's own
-/// position `x` and force `f`; otherwise the columns' names, whose units the config does not
-/// state.
-fn output_label(s: &DiagnoseSettings) -> String {
-    if let Some(unit) = s.data.format.unit(&s.data.output) {
-        format!("{} ({unit})", s.data.output)
-    } else if s.data.output == "x" {
-        "position x (m)".into()
-    } else {
-        format!("{} (data units)", s.data.output)
-    }
-}
-
-fn residual_label(s: &DiagnoseSettings) -> String {
-    if let Some(unit) = s.data.format.unit(&s.data.output) {
-        format!("residual of {} ({unit})", s.data.output)
-    } else if s.data.output == "x" {
-        "residual (m)".into()
-    } else {
-        format!("residual of {} (data units)", s.data.output)
-    }
-}
-
-fn htf_unit(s: &DiagnoseSettings) -> Option<&'static str> {
-    (s.data.output == "x" && s.data.input == "f").then_some("m/N")
-}
-
-/// The extended model's key in `validation.fit_percent` (`docs/outputs.md`): by the cause.
-fn validation_key(report: &DiagnosisReport) -> String {
-    format!("extended ({})", report.diagnosis.cause)
-}
-
-/// The extended model in figures: by the effects it adds.
-pub(crate) fn ext_label(report: &DiagnosisReport) -> String {
-    let added = added_effects(&report.diagnosis);
-    if added.is_empty() {
-        "extended (nothing added)".to_string()
-    } else {
-        format!("extended ({})", added.join(" + "))
-    }
-}
-
-/// The effects the extended model adds to the nominal one, strongest first (a refit of the
-/// configured parameters is no added effect).
-fn added_effects(d: &htfid_diagnose::Diagnosis) -> Vec<&str> {
-    d.causes
-        .iter()
-        .map(|c| c.effect.as_str())
-        .filter(|e| *e != "parameter_error")
-        .collect()
-}
-
-/// Held-out samples after each range's burn-in, in order.
-fn held_out(record: &TimeSeries, report: &DiagnosisReport) -> Vec<usize> {
-    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
-    report
-        .validation_ranges
-        .iter()
-        .flat_map(|r| (r.start + burn).min(r.end)..r.end)
-        .filter(|&i| report.nominal_output[i].is_finite() && report.extended_output[i].is_finite())
-        .collect()
-}
-
-/// Fit percent of both models and the residual analysis of the extended model against the
-/// applied force, on the held-out samples (ranges joined end to end).
-fn validate(
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-) -> crate::validation::OutputValidation {
-    let idx = held_out(record, report);
-    let pick = |v: &[f64]| -> Vec<f64> { idx.iter().map(|&i| v[i]).collect() };
-    let (x, f) = (pick(record.output()), pick(record.input()));
-    let (nom, ext) = (pick(&report.nominal_output), pick(&report.extended_output));
-    crate::validation::validate(
-        &s.data.output,
-        &x,
-        &f,
-        &[
-            crate::validation::Simulated {
-                label: "nominal".into(),
-                role: Role::Nominal,
-                style: Style::Dashed,
-                y: &nom,
-            },
-            crate::validation::Simulated {
-                label: ext_label(report),
-                role: Role::Extended,
-                style: Style::Line,
-                y: &ext,
-            },
-        ],
-        0..x.len(),
-    )
-}
-
-/// `compare.png` (a few forcing periods at the end of the last held-out range) and `resid.png`.
-fn draw_validation(
-    out: &mut OutputDir,
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-    check: &crate::validation::OutputValidation,
-) -> Result<()> {
-    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
-    let last = report
-        .validation_ranges
-        .last()
-        .cloned()
-        .unwrap_or(0..record.len());
-    let period = (s.params.forcing_amplitude.abs() > 0.0).then_some(s.params.period);
-    let win = crate::validation::window(
-        (last.start + burn).min(last.end)..last.end,
-        record.dt(),
-        period,
-    );
-    let ext = ext_label(report);
-    let models = [
-        crate::validation::Simulated {
-            label: "nominal".into(),
-            role: Role::Nominal,
-            style: Style::Dashed,
-            y: &report.nominal_output,
-        },
-        crate::validation::Simulated {
-            label: ext.clone(),
-            role: Role::Extended,
-            style: Style::Line,
-            y: &report.extended_output,
-        },
-    ];
-    let compare = crate::validation::compare_panel(
-        &format!(
-            "{}: measured and simulated (held-out data; fit over all of it)",
-            s.data.output
-        ),
-        &output_label(s),
-        record.time(),
-        record.output(),
-        &models,
-        &check.fits,
-        win.clone(),
-    );
-    let tw = record.time()[win.clone()].to_vec();
-    let residual =
-        |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.output()[i] - sim[i]).collect() };
-    let mut res = Panel::new(
-        "residual, measured minus simulated",
-        htfid_plot::TIME_LABEL,
-        residual_label(s),
-    );
-    res.series = vec![
-        Series::new(
-            "nominal",
-            tw.clone(),
-            residual(&report.nominal_output),
-            Style::Dashed,
+    // The figure shows the held-out data: the validation record when there is one.
+    let shown = validation.as_ref().unwrap_or(&record);
+    let n = shown.len();
+    let dt = shown.dt();
+    // The samples the library scores as held-out: the validation record after its burn-in,
+    // or the part of the record after the fit fraction.
+    let held_out = match &validation {
+        Some(_) => ((s.options.burn_in / dt).ceil() as usize).min(n / 4)..n,
+        None => ((n as f64 * s.options.fit_fraction) as usize).min(n)..n,
+    };
+    // The HTFs the data hold against the models' (the same estimator on their simulations),
+    // on the held-out data of a model with a forcing period.
+    let htf = s.model.period().map(|p| {
+        htfid_diagnose::estimated_comparison(
+            shown,
+            held_out.clone(),
+            p,
+            &d.simulated,
+            d.simulated_extended.as_deref(),
         )
-        .with_role(Role::Nominal),
-        Series::new(ext, tw, residual(&report.extended_output), Style::Line)
-            .with_role(Role::Extended),
-    ];
-    let fig = stacked_figure(
-        format!("{}: measured against simulated", s.name),
-        vec![compare, res],
-    );
-    plots::write(out, "compare", &fig)?;
-    if let Some(fig) = crate::validation::resid_figure(
-        &format!(
-            "{}: residual analysis of the {} model (held-out data)",
-            s.name,
-            ext_label(report)
-        ),
-        &[check],
-        &format!("input {}", s.data.input),
-        record.dt(),
-    ) {
-        plots::write(out, "resid", &fig)?;
-    }
-    Ok(())
-}
-
-fn read_series(settings: &DiagnoseSettings) -> Result<TimeSeries> {
-    let d = &settings.data;
-    let columns = Columns {
-        input: &d.input,
-        output: &d.output,
-        time: d.time.as_deref(),
-        sample_rate: d.sample_rate,
-        time_tolerance: d.time_tolerance,
-        format: &d.format,
-    };
-    read_record(&settings.path, &d.file, columns)
-}
-
-fn nominal_model(s: &DiagnoseSettings) -> Result<NominalModel> {
-    let free = s
-        .free
-        .iter()
-        .map(|f| match f.as_str() {
-            "m" => NominalParam::M,
-            "k" => NominalParam::K,
-            "c" => NominalParam::C,
-            "x0" => NominalParam::X0,
-            _ => NominalParam::InputOffset,
-        })
-        .collect();
-    let effects = Effects {
-        input_offset: s.input_offset,
-        ..Effects::default()
-    };
-    NominalModel::new(s.params, s.damper, effects, free)
-        .with_context(|| format!("{}: [model]", s.path.display()))
-}
-
-fn options(s: &DiagnoseSettings, n: usize) -> Result<DiagnoseOptions> {
-    let check = |ranges: &[Range<usize>], key: &str| -> Result<()> {
-        if let Some(r) = ranges.iter().find(|r| r.end > n) {
-            anyhow::bail!(
-                "{}: data.{key}: range [{}, {}) runs past the {n} samples of the data",
-                s.path.display(),
-                r.start,
-                r.end
+    });
+    // Every output's validation of the last of the models `models` gives for it.
+    let validate_with =
+        |models: fn(&ModelDiagnosis, usize) -> Vec<crate::validation::Simulated<'_>>| {
+            s.outputs
+                .iter()
+                .enumerate()
+                .map(|(o, name)| {
+                    crate::validation::validate(
+                        name,
+                        &shown.outputs()[o],
+                        shown.input(),
+                        &models(&d, o),
+                        held_out.clone(),
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+    let checks = validate_with(models_of);
+    // With an effect named, the final model too: its residual is the one a user keeps.
+    let final_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+    let checks_final = d
+        .simulated_extended
+        .as_ref()
+        .and(final_label.as_ref())
+        .map(|_| validate_with(models_shown));
+    let validation_of = |checks: &[crate::validation::OutputValidation], model: &str| {
+        let mut v = checks.first().map_or(serde_json::Value::Null, |v| {
+            crate::validation::json(v, model)
+        });
+        if v.is_object() {
+            v["by_output"] = serde_json::Value::Object(
+                checks
+                    .iter()
+                    .map(|c| (c.output.clone(), crate::validation::json(c, model)))
+                    .collect(),
             );
         }
-        Ok(())
+        v
     };
-    check(&s.data.fit, "fit")?;
-    check(&s.data.validation, "validation")?;
-    check(&s.data.test, "test")?;
-    let mut opts = DiagnoseOptions {
-        fit: s.data.fit.clone(),
-        validation: s.data.validation.clone(),
-        burn_in_s: s.burn_in,
-        ..DiagnoseOptions::default()
+    let validation_json = validation_of(&checks, "refitted model");
+    let validation_final_json = match (&checks_final, &final_label) {
+        (Some(c), Some(label)) => validation_of(c, label),
+        _ => serde_json::Value::Null,
     };
-    if let Some(v) = s.fit_initial_state {
-        opts.fit_initial_state = v;
-    }
-    if let Some(c) = &s.candidates {
-        opts.candidates = c
-            .iter()
-            .map(|name| name.parse::<Effect>().map_err(|e| anyhow::anyhow!("{e}")))
-            .collect::<Result<_>>()?;
-    }
-    if let Some(v) = s.significance_sigma {
-        opts.significance_sigma = v;
-    }
-    if let Some(v) = s.min_gain {
-        opts.min_gain = v;
-    }
-    let t = &s.thresholds;
-    if let Some(v) = t.alpha {
-        opts.alpha = v;
-    }
-    if let Some(v) = t.max_effects {
-        opts.max_effects = v;
-    }
-    if let Some(v) = t.bic_margin {
-        opts.bic_margin = v;
-    }
-    if let Some(v) = t.unexplained_ratio {
-        opts.unexplained_ratio = v;
-    }
-    if let Some(v) = t.min_explained {
-        opts.min_explained = v;
-    }
-    if let Some(v) = t.fit_tolerance {
-        opts.fit_tolerance = v;
-    }
-    if let Some(v) = t.input_noise_share {
-        opts.input_noise_share = v;
-    }
-    if let Some(v) = t.input_noise_flatness {
-        opts.input_noise_flatness = v;
-    }
-    if let Some(v) = t.noise_band {
-        opts.noise_band = v;
-    }
-    if let Some(v) = t.resolution {
-        opts.resolution = v;
-    }
-    if let Some(v) = t.max_delay_periods {
-        opts.max_delay_periods = v;
-    }
-    if let Some(v) = t.max_iterations {
-        opts.max_iterations = v;
-    }
-    Ok(opts)
-}
 
-fn ranges_json(r: &[Range<usize>]) -> Value {
-    Value::Array(r.iter().map(|r| json!([r.start, r.end])).collect())
-}
-
-/// Scores of the nominal and extended models on the config's extra test ranges.
-fn test_scores(
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-    opts: &DiagnoseOptions,
-) -> Result<Vec<Value>> {
-    let mut out = Vec::new();
-    for r in &s.data.test {
-        let score = |model| {
-            score_on_record(
-                record,
-                model,
-                r.clone(),
-                report.burn_in_s,
-                opts.interpolation,
-                opts.sim,
-            )
-        };
-        let nominal = score(&report.nominal_model)?;
-        let extended = score(&report.extended_model)?;
-        out.push(json!({
-            "range": [r.start, r.end],
-            "nominal": nominal,
-            "extended": extended,
-            "gain": 1.0 - extended.rmse / nominal.rmse,
-        }));
+    let steps = d.error_waterfall(!s.options.free.is_empty());
+    let options = serde_json::json!({
+        "free": s.options.free,
+        "fit_fraction": s.options.fit_fraction,
+        "burn_in": s.options.burn_in,
+        "significance_sigma": s.options.significance_sigma,
+        "min_gain": s.options.min_gain,
+        "alpha": s.options.alpha,
+        "rival_margin": s.options.rival_margin,
+        "bic_margin": s.options.bic_margin,
+        "unexplained_ratio": s.options.unexplained_ratio,
+        "min_explained": s.options.min_explained,
+        "max_effects": s.options.max_effects,
+        "input_noise_share": s.options.input_noise_share,
+        "input_noise_flatness": s.options.input_noise_flatness,
+        "noise_band": [s.options.noise_band.0, s.options.noise_band.1],
+        "resolution": s.options.resolution,
+        "second_effect_floor_ratio": s.options.second_effect_floor_ratio,
+        "rtol": s.options.rtol,
+        "fit_tolerance": s.options.fit_tolerance,
+        "max_iterations": s.options.max_iterations,
+        "candidate_max_iterations": s.options.candidate_max_iterations,
+        "effects": s.options.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "parameter_error": s.options.parameter_error,
+        "terms": s.options.terms.iter().map(|k| k.name()).collect::<Vec<_>>(),
+        "user_terms": s.options.user_terms.iter().map(|t| serde_json::json!({
+            "name": t.name,
+            "term": t.describe(),
+        })).collect::<Vec<_>>(),
+    });
+    let json = json!({
+        "name": s.name,
+        "config": s.path.display().to_string(),
+        "data": s.file.display().to_string(),
+        "validation_data": s.held_out_file().map(|p| p.display().to_string()),
+        "rows": s.rows.as_ref().map(|r| [r.start, r.end]),
+        "validation_rows": s.validation_rows.as_ref().map(|r| [r.start, r.end]),
+        "units": s.format.units_json(),
+        "model": s.model.name(),
+        "cause": d.cause,
+        "parameters": d.parameters,
+        "stderr": d.stderr,
+        "nominal": { "nrmse": d.refitted.validation() },
+        "gain": d.gain,
+        "gain_vs_configured": d.gain_vs_configured,
+        "configured": d.configured,
+        "refitted": d.refitted,
+        "refit_parameters": d.refit_parameters,
+        "refit_gain": d.refit_gain,
+        "stderr_inflation": d.stderr_inflation,
+        "iterations": d.iterations,
+        "stop": d.stop,
+        "candidates": d.candidates,
+        "causes": d.causes,
+        "pairs": d.pairs,
+        "later_rounds": d.later_rounds,
+        "backward": d.backward,
+        "extended": extended_json(&d),
+        "parameters_beside": d.parameters_beside,
+        "alternatives": d.alternatives,
+        "noise_floor": d.noise_floor,
+        "explained": d.explained,
+        "validation": validation_json,
+        "validation_final": validation_final_json,
+        "options": options,
+        "error_waterfall": steps,
+        "residual_bins": super::diagnose_evidence::bins_json(&s, &d),
+    });
+    let mut json = json;
+    if let Some(found) = &d.discovered {
+        json["discovered"] = serde_json::to_value(found).unwrap_or_default();
     }
-    Ok(out)
-}
-
-/// Residuals of both models over the held-out ranges, and where they are.
-fn residuals(record: &TimeSeries, report: &DiagnosisReport) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let (mut t, mut r0, mut r1) = (Vec::new(), Vec::new(), Vec::new());
-    let burn = (report.burn_in_s / record.dt()).ceil() as usize;
-    for r in &report.validation_ranges {
-        for i in (r.start + burn).min(r.end)..r.end {
-            let (a, b) = (report.nominal_output[i], report.extended_output[i]);
-            if a.is_finite() && b.is_finite() {
-                t.push(record.time()[i]);
-                r0.push(record.output()[i] - a);
-                r1.push(record.output()[i] - b);
-            }
+    if let Some(sentence) = &d.term_search {
+        json["term_search"] = serde_json::Value::String(sentence.clone());
+    }
+    if let Some(noise) = d.input_noise {
+        json["input_noise"] = serde_json::to_value(noise)?;
+    }
+    match &htf {
+        Some(Ok(cmp)) => {
+            let by_output = |c: &htfid_diagnose::EstimatedComparison| {
+                super::diagnose_evidence::htf_json(&c.differences)
+            };
+            json["htf_difference"] = cmp.first().map_or(serde_json::Value::Null, by_output);
+            json["htf_difference_by_output"] = serde_json::Value::Object(
+                s.outputs
+                    .iter()
+                    .zip(cmp)
+                    .map(|(name, c)| (name.clone(), by_output(c)))
+                    .collect(),
+            );
         }
+        Some(Err(e)) => {
+            json["htf_difference"] = serde_json::Value::Null;
+            json["htf_difference_note"] = serde_json::Value::String(e.to_string());
+        }
+        None => {}
     }
-    (t, r0, r1)
-}
-
-struct Figures {
-    orbit: bool,
-    /// `Some("")` when the HTF figure was drawn, `Some(reason)` when it could not be.
-    htf: Option<String>,
-}
-
-/// The data's HTFs against the exact theory of the nominal and the extended model
-/// (`htfid_diagnose::htf_comparison`), drawn: `htf_data` and `htf_difference`.
-fn htf_figure(
-    out: &mut OutputDir,
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-) -> Result<Vec<HarmonicDifference>> {
-    use htfid_plot::Style;
-    let omegas = crate::settings::log_grid(HTF_BAND.0, HTF_BAND.1, 400);
-    let spec = HtfComparisonSpec {
-        forcing_amplitude: s.params.forcing_amplitude,
-        period: s.params.period,
-        harmonics: HTF_HARMONICS.to_vec(),
-        band: HTF_BAND,
-        alpha: 1.0,
-        theory_omegas: omegas.clone(),
-    };
-    let cmp = htf_comparison(record, &report.nominal_model, &report.extended_model, &spec)?;
-    let ext_label = format!("{}, theory", ext_label(report));
-    let measured: Vec<Vec<Complex64>> = cmp
-        .differences
-        .iter()
-        .map(|d| {
-            cmp.estimate
-                .rows()
-                .filter(|r| r.n == d.n)
-                .map(|r| r.value)
+    outdir.write_text("diagnosis.json", &json_text(&json))?;
+    outdir.write_text(
+        "report.md",
+        &report(&s, &d, &checks, checks_final.as_deref(), htf.as_ref()),
+    )?;
+    // A few forcing periods at the end of the held-out part: measured, configured, refitted.
+    let win = crate::validation::window(held_out.clone(), dt, s.model.period());
+    let mut panels: Vec<Panel> = Vec::new();
+    for (o, name) in s.outputs.iter().enumerate() {
+        let unit = s
+            .output_unit(o)
+            .map_or(String::new(), |u| format!(" ({u})"));
+        // Beside the configured and the refitted model, the model with the chosen effect.
+        let models = models_shown(&d, o);
+        let fits = match &checks_final {
+            Some(f) => f[o].fits.clone(),
+            None => checks[o].fits.clone(),
+        };
+        panels.push(crate::validation::compare_panel(
+            &format!("{name}: measured and simulated (held-out data; fit over all of it)"),
+            &format!("{name}{unit}"),
+            shown.time(),
+            &shown.outputs()[o],
+            &models,
+            &fits,
+            win.clone(),
+        ));
+        let tw = shown.time()[win.clone()].to_vec();
+        let residual = |sim: &[f64]| -> Vec<f64> {
+            win.clone()
+                .map(|i| shown.outputs()[o][i] - sim[i])
                 .collect()
-        })
-        .collect();
-    let per_harmonic: Vec<(i32, Vec<plots::Curve<'_>>)> = cmp
-        .differences
-        .iter()
-        .zip(&measured)
-        .zip(cmp.nominal_theory.iter().zip(&cmp.extended_theory))
-        .map(|((d, values), (g0, g1))| {
-            (
-                d.n,
-                vec![
-                    plots::Curve {
-                        label: "measured (Siddiqi estimate)",
-                        omega: &d.omega,
-                        values,
-                        style: Style::Line,
-                        stderr: Some(&d.stderr),
-                    },
-                    plots::Curve {
-                        label: "nominal, theory",
-                        omega: &omegas,
-                        values: g0,
-                        style: Style::Line,
-                        stderr: None,
-                    },
-                    plots::Curve {
-                        label: &ext_label,
-                        omega: &omegas,
-                        values: g1,
-                        style: Style::Dashed,
-                        stderr: None,
-                    },
-                ],
-            )
-        })
-        .collect();
-    let fig = plots::with_htf_unit(
-        plots::harmonics(
-            &format!("{}: HTFs of the data against the models", s.name),
-            &per_harmonic,
-        ),
-        htf_unit(s),
-    );
-    plots::write(out, "htf_data", &fig)?;
-    evidence::draw_htf_difference(out, s, report, &cmp.differences, htf_unit(s))?;
-    Ok(cmp.differences)
-}
-
-fn draw(
-    out: &mut OutputDir,
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-) -> Result<Figures> {
-    let (t, r0, r1) = residuals(record, report);
-    let ext_label = ext_label(report);
-    let same = report.extended_model == report.nominal_model;
-    // The whole held-out record as an RMS per block (a full-rate trace is a solid band), then a
-    // window of a few periods that a person can read.
-    let period = if s.params.forcing_amplitude.abs() > 0.0 && s.params.period > 0.0 {
-        s.params.period
-    } else {
-        let p = &report.nominal_model.params;
-        10.0 * 2.0 * std::f64::consts::PI / (p.k / p.m).sqrt()
-    };
-    let (tb, q0) = evidence::rms_per_block(&t, &r0, period);
-    let (_, q1) = evidence::rms_per_block(&t, &r1, period);
-    let block_words = if s.params.forcing_amplitude.abs() > 0.0 {
-        format!("forcing period ({} s)", htfid_number::sig(period, 3))
-    } else {
-        format!(
-            "{} s (ten {})",
-            htfid_number::sig(period, 3),
-            super::diagnose_evidence::natural_periods(s.params.k)
-        )
-    };
-    let mut top = Panel::new(
-        format!("RMS of the residual per {block_words}, all held-out data"),
-        htfid_plot::TIME_LABEL,
-        residual_label(s).replace("residual", "RMS residual"),
-    );
-    let top_max = q0
-        .iter()
-        .chain(&q1)
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
-    if top_max > 0.0 {
-        top.y_range = Some((0.0, 1.1 * top_max));
-    }
-    top.series = vec![Series::new("nominal", tb.clone(), q0, Style::Line).with_role(Role::Nominal)];
-    if !same {
-        top.series
-            .push(Series::new(ext_label.clone(), tb, q1, Style::Line).with_role(Role::Extended));
-    }
-    let win = evidence::time_window(s, record, report);
-    let tw = record.time()[win.clone()].to_vec();
-    let res =
-        |sim: &[f64]| -> Vec<f64> { win.clone().map(|i| record.output()[i] - sim[i]).collect() };
-    let mut bottom = Panel::new(
-        format!(
-            "measured - simulated over the first {} of held-out data after the burn-in",
-            evidence::window_words(s)
-        ),
-        htfid_plot::TIME_LABEL,
-        residual_label(s),
-    );
-    bottom.series = vec![Series::new(
-        "nominal",
-        tw.clone(),
-        res(&report.nominal_output),
-        Style::Line,
-    )
-    .with_role(Role::Nominal)];
-    if !same {
-        bottom.series.push(
+        };
+        let mut panel = Panel::new(
+            format!("{name}: residual, measured minus simulated"),
+            htfid_plot::TIME_LABEL,
+            format!("residual{unit}"),
+        );
+        panel.series = vec![
             Series::new(
-                ext_label.clone(),
-                tw,
-                res(&report.extended_output),
+                "configured model",
+                tw.clone(),
+                residual(&d.simulated_configured[o]),
+                Style::Dashed,
+            )
+            .with_role(Role::Nominal),
+            Series::new(
+                "refitted model",
+                tw.clone(),
+                residual(&d.simulated[o]),
                 Style::Line,
             )
-            .with_role(Role::Extended),
-        );
+            .with_role(if d.simulated_extended.is_some() {
+                Role::Refitted
+            } else {
+                Role::Extended
+            }),
+        ];
+        if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
+            panel.series.push(
+                Series::new(
+                    format!("with {}", c.effect),
+                    tw,
+                    residual(&ext[o]),
+                    Style::Line,
+                )
+                .with_role(Role::Extended),
+            );
+        }
+        panels.push(panel);
     }
-    let fig = stacked_figure(
-        format!("{}: what the nominal model gets wrong, in time", s.name),
-        vec![top, bottom],
-    );
-    plots::write(out, "residual_time", &fig)?;
-
-    let (w0, a0) = amplitude_spectrum(&r0, record.dt());
-    let (w1, a1) = amplitude_spectrum(&r1, record.dt());
-    let mut panel = spectrum_panel(
-        "residual spectrum (held-out data)",
-        &w0,
-        [("nominal", a0)],
-        SpectrumScale::LogLog,
-    );
-    if !w1.is_empty() {
-        panel
-            .series
-            .push(Series::new(ext_label.clone(), w1, a1, Style::Line));
-    }
-    let fig = stacked_figure(format!("{}: residual spectrum", s.name), vec![panel]);
-    plots::write(out, "residual_spectrum", &fig)?;
-
-    // Period-averaged orbit: measured against both models, folded over the forcing period
-    // when one is known, else the measured against simulated position over a short window.
-    let orbit = s.params.forcing_amplitude.abs() > 0.0;
-    let fig = if orbit {
-        let period = s.params.period;
-        // The held-out samples where both models were simulated, folded over the period.
-        let held: Vec<usize> = report
-            .validation_ranges
+    // Several effects named: all of them in the title.
+    let named = if d.causes.len() > 1 {
+        d.causes
             .iter()
-            .flat_map(|r| r.clone())
-            .filter(|&i| {
-                report.nominal_output[i].is_finite() && report.extended_output[i].is_finite()
-            })
-            .collect();
-        let t: Vec<f64> = held.iter().map(|&i| record.time()[i]).collect();
-        let fold = |y: &[f64]| -> Vec<htfid_diagnose::Bin> {
-            let v: Vec<f64> = held.iter().map(|&i| y[i]).collect();
-            evidence::fold_sampled(&t, &v, period, record.dt())
-        };
-        let folded = [
-            fold(record.output()),
-            fold(&report.nominal_output),
-            fold(&report.extended_output),
-        ];
-        let phase: Vec<f64> = folded[0].iter().map(|b| b.centre).collect();
-        // Each model's mean on the measured one's bins.
-        let col = |j: usize| -> Vec<f64> { evidence::means_on(&folded[0], &folded[j]) };
-        let (measured, nom, ext) = (col(0), col(1), col(2));
-        let mut p = Panel::new(
-            "period-averaged orbit (held-out data)",
-            "phase (s)",
-            output_label(s),
-        );
-        p.series = vec![
-            Series::new("measured", phase.clone(), measured.clone(), Style::Markers),
-            Series::new("nominal", phase.clone(), nom.clone(), Style::Line),
-        ];
-        let diff =
-            |m: &[f64]| -> Vec<f64> { m.iter().zip(&measured).map(|(a, b)| a - b).collect() };
-        let mut q = Panel::new(
-            "model - measured, period-averaged",
-            "phase (s)",
-            residual_label(s).replace("residual", "difference"),
-        );
-        q.series = vec![
-            Series::new("nominal", phase.clone(), diff(&nom), Style::Line),
-            Series::new(ext_label.clone(), phase, diff(&ext), Style::Dashed),
-        ];
-        grid_figure(format!("{}: the orbit", s.name), vec![p, q], 2)
-    } else {
-        let r = report
-            .validation_ranges
-            .first()
-            .cloned()
-            .unwrap_or(0..record.len());
-        let burn = (report.burn_in_s / record.dt()).ceil() as usize;
-        let a = (r.start + burn).min(r.end);
-        let b = (a + (1.0 / record.dt()) as usize).min(r.end);
-        let tt = record.time()[a..b].to_vec();
-        let panel = time_panel(
-            "one second of held-out data",
-            &output_label(s),
-            &tt,
-            [
-                ("measured", record.output()[a..b].to_vec()),
-                ("nominal", report.nominal_output[a..b].to_vec()),
-                (ext_label.as_str(), report.extended_output[a..b].to_vec()),
-            ],
-        );
-        stacked_figure(
-            format!("{}: measured against simulated", s.name),
-            vec![panel],
-        )
-    };
-    plots::write(out, "orbit", &fig)?;
-    Ok(Figures { orbit, htf: None })
-}
-
-/// A parameter as `value ± stderr unit`, to the precision its standard error allows; the
-/// hopper's units only when the record is the hopper's own `x` and `f`.
-fn param_text(s: &DiagnoseSettings, name: &str, v: f64, se: f64) -> String {
-    use htfid_number::{sig as num, Quantity};
-    // In a diagnosis `g` is the sensor's gain (gravity is never refitted) and `b` its offset.
-    let unit = match name {
-        _ if htf_unit(s).is_none() => None,
-        "g" => None,
-        "b" => Some("m"),
-        "tau_s" => Some("s"),
-        "input_offset" => Some("N"),
-        _ => crate::results::hopper_unit(name),
-    };
-    if se.is_finite() {
-        format!("`{name}` = {}", Quantity::new(v).stderr(se).unit(unit))
-    } else {
-        let unit = unit.map_or(String::new(), |u| format!(" {u}"));
-        format!("`{name}` = {}{unit} (no standard error)", num(v, 4))
-    }
-}
-
-fn fmt_params(
-    s: &DiagnoseSettings,
-    p: &std::collections::BTreeMap<String, f64>,
-    se: &std::collections::BTreeMap<String, f64>,
-) -> String {
-    p.iter()
-        .map(|(k, v)| param_text(s, k, *v, se.get(k).copied().unwrap_or(f64::NAN)))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-/// A table cell: `v` with 4 significant digits, or a dash when it is not a number.
-fn cell(v: f64) -> String {
-    if v.is_finite() {
-        htfid_number::sig(v, 4)
-    } else {
-        "–".to_string()
-    }
-}
-
-/// A fraction as a percentage cell.
-fn pct_cell(v: f64) -> String {
-    if v.is_finite() {
-        format!("{} %", htfid_number::sig(100.0 * v, 4))
-    } else {
-        "–".to_string()
-    }
-}
-
-/// The verdict of a diagnosis with several causes: the cause first (what the nominal model
-/// lacks most), the other effects beside it, a refit of the configured parameters apart, then
-/// every share of the explained error.
-fn several_causes(d: &htfid_diagnose::Diagnosis, cause: &str) -> String {
-    let quoted = |names: Vec<&str>| {
-        names
-            .iter()
-            .map(|n| format!("`{n}`"))
+            .map(|c| c.effect.as_str())
             .collect::<Vec<_>>()
-            .join(" and ")
+            .join(" + ")
+    } else {
+        d.cause.name().to_string()
     };
-    let beside: Vec<&str> = d
-        .causes
+    let fig = stacked_figure(format!("{}: {named}", s.name), panels);
+    crate::plots::write(&mut outdir, "compare", &fig)?;
+    if let Some(fig) = crate::validation::resid_figure(
+        &format!(
+            "{}: residual analysis of the refitted model (held-out data)",
+            s.name
+        ),
+        &checks.iter().collect::<Vec<_>>(),
+        &s.input,
+        dt,
+    ) {
+        crate::plots::write(&mut outdir, "resid", &fig)?;
+    }
+    super::diagnose_evidence::draw(&mut outdir, &s, &d, &steps, shown, held_out.clone())?;
+    if let Some(Ok(cmp)) = &htf {
+        super::diagnose_evidence::draw_htf(&mut outdir, &s, &d, cmp)?;
+    }
+    let written = outdir.commit()?;
+    let unit = |name: &str| parameter_unit(&s, name);
+    crate::results::diagnose(&json, &unit, &dir, &written);
+    Ok(())
+}
+
+/// The parameters of the candidate `parameter_error` (`diagnose.parameter_error`) as the
+/// final fit holds them: each from its configured value, with its standard error and by how
+/// many standard errors it moved.
+fn suspect_list(
+    d: &ModelDiagnosis,
+    s: &ModelDiagnoseSettings,
+    unit: &dyn Fn(&str) -> Option<String>,
+) -> String {
+    let Some(c) = &d.extended else {
+        return String::new();
+    };
+    let values = s.model.values();
+    let (mut moved, mut kept) = (Vec::new(), Vec::new());
+    for name in &s.options.parameter_error {
+        let (Some(i), Some(&v), Some(&se)) = (
+            s.model.parameter_index(name),
+            c.parameters.get(name),
+            c.stderr.get(name),
+        ) else {
+            continue;
+        };
+        let z = (v - values[i]) / se;
+        if z.abs() >= s.options.significance_sigma {
+            moved.push(format!(
+                "`{name}` moves from {} to {} ({} standard errors)",
+                sig(values[i], 4),
+                Quantity::new(v).stderr(se).unit(unit(name).as_deref()),
+                sig(z.abs(), 2)
+            ));
+        } else {
+            kept.push(format!("`{name}`"));
+        }
+    }
+    let mut out = moved.join(", ");
+    if !kept.is_empty() {
+        out.push_str(&format!(
+            "{}{} {} within {} standard errors of {} configured value{}",
+            if out.is_empty() { "" } else { "; " },
+            kept.join(" and "),
+            if kept.len() == 1 { "stays" } else { "stay" },
+            sig(s.options.significance_sigma, 2),
+            if kept.len() == 1 { "its" } else { "their" },
+            if kept.len() == 1 { "" } else { "s" },
+        ));
+    }
+    out
+}
+
+/// The free parameters beside the named effects, when some moved: a parameter error when
+/// setting them back costs held-out accuracy, else a note; and any the stiffness law's
+/// linear part moved. Empty when none moved.
+fn beside_sentence(
+    d: &ModelDiagnosis,
+    min_gain: f64,
+    unit: &dyn Fn(&str) -> Option<String>,
+) -> String {
+    let Some(p) = &d.parameters_beside else {
+        return String::new();
+    };
+    let list = |changes: &[htfid_diagnose::ParameterChange]| {
+        changes
+            .iter()
+            .map(|c| {
+                format!(
+                    "`{}` to {} (configured {}, {} standard errors)",
+                    c.name,
+                    Quantity::new(c.fitted)
+                        .stderr(c.stderr)
+                        .unit(unit(&c.name).as_deref()),
+                    sig(c.configured, 4),
+                    sig(c.z.abs(), 2)
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut out = String::new();
+    if !p.moved.is_empty() {
+        out.push_str(&if p.named {
+            format!(
+                " **The configured parameters are off as well** (`parameter_error`): beside \
+                 the effects the fit moves {}; set back, the held-out NRMSE rises from {} to \
+                 {} ({} lower with them as fitted).",
+                list(&p.moved),
+                percent(
+                    d.extended.as_ref().map_or(f64::NAN, |c| c.nrmse_validation),
+                    3
+                ),
+                percent(p.nrmse_reset, 3),
+                percent(p.gain, 3)
+            )
+        } else {
+            format!(
+                " Beside the effects the fit moves {}, but setting them back costs only {} of \
+                 the held-out NRMSE (under {}): not a finding.",
+                list(&p.moved),
+                percent(p.gain, 3),
+                percent(min_gain, 2)
+            )
+        });
+    }
+    if !p.excused.is_empty() {
+        out.push_str(&format!(
+            " The stiffness law leaves its linear part to the model, which moves {}: that is \
+             the law's slope about the motion's mean, not an error of the configured value.",
+            list(&p.excused)
+        ));
+    }
+    out
+}
+
+/// The model's parameters a diagnosis holds at their configured values (not in `free`), as
+/// advice: one of them may be what is off, which no effect of the library stands in for.
+fn held_parameters(s: &ModelDiagnoseSettings) -> String {
+    let held: Vec<String> = s
+        .model
+        .parameters()
         .iter()
-        .map(|c| c.effect.as_str())
-        .filter(|&e| e != cause && e != "parameter_error")
+        .filter(|p| !s.options.free.contains(&p.name))
+        .map(|p| format!("`{}`", p.name))
         .collect();
-    let mut v = format!("**Cause: `{cause}`**");
-    if !beside.is_empty() {
-        v += &format!(", with {}", quoted(beside));
+    if held.is_empty() {
+        String::new()
+    } else {
+        format!(
+            ", or free more of the model's parameters (`[model] free`; held at their configured \
+             values now: {}): one of them may be what is off",
+            held.join(", ")
+        )
     }
-    if cause != "parameter_error" && d.causes.iter().any(|c| c.effect == "parameter_error") {
-        v += "; the configured parameters are off as well (`parameter_error`)";
+}
+
+/// The unit of a fitted parameter: the model's own parameters as declared (a term's are not
+/// declared); on the boundary, a delay or a lag in s, an input offset in the input's unit and a sensor offset
+/// `b_<output>` in that output's (the data's `data.units`, else the model's).
+fn parameter_unit(s: &ModelDiagnoseSettings, name: &str) -> Option<String> {
+    if s.model.parameter_index(name).is_some() {
+        return s.model.parameter_unit(name).map(str::to_string);
     }
-    v += &format!(
-        ". Together they lower the held-out simulation error by {} % against the refitted \
-         nominal model. Shares of the error they explain, from the configured model to the \
-         final one: {}; each step is in `error_waterfall.png`.",
-        htfid_number::sig(100.0 * d.gain, 4),
-        causes_text(d)
-    );
-    let has = |e: &str| d.causes.iter().any(|c| c.effect == e);
-    if has("cubic_stiffness") && has("sensor_offset_gain") {
-        v += " A cubic spring beside a sensor offset is the same model as an asymmetric spring \
-              (a quadratic term beside the cubic one) with the sensor's zero right: the record \
-              cannot tell them apart, and a reading of the sensor at rest separates them (see \
-              the evidence).";
+    let output = |output: &str| {
+        let o = s.outputs.iter().position(|n| n == output)?;
+        s.output_unit(o)
+    };
+    boundary_unit(name, s.input_unit(), output)
+}
+
+/// The unit of a boundary effect's parameter `name`: `delay`, `tau`, `tau_s` in s,
+/// `input_offset` in the input's unit, `b_<output>` in that output's. A boundary parameter
+/// whose name a model parameter holds takes the next free one (`tau_2`), so a name that is
+/// none of these is read again without a trailing `_<number>`.
+fn boundary_unit<'a>(
+    name: &str,
+    input: Option<&'a str>,
+    output: impl Fn(&str) -> Option<&'a str>,
+) -> Option<String> {
+    let exact = |name: &str| match name {
+        "delay" | "tau" | "tau_s" => Some("s".to_string()),
+        "input_offset" => input.map(str::to_string),
+        _ => output(name.strip_prefix("b_")?).map(str::to_string),
+    };
+    exact(name).or_else(|| {
+        let (base, number) = name.rsplit_once('_')?;
+        let renamed = !number.is_empty() && number.bytes().all(|b| b.is_ascii_digit());
+        renamed.then(|| exact(base)).flatten()
+    })
+}
+
+/// The configured and the refitted simulation of output `o`, the refitted last.
+fn models_of(d: &ModelDiagnosis, o: usize) -> Vec<crate::validation::Simulated<'_>> {
+    vec![
+        crate::validation::Simulated {
+            label: "configured model".into(),
+            role: Role::Nominal,
+            style: Style::Dashed,
+            y: &d.simulated_configured[o],
+        },
+        crate::validation::Simulated {
+            label: "refitted model".into(),
+            role: Role::Extended,
+            style: Style::Line,
+            y: &d.simulated[o],
+        },
+    ]
+}
+
+/// The models shown for output `o`: the configured and the refitted one, and the model with
+/// the chosen effects when some are named (the refitted one then in its own colour).
+pub(super) fn models_shown(d: &ModelDiagnosis, o: usize) -> Vec<crate::validation::Simulated<'_>> {
+    let mut models = models_of(d, o);
+    if let (Some(ext), Some(c)) = (&d.simulated_extended, &d.extended) {
+        models[1].role = Role::Refitted;
+        models.push(crate::validation::Simulated {
+            label: format!("with {}", c.effect),
+            role: Role::Extended,
+            style: Style::Line,
+            y: &ext[o],
+        });
     }
-    if let Some(w) = &d.held_out_on_windows {
-        v += &format!(
-            " A switching threshold among the speed's extremes decides, period by period, \
-             whether the damper switches, and that decides the motion after it: the whole \
-             held-out simulation parts from the data however right the threshold, so the \
-             effects were judged on held-out windows of two natural periods, each simulated \
-             from the data's smoothed state. There they lower the error by {} % (RMSE {} \
-             against the refitted nominal's {}).",
-            htfid_number::sig(100.0 * w.gain, 4),
-            htfid_number::sig(w.extended_rmse, 4),
-            htfid_number::sig(w.nominal_rmse, 4)
+    models
+}
+
+/// The record in `file`, or its `rows` (configured at `key`) when given.
+fn read_rows(
+    s: &ModelDiagnoseSettings,
+    file: &std::path::Path,
+    rows: Option<std::ops::Range<usize>>,
+    key: &str,
+) -> Result<TimeSeries> {
+    let record = read_model_record(s, file)?;
+    let Some(rows) = rows else {
+        return Ok(record);
+    };
+    if rows.end > record.len() {
+        anyhow::bail!(
+            "{}: {key}: [{}, {}) reaches past the end of \"{}\", which has {} samples",
+            s.path.display(),
+            rows.start,
+            rows.end,
+            file.display(),
+            record.len()
         );
+    }
+    Ok(record.slice(rows)?)
+}
+
+/// The record with one column per model output, each read from `file`.
+fn read_model_record(s: &ModelDiagnoseSettings, file: &std::path::Path) -> Result<TimeSeries> {
+    let mut parts = Vec::with_capacity(s.outputs.len());
+    for column in &s.outputs {
+        let columns = Columns {
+            input: &s.input,
+            output: column,
+            time: s.time.as_deref(),
+            sample_rate: s.sample_rate,
+            time_tolerance: s.time_tolerance,
+            format: &s.format,
+        };
+        let series = read_record(&s.path, file, columns)?;
+        if parts.is_empty() {
+            check_time_scale(s, &series)?;
+        }
+        parts.push(series);
+    }
+    Ok(TimeSeries::join_outputs(parts)?)
+}
+
+/// Refuses a record the model's forcing period says is in the wrong time unit, or one whose
+/// simulation cannot finish under the integrator's step cap (each fit simulates the whole
+/// record many times). A model without forcing has no period to compare with.
+fn check_time_scale(s: &ModelDiagnoseSettings, series: &TimeSeries) -> Result<()> {
+    let Some(period) = s.model.period() else {
+        return Ok(());
+    };
+    let what = format!("the forcing period of model `{}`", s.model.name());
+    let hint = crate::records::unit_hint(s.sample_rate);
+    crate::records::check_time_scale(
+        &s.path,
+        series.dt(),
+        series.len(),
+        crate::records::TimeScale {
+            period,
+            what: &what,
+        },
+        hint,
+    )?;
+    let duration = series.dt() * series.len().saturating_sub(1) as f64;
+    let steps = htfid_hybrid::min_steps(duration, period);
+    let cap = htfid_hybrid::Options::default().max_steps;
+    if steps > cap as f64 {
+        anyhow::bail!(
+            "{}: the record lasts {} s, {} forcing periods of model `{}`: one simulation of it \
+             needs at least {} integration steps (limit {cap}): {hint}, or shorten the record",
+            s.path.display(),
+            crate::limits::approx(duration),
+            crate::limits::approx(duration / period),
+            s.model.name(),
+            crate::limits::approx(steps)
+        );
+    }
+    Ok(())
+}
+
+/// `report.md`: the decision in one paragraph, then the errors, the parameters, the
+/// validation (`checks`, one per output).
+fn report(
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    checks: &[crate::validation::OutputValidation],
+    checks_final: Option<&[crate::validation::OutputValidation]>,
+    htf: Option<&Result<Vec<htfid_diagnose::EstimatedComparison>, htfid_diagnose::DiagnoseError>>,
+) -> String {
+    let mut r = Report::new(&format!("Diagnosis: {}", s.name));
+    r.para(&decision(s, d, checks, checks_final));
+    notes(&mut r, s, d);
+    data_section(&mut r, s);
+    effects_sections(&mut r, s, d);
+    errors_and_parameters(&mut r, s, d, checks, checks_final);
+    figures_section(&mut r, s, d, htf);
+    r.finish()
+}
+
+/// Where an effect without a term acts: the candidate `parameter_error` (alone or in a set) on
+/// the model's own parameters, any other on its boundary.
+fn where_boundary(effect: &str) -> String {
+    if effect.split(" + ").any(|e| e == "parameter_error") {
+        "the model's own parameters".into()
+    } else {
+        "on the boundary".into()
+    }
+}
+
+/// The evidence figures (beside `compare` and `resid`, shown with the validation), each with
+/// what it shows.
+fn figures_section(
+    r: &mut Report,
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    htf: Option<&Result<Vec<htfid_diagnose::EstimatedComparison>, htfid_diagnose::DiagnoseError>>,
+) {
+    r.section("Where the error sits");
+    r.figure(
+        "residual_time.png",
+        "The held-out residual in time: its RMS per forcing period, and the first periods",
+    );
+    r.figure(
+        "residual_spectrum.png",
+        "Where in frequency the held-out residual sits",
+    );
+    if s.model.period().is_some() {
+        r.figure(
+            "orbit.png",
+            "The orbit folded over the forcing period, with ±2 standard errors across the periods",
+        );
+    }
+    if super::diagnose_evidence::bins_drawn(d) {
+        let words = super::diagnose_evidence::bins_words(s, d);
+        if !words.is_empty() {
+            r.para(&words.join(" "));
+        }
+        r.figure(
+            "residual_bins.png",
+            "The residual acceleration against position, velocity and forcing phase, with ±2 \
+             standard errors of each bin's mean",
+        );
+    }
+    match htf {
+        Some(Ok(cmp)) => {
+            r.para(&super::diagnose_evidence::htf_words(s, d, cmp));
+            r.figure(
+                "htf_data.png",
+                "The HTFs estimated from the held-out data, ±2 standard errors, against the \
+                 models' (the same estimator on their simulations)",
+            );
+            r.figure(
+                "htf_difference.png",
+                "Per harmonic, the data's HTF minus each model's, against the estimate's noise",
+            );
+        }
+        Some(Err(e)) => {
+            // The error reads "the data's HTFs cannot be compared with the models': ...".
+            let text = e.to_string();
+            let mut chars = text.chars();
+            let first = chars.next().map(|c| c.to_uppercase().to_string());
+            r.para(&format!("{}{}.", first.unwrap_or_default(), chars.as_str()));
+        }
+        None => {}
+    }
+    r.figure(
+        "error_waterfall.png",
+        "The held-out NRMSE from the configured to the final model, step by step",
+    );
+}
+
+/// The extended fit as in `diagnosis.json`: the candidate, with its held-out NRMSE also as
+/// `nrmse` (as `nominal.nrmse`).
+fn extended_json(d: &ModelDiagnosis) -> serde_json::Value {
+    let mut v = serde_json::to_value(&d.extended).unwrap_or(serde_json::Value::Null);
+    if let (Some(o), Some(c)) = (v.as_object_mut(), &d.extended) {
+        o.insert("nrmse".into(), json!(c.nrmse_validation));
     }
     v
 }
 
-/// The causes with their shares, strongest first.
-fn causes_text(d: &htfid_diagnose::Diagnosis) -> String {
-    d.causes
+/// The decision in words, and whether the refitted model's residual is white.
+fn decision(
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    checks: &[crate::validation::OutputValidation],
+    checks_final: Option<&[crate::validation::OutputValidation]>,
+) -> String {
+    let model = s.model.name();
+    let unit = |name: &str| parameter_unit(s, name);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let (before, after) = (
+        mean(&d.configured.nrmse_validation),
+        mean(&d.refitted.nrmse_validation),
+    );
+    let moved: Vec<String> = d
+        .refit_parameters
         .iter()
-        .map(|c| {
+        .filter(|p| p.z.abs() >= s.options.significance_sigma)
+        .map(|p| {
+            let u = unit(&p.name);
             format!(
-                "`{}` {} %",
-                c.effect,
-                htfid_number::sig(100.0 * c.gain_share, 3)
+                "`{}` from {} to {} ({} standard errors)",
+                p.name,
+                Quantity::new(p.configured).unit(u.as_deref()),
+                Quantity::new(p.fitted).stderr(p.stderr).unit(u.as_deref()),
+                sig(p.z.abs(), 2)
             )
         })
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-/// A held-out residual at least this multiple of the noise floor is more than noise: three
-/// quarters of its mean square or more are not.
-const LEFT_OVER_RATIO: f64 = 2.0;
-
-/// Beside a named cause, a sentence on a residual still well above the noise floor though
-/// below `unexplained_ratio` (where it would count as clear structure): a smaller effect may be
-/// missing, and the headline says so.
-fn left_over(s: &DiagnoseSettings, report: &DiagnosisReport) -> Option<String> {
-    let d = &report.diagnosis;
-    if matches!(
-        d.cause.as_str(),
-        "none" | "unexplained" | "ambiguous" | "model_mismatch"
-    ) {
-        return None;
-    }
-    let floor = report.noise_floor.filter(|f| f.is_finite() && *f > 0.0)?;
-    let ratio = d.extended.rmse / floor;
-    (ratio >= LEFT_OVER_RATIO).then(|| {
-        let limit = s
-            .thresholds
-            .unexplained_ratio
-            .unwrap_or(DiagnoseOptions::default().unexplained_ratio);
-        format!(
-            " The extended model's held-out residual is still {} times the noise floor: below \
-             `unexplained_ratio` ({limit}), where it would count as clear structure, but more \
-             than noise ({} % of its mean square or more is not), so a smaller effect may be \
-             missing (the whiteness test below says whether the residual is still correlated).",
-            htfid_number::sig(ratio, 3),
-            htfid_number::sig(100.0 * (1.0 - 1.0 / (ratio * ratio)), 2)
-        )
-    })
-}
-
-#[allow(clippy::too_many_arguments)] // reason: the report reads every result of the run
-fn report_md(
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-    tests: &[Value],
-    figures: &Figures,
-    ev: &evidence::Evidence,
-    htf: &[HarmonicDifference],
-) -> String {
-    use htfid_number::sig as num;
-    let d = &report.diagnosis;
-    let unit = evidence::output_unit(s).unwrap_or_else(|| "output units".into());
-    let mut m = String::new();
-    let _ = writeln!(m, "# Diagnosis: {}\n", s.name);
-    let verdict = match d.cause.as_str() {
-        "none" => "**No effect found**: the nominal model explains the data down to the noise.".to_string(),
-        "unexplained" if d.causes.is_empty() => "**Unexplained**: the nominal model leaves clear structure in the residual that no candidate effect in the library explains with confidence.".to_string(),
-        "unexplained" => format!("**Unexplained**: the library effects found ({}: their shares of the error they explain) lower the held-out simulation error by {} %, but clear structure remains that they do not explain.", causes_text(d), num(100.0 * d.gain, 4)),
-        "ambiguous" => format!("**Ambiguous**: {} explain the data equally well; the data cannot tell them apart (see the evidence for the experiment that would).", d.alternatives.iter().map(|a| format!("`{a}`")).collect::<Vec<_>>().join(" and ")),
-        "model_mismatch" => format!("**Model mismatch**: the nominal model does not describe these data at all, so no effect is named. Likely reasons: {}", d.mismatch.join("; ")),
-        c if d.causes.len() > 1 => several_causes(d, c),
-        c => format!("**Cause: `{c}`.** The extended model lowers the held-out simulation error by {} %.", num(100.0 * d.gain, 4)),
-    };
-    let _ = writeln!(m, "{verdict}{}\n", left_over(s, report).unwrap_or_default());
-    let _ = writeln!(
-        m,
-        "{}\n",
-        evidence::summary(s, report, ev, htf, &|k, v, e| param_text(s, k, v, e))
-    );
-    if let Some(found) = &d.discovered {
-        // A hint beside the verdict, never a cause: the library did not hold this term.
-        let _ = writeln!(
-            m,
-            "**Outside the library**, a term search on the residual of {} proposes the extra force `{}` N (`x_eq` = {} m{}): added to it, it lowers the held-out RMSE from {} to {} {unit} (gain {} %). Coefficients with standard errors: {}.\n",
-            if found.read_from == "nominal" {
-                "the refitted nominal model (beside the selected effects, which partly mimic it, no formula held up)"
-            } else {
-                "the final model"
-            },
-            found.formula,
-            num(found.x_eq, 4),
-            if found.period > 0.0 { format!(", `T` = {} s", num(found.period, 4)) } else { String::new() },
-            num(found.rmse_before, 4),
-            num(found.rmse_after, 4),
-            num(100.0 * found.gain, 4),
-            found
-                .terms
+        .collect();
+    let mut decision = match &d.cause {
+        // The candidate `parameter_error` chosen first: its own fit.
+        ModelCause::ParameterError if d.extended.is_some() => {
+            let c = d.extended.as_ref();
+            let others: Vec<String> = d
+                .causes
                 .iter()
-                .map(|t| format!("`{}` {} ± {}", t.term, num(t.coefficient, 4), num(t.stderr, 3)))
+                .filter(|c| c.effect != "parameter_error")
+                .map(|c| format!("`{}`", c.effect))
+                .collect();
+            format!(
+                "**The configured parameters of model `{model}` are off.** Refitted as the \
+                 candidate `parameter_error`, {}; the held-out error falls from {} to {} \
+                 NRMSE (likelihood ratio {:.1}, at least {:.1} needed).{}",
+                suspect_list(d, s, &unit),
+                percent(after, 3),
+                percent(c.map_or(f64::NAN, |c| c.nrmse_validation), 3),
+                c.map_or(f64::NAN, |c| c.likelihood_ratio),
+                c.map_or(f64::NAN, |c| c.critical),
+                if others.is_empty() {
+                    String::new()
+                } else {
+                    format!(" Beside it the model misses {}.", others.join(" and "))
+                }
+            )
+        }
+        ModelCause::ParameterError => format!(
+            "**The configured parameters of model `{model}` are off.** Refitting them moves {}, \
+             and lowers the error on held-out data from {} to {} NRMSE, {} less.",
+            moved.join(", "),
+            percent(before, 3),
+            percent(after, 3),
+            percent(d.refit_gain, 3)
+        ),
+        ModelCause::Effect(e) => {
+            let c = d.extended.as_ref();
+            // Where an effect acts, from its own first-round fit.
+            let site = |name: &str| match d
+                .candidates
+                .iter()
+                .find(|c| c.effect == name)
+                .and_then(|c| c.term.as_ref())
+            {
+                Some(term) => format!("in its equations ({term})"),
+                None => "on its boundary".to_string(),
+            };
+            let fitted = c
+                .map(|c| {
+                    c.parameters
+                        .iter()
+                        // The free parameters, and the candidate parameter_error's (their
+                        // own sentence), are not the effects'.
+                        .filter(|(k, _)| {
+                            !s.options.free.contains(k) && !s.options.parameter_error.contains(k)
+                        })
+                        .map(|(k, v)| {
+                            format!(
+                                "{k} = {}",
+                                Quantity::new(*v)
+                                    .stderr(c.stderr.get(k).copied().unwrap_or(f64::NAN))
+                                    .unit(unit(k).as_deref())
+                            )
+                        })
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                })
+                .unwrap_or_default();
+            let overall = 1.0 - c.map_or(f64::NAN, |c| c.nrmse_validation) / after;
+            let baseline = if s.options.free.is_empty() {
+                "the model as configured"
+            } else {
+                "the refit of the free parameters"
+            };
+            // The effects named, in the order chosen (a parameter error has its own sentence).
+            let effects: Vec<&str> = d
+                .chosen()
+                .into_iter()
+                .filter(|n| *n != "parameter_error")
+                .collect();
+            let text = match effects.as_slice() {
+                [.., last] if effects.len() >= 2 => {
+                    let named: Vec<String> = effects
+                        .iter()
+                        .map(|n| format!("`{n}` {}", site(n)))
+                        .collect();
+                    let before: Vec<String> = effects[..effects.len() - 1]
+                        .iter()
+                        .map(|n| format!("`{n}`"))
+                        .collect();
+                    let count = match effects.len() {
+                        2 => "two".to_string(),
+                        3 => "three".to_string(),
+                        k => k.to_string(),
+                    };
+                    // The last effect's test beside those before it: the fit of these
+                    // effects alone (beside a parameter error the final fit has one more).
+                    let set = effects.join(" + ");
+                    let own = d
+                        .pairs
+                        .iter()
+                        .chain(d.later_rounds.iter().flatten())
+                        .find(|c| c.effect == set)
+                        .or(c);
+                    format!(
+                        "The configured model `{model}` misses {count} effects: {} and {}. \
+                         Fitted together ({fitted}), they lower the held-out error by {:.1} % \
+                         beyond {baseline}; beside {}, `{last}` passes \
+                         with a likelihood ratio of {:.1} (at least {:.1} needed) and lowers \
+                         the held-out error by a further {:.1} %.",
+                        named[..named.len() - 1].join(", "),
+                        named[named.len() - 1],
+                        100.0 * overall,
+                        before.join(" and "),
+                        own.map_or(f64::NAN, |c| c.likelihood_ratio),
+                        own.map_or(f64::NAN, |c| c.critical),
+                        100.0 * own.map_or(f64::NAN, |c| c.gain),
+                    )
+                }
+                _ => {
+                    // The effect's own test against the refit (beside a parameter error the
+                    // final fit is the pair's).
+                    let own = d.candidates.iter().find(|c| c.effect == *e).or(c);
+                    format!(
+                        "The configured model `{model}` misses an effect {}: `{e}` ({fitted}) \
+                         lowers the held-out error by {:.1} % beyond {baseline} (likelihood \
+                         ratio {:.1}, at least {:.1} needed).",
+                        site(e),
+                        100.0 * own.map_or(f64::NAN, |c| c.gain),
+                        own.map_or(f64::NAN, |c| c.likelihood_ratio),
+                        own.map_or(f64::NAN, |c| c.critical)
+                    )
+                }
+            };
+            let suspects = if d.causes.iter().any(|c| c.effect == "parameter_error")
+                && !d.parameters_beside.as_ref().is_some_and(|p| p.named)
+            {
+                format!(
+                    " **The configured parameters are off as well** (the candidate \
+                     `parameter_error`, fitted with them): {}.",
+                    suspect_list(d, s, &unit)
+                )
+            } else {
+                String::new()
+            };
+            text + &suspects + &beside_sentence(d, s.options.min_gain, &unit)
+        }
+        ModelCause::Ambiguous => format!(
+            "**Several effects explain the data of `{}` equally well:** {}. \
+             The data cannot tell them apart; to do so, {}.",
+            s.model.name(),
+            d.alternatives
+                .iter()
+                .map(|a| format!("`{a}`"))
                 .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
-    let _ = writeln!(
-        m,
-        "Data: `{}`, {} samples at {} Hz. Fitted on samples {:?}, judged on held-out samples {:?} (the first {} s of each range are a burn-in, simulated but not scored).\n",
-        evidence::shown_path(&s.data.file),
-        record.len(),
-        num(1.0 / record.dt(), 6),
-        report.fit_ranges,
-        report.validation_ranges,
-        num(report.burn_in_s, 3)
-    );
-    let _ = writeln!(m, "## 1. What the nominal model gets wrong\n");
-    let _ = writeln!(
-        m,
-        "The nominal model ({}) with {} refitted: held-out NRMSE **{}** (RMSE {} {unit}); the noise floor of the residual is {}{}.\n",
-        match s.damper {
-            htfid_model::DamperLaw::Switching => "the switching hopper",
-            htfid_model::DamperLaw::AlwaysOn => "a linear spring-mass-damper",
-        },
-        s.free.join(", "),
-        pct_cell(d.nominal.nrmse),
-        cell(d.nominal.rmse),
-        report
-            .noise_floor
-            .map_or("not estimable (ranges too short)".into(), |v| format!("{} {unit}", num(v, 4))),
-        report.input_noise.map_or(String::new(), |i| format!(
-            ", of which {} {unit} is the model's response to the noise on the measured {inp} (its spectrum in the same band is that of white noise of {}{in_unit} RMS, and the simulation is driven by the measured {inp})",
-            num(i.propagated, 3),
-            num(i.sigma, 3),
-            inp = s.data.input,
-            in_unit = s.data.format.unit(&s.data.input).map_or(String::new(), |u| format!(" {u}")),
-        ))
-    );
-    let _ = writeln!(
-        m,
-        "Where the residual sits: the residual acceleration (the acceleration of the measured {out}, from five-point differences, minus the model's acceleration at the measured {out} and velocity driven by the measured {inp}, smoothed as the screening's Savitzky-Golay filter smooths an acceleration) on the held-out data, averaged in bins of {phase}. Each band is ±2 standard errors of the bin mean, with blocks of {block} taken as independent: a mean whose band holds zero is noise. A missing force shows as a function of the state: a cubic spring against position, friction as a step at zero velocity, a damping the model lacks on one side of zero velocity as a change of slope there (the refitted parameters spread part of any missing force over both sides).\n",
-        out = s.data.output,
-        inp = s.data.input,
-        phase = if ev.nominal.by_phase.is_empty() { "position and velocity (no forcing period is configured, so no phase)" } else { "position, velocity and the forcing phase" },
-        block = ev.block_words,
-    );
-    if ev.nominal.by_position.is_empty() && ev.nominal.by_velocity.is_empty() {
-        let _ = writeln!(
-            m,
-            "The held-out data are too short to fill a bin: no `residual_bins.png`.\n"
-        );
+                .join(", "),
+            htfid_diagnose::separating_experiment(&d.alternatives)
+        ),
+        ModelCause::Unexplained => format!(
+            "Clear structure remains in the residual of `{}` that neither the refit nor any \
+             effect tried explains: the best model's held-out NRMSE {:.3} % stays above {} \
+             times the noise floor {:.3} %{}. Write the suspected effect as a term of the \
+             model's equations (`[[diagnose.terms]]`, see docs/config.md) and diagnose \
+             again{}.",
+            s.model.name(),
+            100.0
+                * d.extended
+                    .as_ref()
+                    .map_or(d.refitted.validation(), |c| c.nrmse_validation),
+            s.options.unexplained_ratio,
+            100.0 * d.noise_floor,
+            match &d.extended {
+                Some(c) => format!(
+                    ", and the best effect, `{}`, removes only {:.1} % of the error above it",
+                    c.effect,
+                    100.0 * d.explained
+                ),
+                None => String::new(),
+            },
+            held_parameters(s)
+        ),
+        ModelCause::None if s.options.free.is_empty() => format!(
+            "**The configured model `{model}` describes the data.** No candidate effect{} \
+             passes both tests against it: the held-out NRMSE is {} as configured.",
+            if s.options.parameter_error.is_empty() {
+                ""
+            } else {
+                ", the candidate `parameter_error` included,"
+            },
+            percent(before, 3)
+        ),
+        ModelCause::None => format!(
+            "**The configured model `{model}` describes the data.** A refit moves no parameter \
+             by {} standard errors or more while lowering the held-out error by at least {}: \
+             the held-out NRMSE is {} as configured and {} refitted.",
+            sig(s.options.significance_sigma, 2),
+            percent(s.options.min_gain, 2),
+            percent(before, 3),
+            percent(after, 3)
+        ),
+    };
+    let structured_in = |checks: &[crate::validation::OutputValidation]| -> Vec<String> {
+        checks
+            .iter()
+            .filter(|c| c.resid.as_ref().is_ok_and(|r| !r.whiteness.passed))
+            .map(|c| format!("`{}`", c.output))
+            .collect()
+    };
+    let structured: Vec<String> = structured_in(checks);
+    // Whose residual the validation above analyses: with nothing free, the model as
+    // configured (its initial state fitted).
+    let refit = !s.options.free.is_empty();
+    let analysed = if refit {
+        "refitted model's"
     } else {
-        let _ = writeln!(m, "![residual acceleration in bins](residual_bins.png)\n");
+        "configured model's"
+    };
+    // With an effect named, the residual a user keeps is the final model's.
+    if let (Some(fin), Some(c)) = (checks_final, &d.extended) {
+        let left = structured_in(fin);
+        decision.push_str(&if left.is_empty() {
+            format!(
+                " The final model's residual (with `{}`) is white: no structure is left for \
+                 an effect the model lacks.",
+                c.effect
+            )
+        } else {
+            format!(
+                " The final model's residual (with `{}`) in {} is not white: its held-out \
+                 NRMSE is {} times the noise floor{}.",
+                c.effect,
+                left.join(", "),
+                sig(c.nrmse_validation / d.noise_floor, 3),
+                if d.input_noise.is_some() {
+                    ", which holds the model's response to the noise on the measured input, \
+                     a filtered noise (see below)"
+                } else {
+                    ""
+                }
+            )
+        });
+        return decision;
     }
-    let _ = writeln!(
-        m,
-        "The residual in time: its RMS per block over all held-out data, and the residual itself over the first {} after the burn-in:\n",
-        evidence::window_words(s)
-    );
-    let _ = writeln!(m, "![residual in time](residual_time.png)\n");
-    let _ = writeln!(m, "![residual spectrum](residual_spectrum.png)\n");
-    if figures.orbit {
-        let _ = writeln!(
-            m,
-            "The measured orbit, averaged over the forcing period, against both models:\n"
-        );
+    if structured.is_empty() {
+        decision.push_str(&format!(
+            " The {} residual is white: no structure is left for an effect the model lacks.",
+            analysed
+        ));
+    } else if d.input_noise.is_some() && matches!(d.cause, ModelCause::None) {
+        // The response to the input's noise is filtered noise: not white, and not an effect.
+        decision.push_str(&format!(
+            " The {} residual in {} is not white, and need not be: its held-out \
+             NRMSE is {} times the noise floor, which holds the model's response to the noise \
+             on the measured input, a filtered noise (see below).",
+            analysed,
+            structured.join(", "),
+            sig(d.refitted.validation() / d.noise_floor, 3)
+        ));
     } else {
-        let _ = writeln!(m, "Measured against simulated position:\n");
-    }
-    let _ = writeln!(m, "![orbit](orbit.png)\n");
-    match &figures.htf {
-        Some(reason) if reason.is_empty() => {
-            let _ = writeln!(m, "Harmonic transfer functions estimated from the data (Siddiqi's estimator on the excited part of the record, deviations from the measured period-averaged orbit) against the exact theory of both models:\n");
-            let _ = writeln!(m, "![HTFs of the data](htf_data.png)\n");
-            let _ = writeln!(m, "The same per harmonic as a difference, measured minus each model's theory, over the estimate's noise (shaded up to 2 standard errors): a difference inside the shading is noise.\n");
-            let _ = writeln!(m, "| harmonic | frequency bins | outside the noise, nominal | outside the noise, extended |");
-            let _ = writeln!(m, "|---|---|---|---|");
-            for h in htf {
-                let _ = writeln!(
-                    m,
-                    "| `G_{}` | {} | {} | {} |",
-                    h.n,
-                    h.omega.len(),
-                    pct_cell(h.nominal_outside()),
-                    pct_cell(h.extended_outside())
-                );
+        let next = match (&d.cause, &d.extended) {
+            (ModelCause::Effect(_) | ModelCause::Ambiguous, Some(c)) => format!(
+                "the effects above account for it: `{}` removes {} of the error above the \
+                 noise floor.",
+                c.effect,
+                percent(d.explained, 3)
+            ),
+            // The candidate parameter_error chosen: the model's own parameters, held as
+            // configured in the refit, explain it.
+            (ModelCause::ParameterError, Some(c)) => format!(
+                "the refit held the suspected parameters as configured, and the candidate \
+                 `{}` removes {} of the error above the noise floor.",
+                c.effect,
+                percent(d.explained, 3)
+            ),
+            // The decision above already says what to do.
+            _ if matches!(d.cause, ModelCause::Unexplained) => {
+                "no effect tried accounts for it.".to_string()
             }
-            let _ = writeln!(m, "\n![HTF differences](htf_difference.png)\n");
-        }
-        Some(reason) => {
-            let _ = writeln!(m, "(No HTF figure: {reason}.)\n");
-        }
-        None => {}
-    }
-    let _ = writeln!(m, "## 2. The evidence\n");
-    for e in &d.evidence {
-        let _ = writeln!(m, "- {e}");
-    }
-    let _ = writeln!(
-        m,
-        "\nEvery candidate, best first (held-out NRMSE; BIC on the fit data, lower is better; – where the candidate was not fitted):\n"
-    );
-    let _ = writeln!(
-        m,
-        "| effect | parameters | held-out NRMSE | BIC | significant | note |"
-    );
-    let _ = writeln!(m, "|---|---|---|---|---|---|");
-    for c in &d.candidates {
-        let params = fmt_params(s, &c.parameters, &c.stderr);
-        let _ = writeln!(
-            m,
-            "| `{}` | {} | {} | {} | {} | {} |",
-            c.effect,
-            if params.is_empty() {
-                "–".to_string()
+            _ => "no effect tried accounts for it. Write the suspected effect as a term of \
+                  the model's equations (`[[diagnose.terms]]`) and diagnose again to measure \
+                  its gain."
+                .to_string(),
+        };
+        decision.push_str(&format!(
+            " The {} residual in {} is not white: structure remains{}; {next}",
+            analysed,
+            structured.join(", "),
+            if refit {
+                " that the model's own parameters cannot explain"
             } else {
-                params
-            },
-            pct_cell(c.nrmse_validation),
-            // BIC differences of a unit matter, its size does not: whole numbers.
-            if c.bic.is_finite() {
-                format!("{:.0}", c.bic).replace('-', "−")
-            } else {
-                "–".to_string()
-            },
-            if c.significant { "yes" } else { "no" },
-            c.note.replace('|', "/")
-        );
+                ""
+            }
+        ));
     }
-    let _ = writeln!(m, "\n## 3. The extended model\n");
-    let added = added_effects(d);
-    if added.is_empty() {
-        let _ = writeln!(
-            m,
-            "No effect is added; the extended model is the refitted nominal model: {}.\n",
-            fmt_params(s, &d.parameters, &d.stderr)
-        );
-    } else {
-        let names: Vec<String> = added.iter().map(|e| format!("`{e}`")).collect();
-        let _ = writeln!(
-            m,
-            "The nominal model plus {}: {}.\n",
-            names.join(" and "),
-            fmt_params(s, &d.parameters, &d.stderr)
-        );
-    }
-    let _ = writeln!(m, "## 4. The gain\n");
-    let _ = writeln!(m, "| model | held-out NRMSE | held-out RMSE ({unit}) |");
-    let _ = writeln!(m, "|---|---|---|");
-    if d.configured.rmse.is_finite() {
-        let _ = writeln!(
-            m,
-            "| configured | {} | {} |",
-            pct_cell(d.configured.nrmse),
-            cell(d.configured.rmse)
-        );
-    }
-    let _ = writeln!(
-        m,
-        "| nominal (refitted) | {} | {} |",
-        pct_cell(d.nominal.nrmse),
-        cell(d.nominal.rmse)
-    );
-    let _ = writeln!(
-        m,
-        "| extended | {} | {} |",
-        pct_cell(d.extended.nrmse),
-        cell(d.extended.rmse)
-    );
-    let _ = writeln!(
-        m,
-        "\nGain `1 - rmse_extended / rmse_nominal` = **{}**.\n",
-        pct_cell(d.gain)
-    );
-    let _ = writeln!(
-        m,
-        "From the configured model to the final one, step by step (each effect's step is its share of the explained error when there are several):\n"
-    );
-    let _ = writeln!(m, "![held-out error, step by step](error_waterfall.png)\n");
-    if !tests.is_empty() {
-        let _ = writeln!(
-            m,
-            "Further test ranges (simulated from their own start, burn-in excluded):\n"
-        );
-        let _ = writeln!(
-            m,
-            "| samples | nominal RMSE ({unit}) | extended RMSE ({unit}) | gain |"
-        );
-        let _ = writeln!(m, "|---|---|---|---|");
-        for t in tests {
-            let _ = writeln!(
-                m,
-                "| {} | {} | {} | {} |",
-                t["range"],
-                cell(t["nominal"]["rmse"].as_f64().unwrap_or(f64::NAN)),
-                cell(t["extended"]["rmse"].as_f64().unwrap_or(f64::NAN)),
-                pct_cell(t["gain"].as_f64().unwrap_or(f64::NAN))
-            );
-        }
-        let _ = writeln!(m);
-    }
-    m
+    decision
 }
 
-/// Refuses a record whose time scale cannot hold the nominal model's dynamics (see
-/// [`crate::records::check_time_scale`]).
-fn check_time_scale(settings: &DiagnoseSettings, record: &TimeSeries) -> Result<()> {
-    let p = &settings.params;
-    let wn = p.natural_rate();
-    let what = if p.k > 0.0 {
-        format!("one natural period of the nominal model (sqrt(k/m) = {wn:.3} rad/s)")
-    } else {
-        format!("one time constant of the free mass (c/m = {wn:.3} 1/s) times 2 pi")
+/// Fits that stopped at their iteration limit, the noise floor's share from the measured
+/// input's noise, and the term search outside the library, when they apply.
+fn notes(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
+    // A fit stopped at its limit has not converged: its tests are not to be trusted.
+    let limit = format!("{:?}", htfid_estimate::LmStop::MaxIterations);
+    let unconverged = d
+        .candidates
+        .iter()
+        .chain(&d.pairs)
+        .chain(d.later_rounds.iter().flatten())
+        .filter(|c| c.iterations >= s.options.candidate_max_iterations)
+        .count();
+    if d.stop == limit {
+        r.para(&format!(
+            "**The refit did not converge.** It stopped at its limit of {} iterations \
+             (`diagnose.max_iterations`) while still improving, so the refitted values are not \
+             its optimum, and every candidate fitted from it also improves the refit's own \
+             parameters: their likelihood ratios are inflated. Raise `diagnose.max_iterations`, \
+             or free fewer parameters, and diagnose again.",
+            s.options.max_iterations
+        ));
+    }
+    // Parameters the final fit cannot tell apart: no standard error.
+    let unresolved: Vec<String> = d
+        .parameters
+        .keys()
+        .filter(|n| !d.stderr.get(*n).is_some_and(|e| e.is_finite()))
+        .map(|n| format!("`{n}`"))
+        .collect();
+    if !unresolved.is_empty() {
+        r.para(&format!(
+            "**The record cannot tell some of the final model's parameters apart**: {} have no \
+             standard error (the final fit's covariance is singular, or its residual has no \
+             degrees of freedom left). Other values of them fit as well; hold one of them fixed \
+             (`model.free`, or leave out the effect that adds it) to read the others. A sensor's \
+             gain beside a free mass, stiffness and damping is one such case: it only rescales \
+             the state, which they undo.",
+            crate::report::join_and(&unresolved)
+        ));
+    }
+    if unconverged > 0 {
+        r.para(&format!(
+            "{unconverged} of the candidate fits stopped at their limit of {} iterations \
+             (`diagnose.candidate_max_iterations`) before converging; their scores are upper \
+             bounds (their notes say which).",
+            s.options.candidate_max_iterations
+        ));
+    }
+    if let Some(noise) = d.input_noise {
+        r.para(&format!(
+            "The noise floor, {} of the outputs' spread, holds the refitted model's response to \
+             the noise on the measured input, {}: the input's spectrum between {} % and {} % of \
+             the Nyquist frequency is that of white noise of {} RMS, and the simulation is \
+             driven by the measured input, so no model driven by it predicts the outputs closer \
+             than that (`input_noise` in `diagnosis.json`).",
+            percent(d.noise_floor, 3),
+            percent(noise.propagated, 3),
+            // Percentages of the band's edges, rounded off the binary fractions' tails.
+            (1e6 * s.options.noise_band.0).round() / 1e4,
+            (1e6 * s.options.noise_band.1).round() / 1e4,
+            sig(noise.sigma, 3)
+        ));
+    }
+    if let Some(sentence) = &d.term_search {
+        r.para(&match &d.discovered {
+            Some(found) => format!(
+                "**Outside the library**, a search over products of the states in the \
+                 equations of the velocity states writes what the refit leaves as `{}`: with \
+                 it the refitted model predicts the held-out data with NRMSE {} instead of {} \
+                 ({} lower). The search stopped because {}. This is a hint beside the \
+                 decision above, which it does not change; to test it as an effect, write it as \
+                 a term of the model (`[[diagnose.terms]]`) and diagnose again.",
+                found.formula,
+                percent(found.nrmse_after, 3),
+                percent(found.nrmse_before, 3),
+                percent(found.gain, 3),
+                found.stopped
+            ),
+            None => format!("**Outside the library**, nothing: {sentence}."),
+        });
+    }
+}
+
+/// The config, the data, what was refitted and what held out.
+fn data_section(r: &mut Report, s: &ModelDiagnoseSettings) {
+    r.section("Data");
+    let rows = |r: &Option<std::ops::Range<usize>>| {
+        r.as_ref().map_or(String::new(), |r| {
+            format!(", rows {} to {}", r.start, r.end - 1)
+        })
     };
-    crate::records::check_time_scale(
-        &settings.path,
-        record.dt(),
-        record.len(),
-        crate::records::TimeScale {
-            period: 2.0 * std::f64::consts::PI / wn,
-            what: &what,
+    let held_out = match (&s.validation, s.held_out_file()) {
+        (Some(p), _) => format!(
+            "the separate record `{}`{}",
+            shown_path(p),
+            rows(&s.validation_rows)
+        ),
+        (None, Some(p)) => format!("`{}`{}", shown_path(p), rows(&s.validation_rows)),
+        (None, None) => format!(
+            "the last {} of the record",
+            percent(1.0 - s.options.fit_fraction, 2)
+        ),
+    };
+    let listed = |names: &[String]| {
+        names
+            .iter()
+            .map(|p| format!("`{p}`"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut items = vec![
+        format!(
+            "Config: `{}`; data: `{}`{}.",
+            shown_path(&s.path),
+            shown_path(&s.file),
+            rows(&s.rows)
+        ),
+        if s.options.free.is_empty() {
+            "Refitted with every candidate: nothing (the model as configured).".to_string()
+        } else {
+            format!(
+                "Refitted with every candidate: {} (the model's own parameters only).",
+                listed(&s.options.free)
+            )
         },
-        crate::records::unit_hint(settings.data.sample_rate),
-    )
+    ];
+    if !s.options.parameter_error.is_empty() {
+        items.push(format!(
+            "Held at their configured values, and refitted together only as the candidate \
+             `parameter_error`: {}.",
+            listed(&s.options.parameter_error)
+        ));
+    }
+    items.push(format!(
+        "Held out from the fit and used to judge it: {held_out}."
+    ));
+    r.list(&items);
+}
+
+/// One row per effect of `list` in the tables of effects tried: its parameters (those of
+/// the effect, not the free ones), scores and tests, or why its fit failed.
+fn effect_rows(
+    r: &mut Report,
+    s: &ModelDiagnoseSettings,
+    list: &[htfid_diagnose::ModelCandidate],
+) -> Vec<Vec<String>> {
+    let mut rows = Vec::new();
+    for c in list {
+        if c.nrmse_validation.is_finite() {
+            let own: Vec<String> = c
+                .parameters
+                .iter()
+                .filter(|(k, _)| !s.options.free.contains(*k))
+                .map(|(k, v)| {
+                    format!(
+                        "{k} = {}",
+                        Quantity::new(*v)
+                            .stderr(c.stderr.get(k).copied().unwrap_or(f64::NAN))
+                            .unit(parameter_unit(s, k).as_deref())
+                    )
+                })
+                .collect();
+            rows.push(vec![
+                format!("`{}`", c.effect),
+                c.term.clone().unwrap_or_else(|| where_boundary(&c.effect)),
+                own.join(", "),
+                percent(c.nrmse_validation, 3),
+                percent(c.gain, 3),
+                format!("{} ({})", sig(c.likelihood_ratio, 3), sig(c.critical, 3)),
+                if c.significant { "yes" } else { "no" }.to_string(),
+            ]);
+        } else {
+            let why = r.missing(&c.note);
+            rows.push(vec![
+                format!("`{}`", c.effect),
+                c.term.clone().unwrap_or_else(|| where_boundary(&c.effect)),
+                why.clone(),
+                why.clone(),
+                why.clone(),
+                why,
+                "no".to_string(),
+            ]);
+        }
+    }
+    rows
+}
+
+/// The tables of the effects tried: the first round, the second effect, the later rounds and
+/// the backward pass.
+fn effects_sections(r: &mut Report, s: &ModelDiagnoseSettings, d: &ModelDiagnosis) {
+    if !d.candidates.is_empty() {
+        r.section("Effects tried");
+        r.para(
+            "Beside the model's own parameters, candidate effects are tried, each fitted \
+             jointly with the free parameters and the initial state. On the model's boundary: \
+             an input offset, delay or lag, and a sensor offset and gain or lag. Inside its \
+             equations, at every site the model offers: drag and a stiffness law on the \
+             equation of each velocity state, an extra damping in each mode, each switching \
+             surface moved; and the config's own terms. An effect is significant when its \
+             likelihood ratio against the refit (corrected for the residuals' correlation) \
+             passes the chi-square critical value and it lowers the held-out NRMSE by at least \
+             the minimum gain.",
+        );
+        let rows = effect_rows(r, s, &d.candidates);
+        r.table(
+            &[
+                "effect",
+                "where",
+                "its parameters",
+                "held-out NRMSE",
+                "gain over the refit",
+                "likelihood ratio (critical)",
+                "significant",
+            ],
+            &rows,
+        );
+    }
+    if !d.pairs.is_empty() {
+        r.section("A second effect");
+        r.para(
+            "The best effect left the held-out residual above the noise floor, so every other \
+             candidate was refitted jointly with it (and with its rivals), all parameters and \
+             the initial state together, and tested against it as it was against the refit: \
+             the likelihood ratio is against the first effect alone, the gain is over it.",
+        );
+        let rows = effect_rows(r, s, &d.pairs);
+        r.table(
+            &[
+                "effects",
+                "where the second acts",
+                "their parameters",
+                "held-out NRMSE",
+                "gain over the first alone",
+                "likelihood ratio (critical)",
+                "significant",
+            ],
+            &rows,
+        );
+    }
+
+    for (k, round) in d.later_rounds.iter().enumerate() {
+        r.section(&format!("Effect {} beside the others", k + 3));
+        r.para(
+            "The effects chosen so far still left the held-out residual above the noise floor, \
+             so every other candidate was refitted jointly with them and tested against their \
+             fit: the likelihood ratio is against the chosen effects alone, the gain over them.",
+        );
+        let rows = effect_rows(r, s, round);
+        r.table(
+            &[
+                "effects",
+                "where the last acts",
+                "their parameters",
+                "held-out NRMSE",
+                "gain over the others",
+                "likelihood ratio (critical)",
+                "significant",
+            ],
+            &rows,
+        );
+    }
+    if !d.backward.is_empty() {
+        r.section("Is each effect still needed?");
+        r.para(
+            "A backward pass: each chosen effect tested against the fit of the others without \
+             it. The held-out NRMSE is that without it, the gain and the likelihood ratio \
+             those of adding it back; the weakest effect that no longer passes is dropped and \
+             the pass repeats.",
+        );
+        let rows: Vec<Vec<String>> = d
+            .backward
+            .iter()
+            .map(|c| {
+                vec![
+                    format!("`{}`", c.effect),
+                    percent(c.nrmse_validation, 3),
+                    percent(c.gain, 3),
+                    format!("{:.1} ({:.1})", c.likelihood_ratio, c.critical),
+                    if c.significant {
+                        "needed"
+                    } else {
+                        "not needed"
+                    }
+                    .to_string(),
+                ]
+            })
+            .collect();
+        r.table(
+            &[
+                "effect",
+                "held-out NRMSE without it",
+                "gain with it",
+                "likelihood ratio (critical)",
+                "verdict",
+            ],
+            &rows,
+        );
+    }
+}
+
+/// The held-out errors, the parameters and the validation of the refitted model.
+fn errors_and_parameters(
+    r: &mut Report,
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    checks: &[crate::validation::OutputValidation],
+    checks_final: Option<&[crate::validation::OutputValidation]>,
+) {
+    let unit = |name: &str| parameter_unit(s, name);
+    r.section("Error on held-out data");
+    r.para(
+        "NRMSE (normalised root-mean-square error): the RMS of measured minus simulated output \
+         over the standard deviation of the measured output, in %. 0 % is a perfect \
+         simulation; 100 % is no better than the measured mean.",
+    );
+    let rows: Vec<Vec<String>> = s
+        .outputs
+        .iter()
+        .enumerate()
+        .map(|(o, name)| {
+            vec![
+                format!("`{name}`"),
+                percent(d.configured.nrmse_validation[o], 3),
+                percent(d.refitted.nrmse_validation[o], 3),
+            ]
+        })
+        .collect();
+    r.table(&["output", "configured model", "refitted model"], &rows);
+
+    r.section("Parameters");
+    if d.refit_parameters.is_empty() {
+        r.para(
+            "Nothing is refitted with every candidate (`[model] free = []`): the model's \
+             parameters stay as configured, and only the candidate `parameter_error` (when \
+             `[diagnose] parameter_error` names some) refits them; its values are in the \
+             paragraph at the top and in the table of effects tried.",
+        );
+    } else {
+        parameter_table(r, d, &unit);
+    }
+    match (checks_final, &d.extended) {
+        // One table: each output's refitted model, then its final model.
+        (Some(fin), Some(c)) => {
+            let rows: Vec<crate::validation::OutputValidation> = checks
+                .iter()
+                .zip(fin)
+                .flat_map(|(a, b)| {
+                    let mut a = a.clone();
+                    let mut b = b.clone();
+                    a.output = format!("{}: refitted model", a.output);
+                    b.output = format!("{}: with {}", b.output, c.effect);
+                    [a, b]
+                })
+                .collect();
+            r.push(&crate::validation::report(
+                "## Validation",
+                &rows.iter().collect::<Vec<_>>(),
+                &format!(
+                    "refitted model and of the final one (with `{}`), a row each",
+                    c.effect
+                ),
+                &format!("input `{}`", s.input),
+            ));
+        }
+        _ => r.push(&crate::validation::report(
+            "## Validation",
+            &checks.iter().collect::<Vec<_>>(),
+            "refitted model",
+            &format!("input `{}`", s.input),
+        )),
+    }
+    if d.input_noise.is_some() {
+        r.para(crate::validation::noisy_input_note(&format!("input `{}`", s.input)).trim_end());
+    }
+}
+
+/// The refitted free parameters: configured, refitted with its standard error, and by how many
+/// standard errors they moved; and the widening of the standard errors.
+fn parameter_table(r: &mut Report, d: &ModelDiagnosis, unit: &dyn Fn(&str) -> Option<String>) {
+    let mut rows = Vec::new();
+    for p in &d.refit_parameters {
+        let u = unit(&p.name);
+        let z = if p.z.is_finite() {
+            sig(p.z, 2)
+        } else {
+            r.missing("no standard error: the fit's covariance is singular for this parameter")
+        };
+        rows.push(vec![
+            format!("`{}`", p.name),
+            Quantity::new(p.configured).unit(u.as_deref()).to_string(),
+            Quantity::new(p.fitted)
+                .stderr(p.stderr)
+                .unit(u.as_deref())
+                .to_string(),
+            z,
+        ]);
+    }
+    r.table(
+        &[
+            "parameter",
+            "configured",
+            "refitted ± standard error",
+            "(refitted − configured) / standard error",
+        ],
+        &rows,
+    );
+    r.para(&if d.stderr_inflation > 1.0 {
+        format!(
+            "The standard errors are widened by a factor {} because the residuals are \
+             correlated in time.",
+            sig(d.stderr_inflation, 3)
+        )
+    } else {
+        "The residuals show no correlation in time that would widen the standard errors."
+            .to_string()
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::boundary_unit;
+
+    #[test]
+    fn a_renamed_boundary_parameter_keeps_its_unit() {
+        let output = |o: &str| match o {
+            "x" => Some("m"),
+            "x_2" => Some("mm"),
+            _ => None,
+        };
+        let unit = |name: &str| boundary_unit(name, Some("N"), output);
+        assert_eq!(unit("tau").as_deref(), Some("s"));
+        assert_eq!(unit("tau_2").as_deref(), Some("s"));
+        assert_eq!(unit("tau_s_3").as_deref(), Some("s"));
+        assert_eq!(unit("delay_2").as_deref(), Some("s"));
+        assert_eq!(unit("input_offset_2").as_deref(), Some("N"));
+        assert_eq!(unit("b_x").as_deref(), Some("m"));
+        assert_eq!(unit("b_x_2").as_deref(), Some("mm"), "an output named x_2");
+        assert_eq!(unit("b_x_3").as_deref(), Some("m"), "b_x renamed");
+        assert_eq!(
+            unit("drag_v_2"),
+            None,
+            "a term's parameter has no declared unit"
+        );
+        assert_eq!(unit("tau_"), None);
+        assert_eq!(unit("g_x"), None, "a gain has no unit");
+    }
 }

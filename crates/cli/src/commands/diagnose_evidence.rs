@@ -1,148 +1,480 @@
-//! The evidence figures of `htfid diagnose` and the paragraph that opens its report: the
-//! residual acceleration binned against position, velocity and forcing phase, the held-out
-//! error from the configured to the final model, the HTF difference per harmonic, and a
-//! readable window of the residual in time. The numbers come from `htfid-diagnose`; this
-//! module draws them and puts them into words.
+//! The evidence figures of a diagnosis: the held-out residual in time and its
+//! spectrum, the period-averaged orbit with its uncertainty, and the held-out error from the
+//! configured to the final model. The numbers come from `htfid-diagnose` (the simulations,
+//! [`ModelDiagnosis::error_waterfall`], [`htfid_diagnose::period_average`], [`amplitude_spectrum`]); this
+//! module draws them.
 
 use std::ops::Range;
-use std::path::Path;
 
 use anyhow::Result;
-use htfid_data::OutputDir;
+use htfid_data::{OutputDir, TimeSeries};
 use htfid_diagnose::{
-    error_waterfall, quantile_range, residual_acceleration, Bin, BinnedResidual, DiagnosisReport,
-    ErrorStep, HarmonicDifference, Interpolation, Structure, TimeSeries,
+    amplitude_spectrum, Bin, BinnedResidual, ErrorStep, EstimatedComparison, HarmonicDifference,
+    ModelDiagnosis, PairResidual, Structure, DIFFERENCE_SIGMAS,
 };
+use htfid_number::sig;
+use htfid_number::sig as num;
 use htfid_plot::{
-    binned_panel, grid_figure, magnitude_panel, stacked_figure, waterfall_panel, BinnedSeries,
-    BodeSeries, Panel, Role, Series, Style, WaterfallBar, SIGNIFICANT_RATIO,
+    binned_panel, grid_figure, magnitude_panel, spectrum_panel, stacked_figure, waterfall_panel,
+    BinnedSeries, BodeSeries, Panel, Role, Series, SpectrumScale, Style, WaterfallBar,
+    SIGNIFICANT_RATIO,
 };
 use serde_json::{json, Value};
 
+use super::diagnose::models_shown;
+use crate::model_diagnose_config::ModelDiagnoseSettings;
 use crate::plots;
-use crate::settings::DiagnoseSettings;
-use htfid_number::sig as num;
 
-/// Natural periods of the nominal model per block of the standard errors, and per window of
-/// the residual in time, when no forcing period is known.
-const NATURAL_PERIODS_PER_BLOCK: f64 = 10.0;
-const NATURAL_PERIODS_PER_WINDOW: f64 = 20.0;
+/// The figures this module writes (each as `.svg` and `.png`); `orbit` only for a model with a
+/// forcing period.
+pub const FIGURES: [&str; 5] = [
+    "residual_time",
+    "residual_spectrum",
+    "orbit",
+    "residual_bins",
+    "error_waterfall",
+];
+
 /// Forcing periods in the window of the residual in time.
 const WINDOW_PERIODS: f64 = 4.0;
+/// Samples in that window, and per block of the RMS in time, for a model without forcing.
+const UNFORCED_WINDOW: usize = 500;
+/// The orbit's band: this many standard errors of the measured period average either side.
+const BAND_STDERRS: f64 = 2.0;
 
-/// The binned residual accelerations and the held-out error steps.
-pub struct Evidence {
-    /// Length of the blocks taken as independent in the standard errors (s).
-    pub block_s: f64,
-    /// What a block is, in words.
-    pub block_words: String,
-    /// The refitted nominal model's residual.
-    pub nominal: BinnedResidual,
-    /// The extended model's, when it differs from the nominal one.
-    pub extended: Option<BinnedResidual>,
-    /// Configured, refitted, each effect, final.
-    pub waterfall: Vec<ErrorStep>,
-}
+/// Writes `residual_time`, `residual_spectrum`, `orbit` (with a forcing period) and
+/// `error_waterfall` (the held-out error's `steps`) for the held-out samples `held_out` of
+/// `shown` (the record the held-out simulations run on), for the models
+/// [`models_shown`].
+pub fn draw(
+    out: &mut OutputDir,
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    steps: &[ErrorStep],
+    shown: &TimeSeries,
+    held_out: Range<usize>,
+) -> Result<()> {
+    let period = s.model.period().filter(|p| p.is_finite() && *p > 0.0);
+    let dt = shown.dt();
+    let t = &shown.time()[held_out.clone()];
+    let unit = |o: usize| {
+        s.output_unit(o)
+            .map_or(String::new(), |u| format!(" ({u})"))
+    };
+    let residual = |sim: &[f64], o: usize| -> Vec<f64> {
+        held_out
+            .clone()
+            .map(|i| shown.outputs()[o][i] - sim[i])
+            .collect()
+    };
 
-/// The output's unit, when the record's columns or the config say it.
-pub fn output_unit(s: &DiagnoseSettings) -> Option<String> {
-    if let Some(u) = s.data.format.unit(&s.data.output) {
-        Some(u.to_string())
-    } else if s.data.output == "x" {
-        Some("m".into())
-    } else {
-        None
+    // In time: the RMS per forcing period over all held-out data, then a window a person can
+    // read at its start.
+    let block = period.unwrap_or(UNFORCED_WINDOW as f64 * dt);
+    let block_words = match period {
+        Some(p) => format!("forcing period ({} s)", sig(p, 3)),
+        None => format!("{UNFORCED_WINDOW} samples"),
+    };
+    let window = match period {
+        Some(p) => ((WINDOW_PERIODS * p / dt).ceil() as usize).max(16),
+        None => UNFORCED_WINDOW,
     }
-}
-
-fn unit_or_words(s: &DiagnoseSettings) -> String {
-    output_unit(s).unwrap_or_else(|| "output units".into())
-}
-
-/// What the nominal model's natural period is called: a spring's period, or for a free mass
-/// (`k = 0`) `2 pi m / c`, its velocity's time constant times 2 pi.
-pub fn natural_periods(k: f64) -> &'static str {
-    if k > 0.0 {
-        "natural periods of the nominal model"
-    } else {
-        "periods 2 pi m / c of the free mass"
-    }
-}
-
-fn natural_period(report: &DiagnosisReport) -> f64 {
-    let p = &report.nominal_model.params;
-    2.0 * std::f64::consts::PI / p.natural_rate()
-}
-
-fn forcing_period(s: &DiagnoseSettings) -> Option<f64> {
-    (s.params.forcing_amplitude.abs() > 0.0 && s.params.period > 0.0).then_some(s.params.period)
-}
-
-/// The residual accelerations of both models on the held-out samples, binned.
-pub fn compute(
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-    interpolation: Interpolation,
-) -> Result<Evidence> {
-    let period = forcing_period(s);
-    let (block_s, block_words) = match period {
-        Some(p) => (p, "one forcing period".to_string()),
-        None => {
-            let b = NATURAL_PERIODS_PER_BLOCK * natural_period(report);
-            (
-                b,
-                format!(
-                    "{} s, ten {}",
-                    num(b, 3),
-                    natural_periods(report.nominal_model.params.k)
-                ),
-            )
+    .min(t.len());
+    let window_words = match period {
+        Some(_) => format!("{WINDOW_PERIODS} forcing periods"),
+        None => format!("{UNFORCED_WINDOW} samples"),
+    };
+    let mut panels = Vec::new();
+    for (o, name) in s.outputs.iter().enumerate() {
+        let mut top = Panel::new(
+            format!("{name}: RMS of the residual per {block_words}, all held-out data"),
+            htfid_plot::TIME_LABEL,
+            format!("RMS residual{}", unit(o)),
+        );
+        let mut bottom = Panel::new(
+            format!("{name}: measured - simulated over the first {window_words} of held-out data"),
+            htfid_plot::TIME_LABEL,
+            format!("residual{}", unit(o)),
+        );
+        let mut top_max = 0.0f64;
+        for m in &models_shown(d, o) {
+            let r = residual(m.y, o);
+            let (tb, rms) = rms_per_block(t, &r, block);
+            top_max = rms
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .fold(top_max, f64::max);
+            top.series
+                .push(Series::new(m.label.clone(), tb, rms, m.style).with_role(m.role));
+            bottom.series.push(
+                Series::new(
+                    m.label.clone(),
+                    t[..window].to_vec(),
+                    r[..window].to_vec(),
+                    m.style,
+                )
+                .with_role(m.role),
+            );
         }
-    };
-    let ranges = &report.validation_ranges;
-    let nominal = residual_acceleration(
-        record,
-        &report.nominal_model,
-        ranges,
-        report.burn_in_s,
-        interpolation,
-    )?;
-    let (xr, vr) = (quantile_range(&nominal.x), quantile_range(&nominal.v));
-    let binned_nominal = BinnedResidual::new(&nominal, block_s, period, Some(xr), Some(vr));
-    let extended = if report.extended_model == report.nominal_model {
-        None
-    } else {
-        let e = residual_acceleration(
-            record,
-            &report.extended_model,
-            ranges,
-            report.burn_in_s,
-            interpolation,
-        )?;
-        Some(BinnedResidual::new(&e, block_s, period, Some(xr), Some(vr)))
-    };
-    Ok(Evidence {
-        block_s,
-        block_words,
-        nominal: binned_nominal,
-        extended,
-        waterfall: error_waterfall(&report.diagnosis),
+        if top_max > 0.0 {
+            top.y_range = Some((0.0, 1.1 * top_max));
+        }
+        panels.push(top);
+        panels.push(bottom);
+    }
+    let fig = stacked_figure(
+        format!("{}: what the model gets wrong, in time", s.name),
+        panels,
+    );
+    plots::write(out, "residual_time", &fig)?;
+
+    // In frequency: the held-out residual's amplitude spectrum, per output.
+    let mut panels = Vec::new();
+    for (o, name) in s.outputs.iter().enumerate() {
+        let mut panel = spectrum_panel::<&str, Vec<f64>>(
+            &format!("{name}: residual spectrum (held-out data)"),
+            &[],
+            [],
+            SpectrumScale::LogLog,
+        );
+        panel.y_label = format!("amplitude{}", unit(o));
+        for m in &models_shown(d, o) {
+            let (w, a) = amplitude_spectrum(&residual(m.y, o), dt);
+            panel
+                .series
+                .push(Series::new(m.label.clone(), w, a, m.style).with_role(m.role));
+        }
+        panels.push(panel);
+    }
+    let fig = stacked_figure(format!("{}: residual spectrum", s.name), panels);
+    plots::write(out, "residual_spectrum", &fig)?;
+
+    // The orbit: every output folded over the forcing period, the measured average with a
+    // band of two standard errors across the periods; beside it each model minus the measured.
+    if let Some(period) = period {
+        let mut panels = Vec::new();
+        for (o, name) in s.outputs.iter().enumerate() {
+            let measured = fold_sampled(t, &shown.outputs()[o][held_out.clone()], period, dt);
+            let phase: Vec<f64> = measured.iter().map(|b| b.centre).collect();
+            let mean: Vec<f64> = measured.iter().map(|b| b.mean).collect();
+            let half: Vec<f64> = measured.iter().map(|b| BAND_STDERRS * b.stderr).collect();
+            let mut p = Panel::new(
+                format!("{name}: period-averaged orbit (held-out data)"),
+                "time into the forcing period (s)",
+                format!("{name}{}", unit(o)),
+            );
+            p.series.push(Series::band(
+                format!("measured ± {BAND_STDERRS} standard errors"),
+                phase.clone(),
+                mean.iter().zip(&half).map(|(m, h)| m - h).collect(),
+                mean.iter().zip(&half).map(|(m, h)| m + h).collect(),
+            ));
+            p.series.push(Series::new(
+                "measured",
+                phase.clone(),
+                mean.clone(),
+                Style::Markers,
+            ));
+            let mut q = Panel::new(
+                format!("{name}: model - measured, period-averaged"),
+                "time into the forcing period (s)",
+                format!("difference{}", unit(o)),
+            );
+            let drawn = models_shown(d, o);
+            for (j, m) in drawn.iter().enumerate() {
+                let sim = &m.y[held_out.clone()];
+                let y = means_on(&measured, &fold_sampled(t, sim, period, dt));
+                // The difference's own period average: the measured input's response, common
+                // to both, leaves its standard error.
+                let diff: Vec<f64> = sim
+                    .iter()
+                    .zip(&shown.outputs()[o][held_out.clone()])
+                    .map(|(a, b)| a - b)
+                    .collect();
+                let diff = fold_sampled(t, &diff, period, dt);
+                if j + 1 == drawn.len() {
+                    q.series.push(Series::band(
+                        format!("± {BAND_STDERRS} standard errors ({})", m.label),
+                        diff.iter().map(|b| b.centre).collect(),
+                        diff.iter().map(|b| -BAND_STDERRS * b.stderr).collect(),
+                        diff.iter().map(|b| BAND_STDERRS * b.stderr).collect(),
+                    ));
+                }
+                p.series.push(
+                    Series::new(m.label.clone(), phase.clone(), y, m.style).with_role(m.role),
+                );
+                q.series.push(
+                    Series::new(
+                        m.label.clone(),
+                        diff.iter().map(|b| b.centre).collect(),
+                        diff.iter().map(|b| b.mean).collect(),
+                        m.style,
+                    )
+                    .with_role(m.role),
+                );
+            }
+            panels.push(p);
+            panels.push(q);
+        }
+        let fig = grid_figure(format!("{}: the orbit", s.name), panels, 2);
+        plots::write(out, "orbit", &fig)?;
+    }
+
+    // Where the equations miss the data: one set of panels per output that reads a position.
+    let mut panels = Vec::new();
+    let ext_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+    for (i, p) in d.residual_bins.iter().enumerate() {
+        let u = position_unit(s, p).unwrap_or("output units");
+        panels.extend(bins_panels(&BinsFigure {
+            position: format!("position {} ({u})", p.output),
+            unit: u,
+            block_words: &block_words_of(p, period),
+            nominal: &p.nominal,
+            extended: p.extended.as_ref().zip(ext_label.as_deref()),
+            period,
+            first: i == 0,
+            prefix: if d.residual_bins.len() > 1 {
+                format!("{}: ", p.output)
+            } else {
+                String::new()
+            },
+        }));
+    }
+    if bins_drawn(d) {
+        let fig = stacked_figure(
+            format!(
+                "{}: residual acceleration, measured minus model (held-out data)",
+                s.name
+            ),
+            panels,
+        );
+        plots::write(out, "residual_bins", &fig)?;
+    }
+
+    // The held-out error, step by step.
+    let fig = waterfall_figure(
+        &s.name,
+        steps,
+        &format!("refit {}", s.options.free.join(", ")),
+        (
+            "held-out NRMSE (mean over the outputs)",
+            "held-out NRMSE (fraction of the output's spread)",
+        ),
+        d.noise_floor.is_finite().then(|| {
+            (
+                d.noise_floor,
+                format!("noise floor ({})", sig(d.noise_floor, 3)),
+            )
+        }),
+    );
+    plots::write(out, "error_waterfall", &fig)
+}
+
+/// Whether `residual_bins.png` is drawn: some pair's refitted residual fills a bin.
+pub fn bins_drawn(d: &ModelDiagnosis) -> bool {
+    d.residual_bins.iter().any(|p| {
+        let b = &p.nominal;
+        !(b.by_position.is_empty() && b.by_velocity.is_empty() && b.by_phase.is_empty())
     })
 }
 
-/// `residual_bins` and `error_waterfall` of `diagnosis.json`.
-pub fn json(ev: &Evidence, s: &DiagnoseSettings) -> (Value, Value) {
-    let unit = output_unit(s).map_or(Value::Null, |u| json!(format!("{u}/s^2")));
-    let bins = json!({
+/// What a block of the binned residual's standard errors is, in words.
+fn block_words_of(p: &PairResidual, period: Option<f64>) -> String {
+    match period {
+        Some(_) => "one forcing period".to_string(),
+        None => format!("{} s", sig(p.block_s, 3)),
+    }
+}
+
+/// The unit of a pair's position: its output's, when known.
+fn position_unit<'s>(s: &'s ModelDiagnoseSettings, p: &PairResidual) -> Option<&'s str> {
+    let o = s.model.outputs().iter().position(|o| o.name == p.output)?;
+    s.output_unit(o)
+}
+
+/// One pair's `residual_bins` object of `diagnosis.json`.
+fn pair_json(s: &ModelDiagnoseSettings, p: &PairResidual) -> Value {
+    json!({
         "quantity": "acceleration",
-        "unit": unit,
-        "block_s": ev.block_s,
+        "unit": position_unit(s, p).map(|u| format!("{u}/s^2")),
+        "output": p.output,
+        "position": p.position,
+        "velocity": p.velocity,
+        "block_s": p.block_s,
         "band_stderrs": htfid_plot::BIN_BAND_STDERRS,
-        "nominal": ev.nominal,
-        "extended": ev.extended,
-    });
-    (bins, json!(ev.waterfall))
+        "nominal": p.nominal,
+        "extended": p.extended,
+    })
+}
+
+/// `residual_bins` of `diagnosis.json`: the first pair's object, with `by_output` holding
+/// every pair's by its output's name; `null` for a model without a pair.
+pub fn bins_json(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> Value {
+    let Some(first) = d.residual_bins.first() else {
+        return Value::Null;
+    };
+    let mut v = pair_json(s, first);
+    let by_output: serde_json::Map<String, Value> = d
+        .residual_bins
+        .iter()
+        .map(|p| (p.output.clone(), pair_json(s, p)))
+        .collect();
+    v["by_output"] = Value::Object(by_output);
+    v
+}
+
+/// Where each pair's refitted residual acceleration varies most, in words (one sentence per
+/// output that reads a position).
+pub fn bins_words(s: &ModelDiagnoseSettings, d: &ModelDiagnosis) -> Vec<String> {
+    let several = d.residual_bins.len() > 1;
+    d.residual_bins
+        .iter()
+        .filter_map(|p| {
+            let u = position_unit(s, p).unwrap_or("output units");
+            let whose = if several {
+                format!(" of `{}`", p.output)
+            } else {
+                String::new()
+            };
+            strongest_in(&p.nominal, p.extended.as_ref(), p.block_s, u, &whose)
+        })
+        .collect()
+}
+
+/// The HTF's unit of output `o`: the output's unit over the input's, when both are known.
+fn htf_unit(s: &ModelDiagnoseSettings, o: usize) -> Option<String> {
+    Some(format!("{}/{}", s.output_unit(o)?, s.input_unit()?))
+}
+
+/// `htf_data` and `htf_difference` (suffixed by the output's name after the first) for every
+/// output: the data's HTFs with ±2 standard errors against the refitted and the final model's,
+/// and per harmonic the difference against the estimate's noise.
+pub fn draw_htf(
+    out: &mut OutputDir,
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    cmp: &[EstimatedComparison],
+) -> Result<()> {
+    use crate::plots::Curve;
+    let ext_label = d.extended.as_ref().map(|c| format!("with {}", c.effect));
+    let ext_difference = ext_label.as_ref().map(|l| format!("{l}: measured - model"));
+    for (o, c) in cmp.iter().enumerate() {
+        let suffix = super::theory::suffix(&s.outputs, o);
+        let unit = htf_unit(s, o);
+        let per_harmonic: Vec<(i32, Vec<Curve<'_>>)> = c
+            .differences
+            .iter()
+            .filter_map(|diff| {
+                let m = c.measured.harmonic(diff.n)?;
+                let nom = c.nominal.harmonic(diff.n)?;
+                let mut curves = vec![
+                    Curve {
+                        label: "measured (Siddiqi estimate)",
+                        omega: m.omegas,
+                        values: m.values,
+                        style: Style::Line,
+                        stderr: Some(m.stderr),
+                    },
+                    Curve {
+                        label: "refitted, same estimator",
+                        omega: nom.omegas,
+                        values: nom.values,
+                        style: Style::Line,
+                        stderr: None,
+                    },
+                ];
+                if let (Some(e), Some(label)) = (&c.extended, &ext_label) {
+                    let ext = e.harmonic(diff.n)?;
+                    curves.push(Curve {
+                        label,
+                        omega: ext.omegas,
+                        values: ext.values,
+                        style: Style::Dashed,
+                        stderr: None,
+                    });
+                }
+                Some((diff.n, curves))
+            })
+            .collect();
+        let fig = plots::with_htf_unit(
+            plots::harmonics(
+                &format!(
+                    "{}: HTFs of {} from the held-out data against the models'",
+                    s.name, s.outputs[o]
+                ),
+                &per_harmonic,
+            ),
+            unit.as_deref(),
+        );
+        plots::write(out, &format!("htf_data{suffix}"), &fig)?;
+        let fig = htf_difference_figure(
+            &format!(
+                "{}: HTF of {} from the data minus each model's (the same estimator), per harmonic",
+                s.name, s.outputs[o]
+            ),
+            &c.differences,
+            "refitted: measured - model",
+            ext_difference.as_deref(),
+            unit.as_deref(),
+        );
+        plots::write(out, &format!("htf_difference{suffix}"), &fig)?;
+    }
+    Ok(())
+}
+
+/// Where the data's HTFs differ from the refitted and the final model's beyond the noise, in
+/// words, output by output.
+pub fn htf_words(
+    s: &ModelDiagnoseSettings,
+    d: &ModelDiagnosis,
+    cmp: &[EstimatedComparison],
+) -> String {
+    let Some(first) = cmp.first() else {
+        return String::new();
+    };
+    let mut text = format!(
+        "The HTFs `G_-2 .. G_2` estimated from {} held-out forcing periods (Siddiqi's estimator, \
+         output frequencies {} to {} rad/s) against each model's, estimated the same way from \
+         its simulation with the measured input: the difference is the estimate of the \
+         residual's response, and beyond {DIFFERENCE_SIGMAS} standard errors it is more than \
+         the noise.",
+        first.periods,
+        sig(first.band.0, 3),
+        sig(first.band.1, 3)
+    );
+    for (o, c) in cmp.iter().enumerate() {
+        let share = |f: fn(&htfid_diagnose::HarmonicDifference) -> f64| {
+            let n = c.differences.len().max(1) as f64;
+            c.differences.iter().map(f).sum::<f64>() / n
+        };
+        let worst = c
+            .differences
+            .iter()
+            .max_by(|a, b| a.nominal_outside().total_cmp(&b.nominal_outside()));
+        text.push_str(&format!(
+            " For `{}`, {} of the refitted model's points lie outside the noise{}",
+            s.outputs[o],
+            pct(share(|h| h.nominal_outside())),
+            worst.map_or(String::new(), |w| format!(
+                " (most in `G_{}`: {})",
+                w.n,
+                pct(w.nominal_outside())
+            ))
+        ));
+        if d.extended.is_some() {
+            text.push_str(&format!(
+                ", {} of the final model's",
+                pct(share(|h| h.extended_outside()))
+            ));
+        }
+        text.push('.');
+    }
+    text
+}
+
+fn pct(x: f64) -> String {
+    format!("{} %", sig(100.0 * x, 3))
 }
 
 fn columns(bins: &[Bin]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
@@ -153,41 +485,8 @@ fn columns(bins: &[Bin]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     )
 }
 
-/// `residual_bins.png`: one panel per binned variable.
-pub fn draw_bins(
-    out: &mut OutputDir,
-    s: &DiagnoseSettings,
-    report: &DiagnosisReport,
-    ev: &Evidence,
-) -> Result<()> {
-    let u = unit_or_words(s);
-    let ext_label = super::diagnose::ext_label(report);
-    let panels = bins_panels(&BinsFigure {
-        position: format!("position {} ({u})", s.data.output),
-        unit: &u,
-        block_words: &ev.block_words,
-        nominal: &ev.nominal,
-        extended: ev.extended.as_ref().map(|e| (e, ext_label.as_str())),
-        period: forcing_period(s),
-        first: true,
-        prefix: String::new(),
-    });
-    if panels.is_empty() {
-        // Too few held-out samples to fill a bin: no figure (the report says nothing of bins).
-        return Ok(());
-    }
-    let fig = stacked_figure(
-        format!(
-            "{}: residual acceleration, measured minus model (held-out data)",
-            s.name
-        ),
-        panels,
-    );
-    plots::write(out, "residual_bins", &fig)
-}
-
 /// What [`bins_panels`] draws: one pair's binned residual acceleration.
-pub struct BinsFigure<'a> {
+struct BinsFigure<'a> {
     /// The position axis's label, unit included.
     pub position: String,
     /// The position's unit, or words for it.
@@ -209,7 +508,7 @@ pub struct BinsFigure<'a> {
 /// The panels of one pair's binned residual acceleration: against position, velocity and the
 /// forcing phase (those with bins), the nominal model's and the extended one's bin means with
 /// bands of two standard errors.
-pub fn bins_panels(f: &BinsFigure<'_>) -> Vec<Panel> {
+fn bins_panels(f: &BinsFigure<'_>) -> Vec<Panel> {
     let u = f.unit;
     let y_label = format!("residual acceleration ({u}/s^2)");
     type Pick = fn(&BinnedResidual) -> &Vec<Bin>;
@@ -296,7 +595,7 @@ const ORBIT_BINS: usize = 100;
 /// every period (a bin that caught two phases in some periods and one in others would mix the
 /// orbit's slope into its standard error). Bins as that function gives them, in time into the
 /// period.
-pub fn fold_sampled(t: &[f64], y: &[f64], period: f64, dt: f64) -> Vec<Bin> {
+fn fold_sampled(t: &[f64], y: &[f64], period: f64, dt: f64) -> Vec<Bin> {
     let bins = ORBIT_BINS.min((period / dt).round() as usize).max(4);
     let shifted: Vec<f64> = t.iter().map(|v| v + 0.5 * dt).collect();
     htfid_diagnose::period_average(&shifted, y, period, bins)
@@ -312,7 +611,7 @@ pub fn fold_sampled(t: &[f64], y: &[f64], period: f64, dt: f64) -> Vec<Bin> {
 
 /// The RMS of `r` (at times `t`) per block of `block` s from the first sample: `(centre of
 /// each block, RMS)`; blocks without samples are left out.
-pub fn rms_per_block(t: &[f64], r: &[f64], block: f64) -> (Vec<f64>, Vec<f64>) {
+fn rms_per_block(t: &[f64], r: &[f64], block: f64) -> (Vec<f64>, Vec<f64>) {
     let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
         return (Vec::new(), Vec::new());
     };
@@ -328,7 +627,7 @@ pub fn rms_per_block(t: &[f64], r: &[f64], block: f64) -> (Vec<f64>, Vec<f64>) {
 /// The means of `other` on the bins of `reference` (NaN where `other` has no such bin), two
 /// binnings of one range with the same number of bins (the same edges, matched within half a
 /// bin's width), for curves drawn over the reference's bin centres.
-pub fn means_on(reference: &[Bin], other: &[Bin]) -> Vec<f64> {
+fn means_on(reference: &[Bin], other: &[Bin]) -> Vec<f64> {
     reference
         .iter()
         .map(|b| {
@@ -340,31 +639,11 @@ pub fn means_on(reference: &[Bin], other: &[Bin]) -> Vec<f64> {
         .collect()
 }
 
-/// `error_waterfall.png`.
-pub fn draw_waterfall(
-    out: &mut OutputDir,
-    s: &DiagnoseSettings,
-    report: &DiagnosisReport,
-    ev: &Evidence,
-) -> Result<()> {
-    let u = unit_or_words(s);
-    let fig = waterfall_figure(
-        &s.name,
-        &ev.waterfall,
-        &format!("refit {}", s.free.join(", ")),
-        ("held-out RMSE", &format!("held-out RMSE ({u})")),
-        report
-            .noise_floor
-            .map(|floor| (floor, format!("noise floor ({} {u})", num(floor, 3)))),
-    );
-    plots::write(out, "error_waterfall", &fig)
-}
-
 /// The figure of a held-out error from the configured to the final model, step by step
 /// (`steps` as `htfid-diagnose` gives them: `configured`, `refitted`, the effects, `final`):
 /// the refit's bar named `refit` under the axis, the error's name and axis label in `measure`,
 /// and the noise floor with its legend.
-pub fn waterfall_figure(
+fn waterfall_figure(
     name: &str,
     steps: &[ErrorStep],
     refit: &str,
@@ -420,39 +699,6 @@ pub fn waterfall_figure(
     htfid_plot::Figure { height: 420, ..fig }
 }
 
-/// The samples of the residual-in-time window: a few forcing periods (or natural periods of
-/// the nominal model) from the start of the first held-out range, after its burn-in.
-pub fn time_window(
-    s: &DiagnoseSettings,
-    record: &TimeSeries,
-    report: &DiagnosisReport,
-) -> Range<usize> {
-    let dt = record.dt();
-    let r = report
-        .validation_ranges
-        .first()
-        .cloned()
-        .unwrap_or(0..record.len());
-    let burn = (report.burn_in_s / dt).ceil() as usize;
-    let start = (r.start + burn).min(r.end);
-    let span = forcing_period(s).map_or(NATURAL_PERIODS_PER_WINDOW * natural_period(report), |p| {
-        WINDOW_PERIODS * p
-    });
-    let len = ((span / dt).ceil() as usize).max(64);
-    start..(start + len).min(r.end)
-}
-
-/// Words for the window's length.
-pub fn window_words(s: &DiagnoseSettings) -> String {
-    match forcing_period(s) {
-        Some(_) => format!("{WINDOW_PERIODS} forcing periods"),
-        None => format!(
-            "{NATURAL_PERIODS_PER_WINDOW} {}",
-            natural_periods(s.params.k)
-        ),
-    }
-}
-
 /// `htf_difference` of `diagnosis.json`.
 pub fn htf_json(diffs: &[HarmonicDifference]) -> Value {
     Value::Array(
@@ -470,33 +716,10 @@ pub fn htf_json(diffs: &[HarmonicDifference]) -> Value {
     )
 }
 
-/// `htf_difference.png`: per harmonic, `|measured - model|` for both models over the
-/// estimate's noise level `2 stderr`, shaded from the bottom of the axes.
-pub fn draw_htf_difference(
-    out: &mut OutputDir,
-    s: &DiagnoseSettings,
-    report: &DiagnosisReport,
-    diffs: &[HarmonicDifference],
-    unit: Option<&str>,
-) -> Result<()> {
-    let ext_label = format!("{}: measured - theory", super::diagnose::ext_label(report));
-    let fig = htf_difference_figure(
-        &format!(
-            "{}: HTF estimated from the data minus each model's theory, per harmonic",
-            s.name
-        ),
-        diffs,
-        "nominal: measured - theory",
-        (report.extended_model != report.nominal_model).then_some(ext_label.as_str()),
-        unit,
-    );
-    plots::write(out, "htf_difference", &fig)
-}
-
 /// Per harmonic, `|measured - model|` for the nominal model (`nominal_label`) and the
 /// extended one (`ext_label`, when it differs) over the estimate's noise level `2 stderr`,
 /// shaded from the bottom of the axes.
-pub fn htf_difference_figure(
+fn htf_difference_figure(
     title: &str,
     diffs: &[HarmonicDifference],
     nominal_label: &str,
@@ -554,21 +777,10 @@ pub fn htf_difference_figure(
     grid_figure(title.to_string(), panels, columns)
 }
 
-/// Which binned variable shows the nominal residual most, in words with its numbers.
-fn strongest(ev: &Evidence, s: &DiagnoseSettings) -> Option<String> {
-    strongest_in(
-        &ev.nominal,
-        ev.extended.as_ref(),
-        ev.block_s,
-        &unit_or_words(s),
-        "",
-    )
-}
-
 /// Where the refitted nominal model's binned residual acceleration `nominal` varies most (the
 /// largest chi-square per bin), in words, with the extended model's there; `whose` names the
 /// pair (`""` for a model with one).
-pub fn strongest_in(
+fn strongest_in(
     nominal: &BinnedResidual,
     extended: Option<&BinnedResidual>,
     block_s: f64,
@@ -621,145 +833,4 @@ pub fn strongest_in(
         num(st.max_abs_z, 3),
         ext.unwrap_or_default()
     ))
-}
-
-fn pct(x: f64) -> String {
-    format!("{} %", num(100.0 * x, 4))
-}
-
-/// The path as a reader finds it: relative to the working directory (with `..` where it lies
-/// outside), or as given when that cannot be worked out.
-pub fn shown_path(p: &Path) -> String {
-    use std::path::Component;
-    let (Ok(abs), Ok(cwd)) = (std::fs::canonicalize(p), std::env::current_dir()) else {
-        return p.display().to_string();
-    };
-    let cwd = std::fs::canonicalize(&cwd).unwrap_or(cwd);
-    let a: Vec<Component<'_>> = abs.components().collect();
-    let c: Vec<Component<'_>> = cwd.components().collect();
-    let common = a.iter().zip(&c).take_while(|(x, y)| x == y).count();
-    if common == 0 {
-        return abs.display().to_string();
-    }
-    let mut rel = std::path::PathBuf::new();
-    for _ in common..c.len() {
-        rel.push("..");
-    }
-    for part in &a[common..] {
-        rel.push(part.as_os_str());
-    }
-    rel.display().to_string()
-}
-
-/// The opening paragraph of `report.md`: the decision in words, with its numbers.
-pub fn summary(
-    s: &DiagnoseSettings,
-    report: &DiagnosisReport,
-    ev: &Evidence,
-    htf: &[HarmonicDifference],
-    param_text: &dyn Fn(&str, f64, f64) -> String,
-) -> String {
-    let d = &report.diagnosis;
-    let u = unit_or_words(s);
-    let rmse = |v: f64| format!("{} {u}", num(v, 4));
-    let mut p = format!(
-        "On the held-out data of `{}`, the model as configured",
-        shown_path(&s.data.file)
-    );
-    if d.configured.nrmse.is_finite() {
-        p.push_str(&format!(
-            " predicts {} with NRMSE {} (RMSE {}; NRMSE is the RMS of measured minus simulated {} over the standard deviation of the measured {}, in %)",
-            s.data.output,
-            pct(d.configured.nrmse),
-            rmse(d.configured.rmse),
-            s.data.output,
-            s.data.output
-        ));
-        p.push_str(&format!(
-            "; with {} refitted the nominal model reaches {} ({}).",
-            s.free.join(", "),
-            pct(d.nominal.nrmse),
-            rmse(d.nominal.rmse)
-        ));
-    } else {
-        p.push_str(&format!(
-            " could not be simulated; with {} refitted the nominal model predicts {} with NRMSE {} (RMSE {}; NRMSE is the RMS of measured minus simulated {} over the standard deviation of the measured {}, in %).",
-            s.free.join(", "),
-            s.data.output,
-            pct(d.nominal.nrmse),
-            rmse(d.nominal.rmse),
-            s.data.output,
-            s.data.output
-        ));
-    }
-    let effects: Vec<&htfid_diagnose::Cause> = d
-        .causes
-        .iter()
-        .filter(|c| c.effect != "parameter_error")
-        .collect();
-    if effects.is_empty() {
-        p.push_str(&match d.cause.as_str() {
-            "none" => " No effect is needed: the refitted nominal model explains the data down to the noise.".to_string(),
-            "parameter_error" => " Only the configured parameters are off; no effect of the library improves on the refit.".to_string(),
-            "model_mismatch" => " The model does not describe these data at all, so no effect is named.".to_string(),
-            _ => " No library effect passes the tests, yet structure remains in the residual.".to_string(),
-        });
-    } else {
-        let named: Vec<String> = effects
-            .iter()
-            .map(|c| {
-                let params: Vec<String> = c
-                    .parameters
-                    .iter()
-                    .map(|(k, v)| param_text(k, *v, c.stderr.get(k).copied().unwrap_or(f64::NAN)))
-                    .collect();
-                format!("`{}` ({})", c.effect, params.join(", "))
-            })
-            .collect();
-        p.push_str(&format!(
-            " Adding {} brings it to {} ({}), {} below the refitted model",
-            named.join(" and "),
-            pct(d.extended.nrmse),
-            rmse(d.extended.rmse),
-            pct(d.gain)
-        ));
-        match report.noise_floor {
-            Some(f) if f > 0.0 => p.push_str(&format!(
-                ", at {} times the noise floor ({})",
-                num(d.extended.rmse / f, 3),
-                rmse(f)
-            )),
-            _ => {}
-        }
-        p.push_str(&format!(
-            "; the diagnosis is `{}` (`error_waterfall.png` shows each step).",
-            d.cause
-        ));
-    }
-    if let Some(words) = strongest(ev, s) {
-        p.push(' ');
-        p.push_str(&words);
-    }
-    if !htf.is_empty() {
-        let parts: Vec<String> = htf
-            .iter()
-            .map(|h| {
-                if report.extended_model == report.nominal_model {
-                    format!("`G_{}` {}", h.n, pct(h.nominal_outside()))
-                } else {
-                    format!(
-                        "`G_{}` {} (extended {})",
-                        h.n,
-                        pct(h.nominal_outside()),
-                        pct(h.extended_outside())
-                    )
-                }
-            })
-            .collect();
-        p.push_str(&format!(
-            " In the HTFs estimated from the data, the difference from the nominal model's theory exceeds the estimate's noise (2 standard errors) at these shares of the frequency bins: {} (for noise alone, about 2 % or fewer; `htf_difference.png`).",
-            parts.join(", ")
-        ));
-    }
-    p
 }

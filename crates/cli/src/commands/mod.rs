@@ -2,8 +2,6 @@
 
 pub mod diagnose;
 pub mod diagnose_evidence;
-pub mod diagnose_model;
-pub mod diagnose_model_evidence;
 pub mod estimate;
 pub mod run;
 pub mod simulate;

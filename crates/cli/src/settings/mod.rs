@@ -704,13 +704,11 @@ pub fn log_grid(lo: f64, hi: f64, points: usize) -> Vec<f64> {
         .collect()
 }
 
-mod diagnose;
 mod estimation;
 mod excitation;
 mod system;
 
-pub use diagnose::*;
 use estimation::resolve_estimation;
 use excitation::resolve_excitation;
+use system::resolve_system;
 pub use system::with_overrides;
-use system::{check_hopper_scales, damper_law, resolve_system, HopperSpans};

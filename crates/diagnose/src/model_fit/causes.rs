@@ -1,4 +1,4 @@
-//! The causes a model-file diagnosis names, each with its parameters in the final fit and its
+//! The causes a diagnosis names, each with its parameters in the final fit and its
 //! share of the held-out error the final model explains.
 
 use std::collections::BTreeMap;

@@ -1,4 +1,4 @@
-//! One record prepared for the output-error fits of a model-file diagnosis: its input as a
+//! One record prepared for the output-error fits of a diagnosis: its input as a
 //! function of time, the samples scored, the output scales, the model's starting point, and the
 //! simulations and fits of the initial state on it.
 

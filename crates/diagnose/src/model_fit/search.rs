@@ -115,7 +115,7 @@ impl Search<'_, '_> {
             score: self.refitted.clone(),
             ratios: Vec::new(),
         };
-        let critical = crate::select::chi2_quantile(1, self.opts.alpha);
+        let critical = crate::stats::chi2_quantile(1, self.opts.alpha);
         // Set by every way out of the loop below but its end: the cap on the terms.
         let mut stop = format!("it reached its cap of {MAX_TERMS} terms (a hint stays short)");
         while chosen.len() < MAX_TERMS {

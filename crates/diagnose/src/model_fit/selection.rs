@@ -1,4 +1,4 @@
-//! The forward selection of a model-file diagnosis and its tests: every candidate fitted
+//! The forward selection of a diagnosis and its tests: every candidate fitted
 //! beside the refit (the first round), further effects fitted jointly beside the chosen ones
 //! (the rounds after it), and the backward pass that drops a chosen effect no longer needed.
 
@@ -25,7 +25,7 @@ pub(super) fn nested_ratio(
 ) -> (f64, f64) {
     let kappa = correlation_inflation(big_residuals).powi(2);
     (
-        crate::select::likelihood_ratio(small_rss, big_rss, n, kappa),
+        crate::stats::likelihood_ratio(small_rss, big_rss, n, kappa),
         kappa,
     )
 }
@@ -43,7 +43,7 @@ pub(super) fn rivals_by_bic(
     let limit = tried[best].candidate.nrmse_validation * (1.0 + opts.rival_margin);
     let bic = |i: usize| {
         let t = &tried[i];
-        let b = crate::fit::bic(t.rss, n, t.candidate.parameters.len());
+        let b = crate::stats::bic(t.rss, n, t.candidate.parameters.len());
         if b.is_finite() {
             b
         } else {
@@ -381,7 +381,7 @@ impl Selection<'_, '_> {
                 }
             };
             let (lr, kappa) = nested_ratio(base.rss, f.rss, &f.residuals, n);
-            let critical = crate::select::chi2_quantile(names_e.len(), opts.alpha);
+            let critical = crate::stats::chi2_quantile(names_e.len(), opts.alpha);
             let gain_e = 1.0 - score.validation() / self.refitted.validation();
             // Nothing is left to explain once the refit is within the resolution.
             let mut significant = lr >= critical
@@ -426,7 +426,7 @@ impl Selection<'_, '_> {
                     stderr,
                     nrmse_validation: score.validation(),
                     gain: gain_e,
-                    bic: crate::fit::bic(f.rss, self.n(), f.params.len()),
+                    bic: crate::stats::bic(f.rss, self.n(), f.params.len()),
                     likelihood_ratio: lr,
                     critical,
                     significant,
@@ -679,7 +679,7 @@ impl Selection<'_, '_> {
             }
         };
         let (lr, kappa) = nested_ratio(rss, f.rss, &f.residuals, self.n());
-        let critical = crate::select::chi2_quantile(t2.parameter_names().len(), opts.alpha);
+        let critical = crate::stats::chi2_quantile(t2.parameter_names().len(), opts.alpha);
         let gain_e = 1.0 - score.validation() / score_without;
         let mut significant = lr >= critical && gain_e >= opts.min_gain;
         let infl = kappa.sqrt();
@@ -711,7 +711,7 @@ impl Selection<'_, '_> {
                 stderr,
                 nrmse_validation: score.validation(),
                 gain: gain_e,
-                bic: crate::fit::bic(f.rss, self.n(), f.params.len()),
+                bic: crate::stats::bic(f.rss, self.n(), f.params.len()),
                 likelihood_ratio: lr,
                 critical,
                 significant,
@@ -902,7 +902,7 @@ impl Selection<'_, '_> {
             for ((e, _), fit) in reduced.iter().zip(fits) {
                 let Ok(without) = fit else { continue };
                 let critical =
-                    crate::select::chi2_quantile(trials[*e].parameter_names().len(), opts.alpha);
+                    crate::stats::chi2_quantile(trials[*e].parameter_names().len(), opts.alpha);
                 let (lr, _) = nested_ratio(without.rss, cur.rss, &cur.residuals, self.n());
                 let gain_e =
                     1.0 - cur.candidate.nrmse_validation / without.candidate.nrmse_validation;

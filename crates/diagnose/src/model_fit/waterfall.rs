@@ -1,4 +1,4 @@
-//! The held-out error of a model-file diagnosis, step by step from the configured model to the
+//! The held-out error of a diagnosis, step by step from the configured model to the
 //! final one, each level a fit the diagnosis made.
 
 use super::ModelDiagnosis;
