@@ -67,6 +67,34 @@ pub(super) fn rivals_by_bic(
     (w, rivals)
 }
 
+/// Why `trial`, an effect on the model's boundary with parameters `own`, is no finding, if the
+/// fit left one of them without a standard error: a direction of the fit's Jacobian the record
+/// does not resolve involves it, so the record cannot tell it from the model's parameters
+/// fitted with it (a sensor's gain beside a free mass, stiffness and damping rescales them all
+/// alike; an input offset beside the model's own free offset is the same force). A term in the
+/// equations is judged as a whole: a weakly determined parameter of it (a contact's
+/// stiffness) does not veto a term the data demand.
+fn undetermined_note(
+    trial: &Trial,
+    own: &[String],
+    stderr: &BTreeMap<String, f64>,
+) -> Option<String> {
+    if !matches!(trial, Trial::Boundary(..)) {
+        return None;
+    }
+    let lost: Vec<String> = own
+        .iter()
+        .filter(|n| stderr.get(n.as_str()).is_some_and(|e| !e.is_finite()))
+        .map(|n| format!("`{n}`"))
+        .collect();
+    (!lost.is_empty()).then(|| {
+        format!(
+            "the record cannot tell {} from the parameters fitted with it (no standard error)",
+            lost.join(", ")
+        )
+    })
+}
+
 /// Inflation of least-squares standard errors for residuals correlated in time:
 /// `sqrt(1 + 2 sum_k (1 - k/L) rho_k)` with Bartlett weights up to lag `L = 4 n^(1/3)`.
 pub(super) fn correlation_inflation(r: &[f64]) -> f64 {
@@ -414,6 +442,7 @@ impl Selection<'_, '_> {
             if let Some(reason) = self
                 .outside_the_motion(trial, &parameters)
                 .or_else(|| self.alias_note(ti))
+                .or_else(|| undetermined_note(trial, &names_e, &stderr))
             {
                 significant = false;
                 note.push_str(&format!("; not significant: {reason}"));
@@ -691,18 +720,19 @@ impl Selection<'_, '_> {
             100.0 * gain_e,
             100.0 * opts.min_gain
         );
-        if let Some(reason) = self
-            .outside_the_motion(t2, &parameters)
-            .or_else(|| self.alias_note(added))
-        {
-            significant = false;
-            note.push_str(&format!("; not significant: {reason}"));
-        }
-        let stderr = all
+        let stderr: BTreeMap<String, f64> = all
             .iter()
             .cloned()
             .zip(f.stderr.iter().map(|s| s * infl))
             .collect();
+        if let Some(reason) = self
+            .outside_the_motion(t2, &parameters)
+            .or_else(|| self.alias_note(added))
+            .or_else(|| undetermined_note(t2, &t2.parameter_names(), &stderr))
+        {
+            significant = false;
+            note.push_str(&format!("; not significant: {reason}"));
+        }
         Tried {
             candidate: ModelCandidate {
                 effect: name,
