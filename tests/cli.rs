@@ -3643,14 +3643,11 @@ fn diagnose_reads_a_npy_record_like_its_csv() {
     let config = tmp.path().join("d.toml");
     fs::write(
         &config,
-        fs::read_to_string(root().join("configs/diagnose-hopper.toml"))
-            .unwrap()
-            .replace("\"../", &format!("\"{}/", root().display()))
-            .replacen(
-                "outputs = [\"x\"]",
-                "outputs = [\"x\"]\ncolumns = [\"t\", \"f\", \"x\"]\nunits = { x = \"m\" }",
-                1,
-            ),
+        diagnose_hopper_config().replacen(
+            "outputs = [\"x\"]",
+            "outputs = [\"x\"]\ncolumns = [\"t\", \"f\", \"x\"]\nunits = { x = \"m\" }",
+            1,
+        ),
     )
     .unwrap();
     let diagnose = |data: &Path, out: &Path| {
@@ -4637,22 +4634,7 @@ fn silverbox_is_diagnosed_as_a_stiffness_law() {
 #[test]
 fn model_diagnosis_rows_are_checked() {
     let tmp = tempfile::tempdir().unwrap();
-    let base = fs::read_to_string(root().join("configs/diagnose-hopper.toml")).unwrap();
-    let base = base
-        .replace(
-            "file = \"../data/hopper-protocol.csv\"",
-            &format!(
-                "file = {:?}",
-                root().join("data/hopper-protocol.csv").to_str().unwrap()
-            ),
-        )
-        .replace(
-            "file = \"../models/hopper.toml\"",
-            &format!(
-                "file = {:?}",
-                root().join("models/hopper.toml").to_str().unwrap()
-            ),
-        );
+    let base = diagnose_hopper_config();
     let cases: &[(&str, &[&str])] = &[
         (
             "rows = [0, 99999999]",

@@ -3,13 +3,12 @@
 //! significantly is a finding (`parameter_error`).
 
 use htfid_lang::Model;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::agreement::{Agreement, Plain};
 use crate::boundary::{Boundary, BoundaryEffect};
 use crate::term::{term_library, TermEffect, TermKind};
 use crate::{DiagnoseError, TimeSeries};
-use serde::Deserialize;
 use std::collections::BTreeMap;
 
 mod causes;

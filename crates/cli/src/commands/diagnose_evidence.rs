@@ -13,7 +13,6 @@ use htfid_diagnose::{
     ModelDiagnosis, PairResidual, Structure, DIFFERENCE_SIGMAS,
 };
 use htfid_number::sig;
-use htfid_number::sig as num;
 use htfid_plot::{
     binned_panel, grid_figure, magnitude_panel, spectrum_panel, stacked_figure, waterfall_panel,
     BinnedSeries, BodeSeries, Panel, Role, Series, SpectrumScale, Style, WaterfallBar,
@@ -795,7 +794,7 @@ fn strongest_in(
     let few = format!(
         "too few independent blocks of {} s (at least {} per bin) for standard errors of the \
          bin means",
-        num(block_s, 3),
+        sig(block_s, 3),
         htfid_diagnose::MIN_BLOCKS
     );
     let Some((what, st)) = cands.iter().filter(|(_, st)| st.bins > 0).max_by(|a, b| {
@@ -822,15 +821,15 @@ fn strongest_in(
         } else {
             format!(
                 "; the extended model's stand at most {} standard errors from zero there",
-                num(st.max_abs_z, 3)
+                sig(st.max_abs_z, 3)
             )
         }
     });
     Some(format!(
         "The refitted nominal model's residual acceleration{whose} varies most against {what}: bin means from {} to {} {u}/s^2, up to {} standard errors of the bin mean from zero (`residual_bins.png`){}.",
-        num(st.min_mean, 4),
-        num(st.max_mean, 4),
-        num(st.max_abs_z, 3),
+        sig(st.min_mean, 4),
+        sig(st.max_mean, 4),
+        sig(st.max_abs_z, 3),
         ext.unwrap_or_default()
     ))
 }

@@ -89,8 +89,8 @@ impl Prepared<'_> {
         let mut df = vec![0.0; n * k];
         for (o, q, v) in pairs {
             let x = &self.rec.outputs()[o][self.rows.clone()];
-            // The band: up to twice the resolved frequency, at most 0.6 of Nyquist; the velocity at which the model is
-            // read passes everything the band does.
+            // The band: up to twice the resolved frequency, at most 0.6 of Nyquist; the
+            // velocity at which the model is read passes everything the band does.
             let f_n = resolved_frequency(natural_rate(q, v, t, &held), period, self.dt);
             let nyquist = 0.5 / self.dt;
             let pass = (2.0 * f_n).min(0.6 * nyquist);
