@@ -98,7 +98,9 @@
 //! guards ([`HybridSystem`]), how the input enters and what is measured ([`InputOutput`]), its
 //! named parameters ([`Parametric`]), and its limit cycle ([`Rhythmic`]: usually
 //! [`find_limit_cycle`] on the system with its input off). The input is not an argument of the
-//! vector field: the system holds it ([`Rhythmic::with_input`]) and reads it at `t`.
+//! vector field: the system holds it ([`Rhythmic::with_input`]) and reads it at `t`. To be
+//! diagnosed (`htfid_diagnose::diagnose_model`), it also gives its equations in the model
+//! language ([`Rhythmic::equations`]), to which the diagnosis adds its candidate effects.
 //!
 //! Here a forced oscillator `x'' = -k x - c x' + cos(wp t) + u` whose damping is `c_up` while it
 //! moves up and `c_down` while it moves down: two charts, switched where `x' = 0`. As for the

@@ -102,6 +102,20 @@ pub enum DiagnoseError {
         /// Each reason, with the output and the check that found it.
         reasons: Vec<String>,
     },
+    /// The model has no equations to place candidate effects in: a Rust model of code alone
+    /// (its `Rhythmic::equations` gives `None`).
+    #[error(
+        "the model has no equations in the model language, and the diagnosis adds each \
+         candidate effect as a term to them: give them with Rhythmic::equations (a model file \
+         read with htfid_lang::Model is its own), or diagnose the model's file"
+    )]
+    NoEquations,
+    /// The model's equations, written by its `Rhythmic::equations`, do not read.
+    #[error("the model's equations do not read: {reason}")]
+    Equations {
+        /// The model language's message.
+        reason: String,
+    },
     /// The fit of the configured model's free parameters failed.
     #[error("fitting the nominal model failed: {reason}")]
     NominalFit {

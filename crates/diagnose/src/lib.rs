@@ -1,5 +1,9 @@
 //! From measured data to a named cause, an extended model and a measured gain, for any model
-//! written in the model language ([`htfid_lang::Model`]).
+//! written in the model language ([`htfid_lang::Model`]), and for any Rust model
+//! ([`htfid_experiment::Rhythmic`], the built-in hopper among them) that writes its equations
+//! in it ([`Rhythmic::equations`](htfid_experiment::Rhythmic::equations)): the candidate
+//! effects are terms added to those equations. A model of code alone is refused
+//! ([`DiagnoseError::NoEquations`]).
 //!
 //! Given a model, a measured record ([`TimeSeries`], htfid's one record type: time, the input
 //! column, one column per model output) and [`ModelFitOptions`], [`diagnose_model`] shows what

@@ -2,6 +2,7 @@
 //! baseline, the free parameters are refitted by output error, and every parameter that moved
 //! significantly is a finding (`parameter_error`).
 
+use htfid_experiment::Rhythmic;
 use htfid_lang::Model;
 use serde::{Deserialize, Serialize};
 
@@ -420,7 +421,12 @@ const SECOND_EFFECT_FLOOR_RATIO: f64 = 1.2;
 /// (the start is not fitted yet); a thousand means a wrong unit or a wrong order of magnitude.
 const MAX_CONFIGURED_NRMSE: f64 = 1e3;
 
-/// Refits the free parameters of `model` to `rec` by output error and compares the configured
+/// Diagnoses `system` through its equations ([`Rhythmic::equations`]: a model-language
+/// [`Model`] is its own, the built-in hopper writes its, a Rust user's model may write its
+/// own), into which the candidate effects go as terms; every parameter, mode, guard and output
+/// named below is theirs.
+///
+/// Refits the free parameters of the model to `rec` by output error and compares the configured
 /// and refitted simulations on held-out data: the last `1 - fit_fraction` of `rec`, or the
 /// whole of `validation` when a separate validation record is given (then all of `rec` is
 /// fitted; on the validation record the initial state is fitted for each model with its
@@ -435,14 +441,22 @@ const MAX_CONFIGURED_NRMSE: f64 = 1e3;
 /// # Errors
 /// [`DiagnoseError::InvalidOption`] for bad options or an unknown parameter,
 /// [`DiagnoseError::Simulation`] when the configured model cannot be simulated on the record,
-/// [`DiagnoseError::NominalFit`] when the refit fails.
-pub fn diagnose_model(
-    model: &Model,
+/// [`DiagnoseError::NominalFit`] when the refit fails, [`DiagnoseError::NoEquations`] for a
+/// model without equations, [`DiagnoseError::Equations`] when they do not read.
+pub fn diagnose_model<S: Rhythmic>(
+    system: &S,
     rec: &TimeSeries,
     validation: Option<&TimeSeries>,
     opts: &ModelFitOptions,
 ) -> Result<ModelDiagnosis, DiagnoseError> {
     check_options(opts)?;
+    let equations = system
+        .equations()
+        .ok_or(DiagnoseError::NoEquations)?
+        .map_err(|e| DiagnoseError::Equations {
+            reason: e.to_string(),
+        })?;
+    let model = &equations;
     let cut = match validation {
         Some(_) => rec.len(),
         None => ((rec.len() as f64) * opts.fit_fraction) as usize,

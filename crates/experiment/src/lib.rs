@@ -37,6 +37,8 @@
 //! # Ok::<(), htfid_experiment::ExperimentError>(())
 //! ```
 
+mod equations;
+
 use std::sync::Arc;
 
 use htfid_estimate::HtfEstimate;
@@ -120,6 +122,20 @@ pub trait Rhythmic: Parametric {
     /// The outputs at `(mode, t, x)` with input `u`, into `y` (length
     /// [`num_outputs`](htfid_ltp::InputOutput::num_outputs)).
     fn outputs(&self, mode: Self::Mode, t: f64, x: &[f64], u: f64, y: &mut [f64]);
+
+    /// The same model, input off, written in the model language: its states, parameters,
+    /// modes, guards and outputs as equations. The diagnosis (`htfid_diagnose::diagnose_model`)
+    /// needs them, because it adds each candidate effect as a term to a named equation, guard,
+    /// input or output and fits its parameters with exact sensitivities; every other step
+    /// works on the model's code alone. `None` (the default) for a model that has no such
+    /// equations; an error when writing them fails (a Rust model whose text does not read).
+    ///
+    /// A model-language [`Model`] is its own equations. The built-in [`Hopper`] writes
+    /// `models/hopper.toml` with its values and each of its extra terms in the equations, and
+    /// has none with an input delay, which the language cannot write.
+    fn equations(&self) -> Option<Result<Model, ExperimentError>> {
+        None
+    }
 }
 
 impl Rhythmic for Hopper {
@@ -139,6 +155,10 @@ impl Rhythmic for Hopper {
     fn outputs(&self, _mode: Self::Mode, _t: f64, x: &[f64], _u: f64, y: &mut [f64]) {
         y[0] = x[0];
     }
+
+    fn equations(&self) -> Option<Result<Model, ExperimentError>> {
+        equations::hopper_equations(self)
+    }
 }
 
 impl Rhythmic for Model {
@@ -156,6 +176,10 @@ impl Rhythmic for Model {
 
     fn outputs(&self, mode: Self::Mode, t: f64, x: &[f64], u: f64, y: &mut [f64]) {
         self.eval_outputs(mode, t, x, u, y);
+    }
+
+    fn equations(&self) -> Option<Result<Model, ExperimentError>> {
+        Some(Ok(self.with_input(None)))
     }
 }
 
