@@ -9,8 +9,9 @@
 //!
 //! Each step has options ([`HtfOptions`], [`EstimateOptions`]) with defaults that suit the
 //! shipped models; the option types of the crates underneath are re-exported here. For more
-//! (truncated HTFs, other estimators, parametric fits, diagnosis) use the crates directly:
-//! `htfid-theory`, `htfid-estimate`, `htfid-identify`, `htfid-diagnose`.
+//! (truncated HTFs, other estimators, parametric fits, the diagnosis's evidence) use the crates
+//! directly: `htfid-theory`, `htfid-estimate`, `htfid-identify`, `htfid-diagnose`.
+//! [`diagnose_model`] is re-exported: from a record to what the model gets wrong.
 //!
 //! # Conventions
 //!
@@ -90,6 +91,44 @@
 //! let (median, worst) = (errors[errors.len() / 2], errors[errors.len() - 1]);
 //! assert!(median < 0.02 && worst < 0.2, "G_0 error: median {median:e}, worst {worst:e}");
 //! # Ok::<(), htfid_api::Error>(())
+//! ```
+//!
+//! # From data to what the model gets wrong
+//!
+//! [`diagnose_model`] takes the same models. Here the "measured" hopper has a damper of
+//! 0.2 N s/m also while it moves down, which the nominal hopper lacks; its record is simulated
+//! by the hopper's Rust code, and the diagnosis works on the nominal hopper's equations in the
+//! model language ([`Rhythmic::equations`]), a second description of the same system written
+//! separately. It refits `k` and `c`, tries every candidate effect at every site the equations
+//! offer, and names the damping in the `free` mode with its coefficient per unit mass (the
+//! fit gives 0.2000; the example checks 2 %):
+//!
+//! ```
+//! use std::sync::Arc;
+//! use htfid_api::{
+//!     diagnose_model, simulate, DamperLaw, Effects, Hopper, HopperParams, Htf, ModelFitOptions,
+//!     TimeSeries,
+//! };
+//!
+//! let measured = Hopper::with_effects(
+//!     HopperParams::paper(),
+//!     DamperLaw::Switching,
+//!     Effects { c_f: 0.2, ..Effects::default() },
+//! )?;
+//! // 60 s of a small three-sine force at 100 Hz from the orbit.
+//! let input = Arc::new(|t: f64| 0.01 * ((9.0 * t).sin() + (14.5 * t).sin() + (23.0 * t).cos()));
+//! let t: Vec<f64> = (0..6000).map(|i| i as f64 * 0.01).collect();
+//! let u: Vec<f64> = t.iter().map(|&t| input(t)).collect();
+//! let y = simulate(&Htf::of(&measured)?, input, &t)?;
+//! let record = TimeSeries::new(t, u, y[0].clone(), "simulated")?;
+//!
+//! let nominal = Hopper::new(HopperParams::paper())?;
+//! let options = ModelFitOptions { free: vec!["k".into(), "c".into()], ..Default::default() };
+//! let diagnosis = diagnose_model(&nominal, &record, None, &options)?;
+//! assert_eq!(diagnosis.cause.name(), "mode_damping(v, free)");
+//! let damping = diagnosis.causes[0].parameters["damping_v_free"];
+//! assert!((damping / 0.2 - 1.0).abs() < 0.02, "{damping}");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
 //! # A model of your own, written in Rust
@@ -198,6 +237,9 @@
 use htfid_estimate::{DataSpec, FromDataError, PeriodChoice, PeriodicRecord};
 use htfid_theory::HarmonicTransferFunction;
 
+pub use htfid_diagnose::{
+    diagnose_model, DiagnoseError, ModelCause, ModelDiagnosis, ModelFitOptions, TimeSeries,
+};
 pub use htfid_estimate::{Alpha, HtfEstimate, HtfRow};
 pub use htfid_experiment::{ExperimentError, Input, Rhythmic};
 pub use htfid_hybrid::Options as IntegratorOptions;
@@ -210,7 +252,7 @@ pub use htfid_hybrid::{Crossing, HybridSystem};
 pub use htfid_identify::Parametric;
 pub use htfid_lang::Model;
 pub use htfid_ltp::InputOutput;
-pub use htfid_model::{Effects, Hopper, HopperParams};
+pub use htfid_model::{DamperLaw, Effects, Hopper, HopperParams};
 pub use htfid_orbit::find_limit_cycle;
 pub use htfid_orbit::{LimitCycle, ShootingOptions};
 pub use htfid_theory::LinearisedHtf;
