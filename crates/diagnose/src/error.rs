@@ -116,6 +116,27 @@ pub enum DiagnoseError {
         /// The model language's message.
         reason: String,
     },
+    /// The model's equations are another system than the model: driven alike from their
+    /// limit cycles, an output differs by more than
+    /// [`EQUATIONS_TOLERANCE`](crate::EQUATIONS_TOLERANCE) of its spread.
+    #[error(
+        "the model's equations (Rhythmic::equations) are not the model: driven by the record's \
+         input from their limit cycles, output {output} differs from the model's by {difference:.3e} \
+         at t = {time} s, {:.1e} of its spread {spread:.3e} (at most {:.0e}); check the equations \
+         against the model's code term by term",
+        difference / spread,
+        crate::EQUATIONS_TOLERANCE
+    )]
+    EquationsDisagree {
+        /// The output's name in the equations.
+        output: String,
+        /// The largest difference, in the output's unit.
+        difference: f64,
+        /// The output's spread on the check (max - min).
+        spread: f64,
+        /// When the difference is largest, s.
+        time: f64,
+    },
     /// The fit of the configured model's free parameters failed.
     #[error("fitting the nominal model failed: {reason}")]
     NominalFit {

@@ -108,6 +108,7 @@
 mod agreement;
 mod boundary;
 mod deriv;
+mod equations;
 mod error;
 mod evidence;
 mod htf;
@@ -120,6 +121,7 @@ mod stats;
 mod term;
 
 pub use boundary::{separating_experiment, BoundaryEffect};
+pub use equations::EQUATIONS_TOLERANCE;
 pub use error::DiagnoseError;
 pub use evidence::{
     amplitude_spectrum, binned_means, period_average, quantile_range, Bin, BinnedResidual,

@@ -442,7 +442,9 @@ const MAX_CONFIGURED_NRMSE: f64 = 1e3;
 /// [`DiagnoseError::InvalidOption`] for bad options or an unknown parameter,
 /// [`DiagnoseError::Simulation`] when the configured model cannot be simulated on the record,
 /// [`DiagnoseError::NominalFit`] when the refit fails, [`DiagnoseError::NoEquations`] for a
-/// model without equations, [`DiagnoseError::Equations`] when they do not read.
+/// model without equations, [`DiagnoseError::Equations`] when they do not read and
+/// [`DiagnoseError::EquationsDisagree`] when they are another system than the model (checked
+/// before any fit, for a model with a forcing period).
 pub fn diagnose_model<S: Rhythmic>(
     system: &S,
     rec: &TimeSeries,
@@ -456,6 +458,7 @@ pub fn diagnose_model<S: Rhythmic>(
         .map_err(|e| DiagnoseError::Equations {
             reason: e.to_string(),
         })?;
+    crate::equations::check_equations(system, &equations, rec, opts.rtol)?;
     let model = &equations;
     let cut = match validation {
         Some(_) => rec.len(),

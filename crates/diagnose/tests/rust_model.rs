@@ -1,18 +1,17 @@
 //! The diagnosis of a model written in Rust: the built-in hopper (`htfid_model::Hopper`, a
 //! Rust implementation of the model traits) on a record of the independent truth generator
 //! (`htfid-truth`: its own integrator and equations, sharing no code with the models), a Rust
-//! user's oscillator that writes its equations, on a record of a plain RK4 written here, and
-//! the same oscillator of code alone, which has no equations to place effects in.
+//! user's oscillator (`crates/experiment/tests/support/oscillator.rs`) that writes its
+//! equations, on a record of a plain RK4 written here, and the same oscillator of code alone,
+//! which has no equations to place effects in.
+
+#[path = "../../experiment/tests/support/oscillator.rs"]
+mod oscillator;
 
 use htfid_diagnose::{diagnose_model, DiagnoseError, ModelCause, ModelFitOptions, TimeSeries};
-use htfid_experiment::{ExperimentError, Input, Rhythmic};
-use htfid_hybrid::{HybridSystem, Options};
-use htfid_identify::Parametric;
-use htfid_lang::Model;
-use htfid_ltp::InputOutput;
 use htfid_model::{Hopper, HopperParams};
-use htfid_orbit::{find_limit_cycle, LimitCycle, ShootingOptions};
 use htfid_truth::{generate, Effect, Noise, Scenario};
+use oscillator::Oscillator;
 
 /// The paper's protocol, 90 s with 2e-6 m of position noise, with damping of 1 N s/m while
 /// the mass moves down: the built-in hopper, its forcing amplitude at zero (the record's input
@@ -49,128 +48,6 @@ fn the_built_in_hopper_names_damping_in_its_free_mode() {
     );
     let fitted = d.extended.as_ref().unwrap().parameters["damping_v_free"];
     assert!((fitted - 1.0).abs() < 0.1, "damping_v_free = {fitted}");
-}
-
-/// A forced oscillator `x'' = cos(pi t) + u - k x - c x'` written in code, which writes its
-/// equations for the diagnosis when `written`.
-#[derive(Clone)]
-struct Oscillator {
-    k: f64,
-    c: f64,
-    written: bool,
-    input: Option<Input>,
-}
-
-/// The oscillator's equations in the model language, with its values.
-fn oscillator_equations(k: f64, c: f64) -> String {
-    format!(
-        r#"
-        name = "oscillator"
-        states = ["x", "v"]
-        [parameters]
-        k = {{ value = {k:?}, min = 0.0, free = true }}
-        c = {{ value = {c:?}, min = 0.0, free = true }}
-        [input]
-        name = "u"
-        [forcing]
-        period = "2"
-        signals = {{ f = "cos(pi*t)" }}
-        [flow]
-        x = "v"
-        v = "f + u - k*x - c*v"
-        [outputs]
-        x = "x"
-        [initial]
-        x = 0.0
-        v = 0.0
-        "#
-    )
-}
-
-impl std::fmt::Debug for Oscillator {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Oscillator(k {}, c {})", self.k, self.c)
-    }
-}
-
-impl HybridSystem for Oscillator {
-    type Mode = ();
-    fn dim(&self) -> usize {
-        2
-    }
-    fn vector_field(&self, _: (), t: f64, x: &[f64], dxdt: &mut [f64]) {
-        let u = self.input.as_ref().map_or(0.0, |u| u(t));
-        dxdt[0] = x[1];
-        dxdt[1] = (std::f64::consts::PI * t).cos() + u - self.k * x[0] - self.c * x[1];
-    }
-}
-
-impl InputOutput for Oscillator {
-    fn input_gain(&self, _: (), _t: f64, _x: &[f64], b: &mut [f64]) {
-        b.copy_from_slice(&[0.0, 1.0]);
-    }
-    fn output_gain(&self, _: (), _t: f64, _x: &[f64], c: &mut [f64]) {
-        c.copy_from_slice(&[1.0, 0.0]);
-    }
-}
-
-impl Parametric for Oscillator {
-    fn parameter(&self, name: &str) -> Option<(f64, (f64, f64))> {
-        match name {
-            "k" => Some((self.k, (0.0, f64::INFINITY))),
-            "c" => Some((self.c, (0.0, f64::INFINITY))),
-            _ => None,
-        }
-    }
-    fn unforced_with(&self, changes: &[(&str, f64)]) -> Result<Self, String> {
-        let mut o = Oscillator {
-            input: None,
-            ..self.clone()
-        };
-        for &(name, v) in changes {
-            match name {
-                "k" => o.k = v,
-                "c" => o.c = v,
-                _ => return Err(format!("no parameter {name}")),
-            }
-        }
-        Ok(o)
-    }
-    fn forcing_period(&self) -> Option<f64> {
-        Some(2.0)
-    }
-}
-
-impl Rhythmic for Oscillator {
-    fn limit_cycle(
-        &self,
-        shooting: &ShootingOptions,
-        integrator: &Options,
-    ) -> Result<LimitCycle<()>, ExperimentError> {
-        Ok(find_limit_cycle(
-            self,
-            (),
-            0.0,
-            &[0.0, 0.0],
-            2.0,
-            shooting,
-            integrator,
-        )?)
-    }
-    fn with_input(&self, input: Option<Input>) -> Self {
-        Oscillator {
-            input,
-            ..self.clone()
-        }
-    }
-    fn outputs(&self, _: (), _t: f64, x: &[f64], _u: f64, y: &mut [f64]) {
-        y[0] = x[0];
-    }
-    fn equations(&self) -> Option<Result<Model, ExperimentError>> {
-        self.written.then(|| {
-            Model::parse(&oscillator_equations(self.k, self.c)).map_err(ExperimentError::from)
-        })
-    }
 }
 
 /// A record of the oscillator with a cubic spring `k3 x^3` it lacks, `x'' = cos(pi t) + u -
@@ -222,10 +99,8 @@ fn cubic_record(k: f64, c: f64, k3: f64) -> TimeSeries {
 fn a_users_rust_model_that_writes_its_equations_is_diagnosed() {
     let (k, c, k3) = (40.0, 0.8, 1000.0);
     let oscillator = Oscillator {
-        k,
-        c,
         written: true,
-        input: None,
+        ..Oscillator::new(1.0, k, c)
     };
     let opts = ModelFitOptions {
         free: vec!["k".into(), "c".into()],
@@ -251,12 +126,7 @@ fn a_users_rust_model_that_writes_its_equations_is_diagnosed() {
 /// before any work, with the way to give them, rather than diagnosed as something else.
 #[test]
 fn a_model_of_code_alone_is_refused_with_the_way_to_give_its_equations() {
-    let oscillator = Oscillator {
-        k: 40.0,
-        c: 0.8,
-        written: false,
-        input: None,
-    };
+    let oscillator = Oscillator::new(1.0, 40.0, 0.8);
     let t: Vec<f64> = (0..2000).map(|i| 0.01 * f64::from(i)).collect();
     let u: Vec<f64> = t.iter().map(|t| (3.0 * t).sin()).collect();
     let y: Vec<f64> = t.iter().map(|t| 0.01 * (3.0 * t).sin()).collect();
@@ -268,4 +138,43 @@ fn a_model_of_code_alone_is_refused_with_the_way_to_give_its_equations() {
         message.contains("Rhythmic::equations") && message.contains("model file"),
         "{message}"
     );
+}
+
+/// Equations that are another system than the model's code (their damping 0.9 N s/m where the
+/// code's is 0.8) are refused before any fit, naming the output and by how much it differs,
+/// rather than diagnosed in the model's place. The record's input has a sine at 7.1 rad/s,
+/// near the resonance at 6.3 rad/s, where the damping decides the response: the mistake moves
+/// the output by 1.6e-2 of its spread (measured), thousands of times the check's tolerance;
+/// the bounds here are a hundred times the tolerance and the whole spread. The same
+/// oscillator written right passes the check (the test above).
+#[test]
+fn equations_that_are_not_the_model_are_refused() {
+    let oscillator = Oscillator {
+        written: true,
+        miswritten_c: Some(0.9),
+        ..Oscillator::new(1.0, 40.0, 0.8)
+    };
+    let err = diagnose_model(
+        &oscillator,
+        &cubic_record(40.0, 0.8, 0.0),
+        None,
+        &ModelFitOptions::default(),
+    )
+    .unwrap_err();
+    let DiagnoseError::EquationsDisagree {
+        output,
+        difference,
+        spread,
+        ..
+    } = &err
+    else {
+        panic!("{err}");
+    };
+    assert_eq!(output, "x");
+    let ratio = difference / spread;
+    assert!(
+        ratio > 100.0 * htfid_diagnose::EQUATIONS_TOLERANCE && ratio < 1.0,
+        "{err}"
+    );
+    assert!(err.to_string().contains("term by term"), "{err}");
 }

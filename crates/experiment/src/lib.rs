@@ -136,6 +136,14 @@ pub trait Rhythmic: Parametric {
     fn equations(&self) -> Option<Result<Model, ExperimentError>> {
         None
     }
+
+    /// Whether [`equations`](Rhythmic::equations) are this very model (a model-language
+    /// [`Model`]): the diagnosis then has nothing to check them against. `false` (the
+    /// default) for every model written in code, whose equations the diagnosis drives beside
+    /// it before any fit.
+    fn is_its_own_equations(&self) -> bool {
+        false
+    }
 }
 
 impl Rhythmic for Hopper {
@@ -180,6 +188,10 @@ impl Rhythmic for Model {
 
     fn equations(&self) -> Option<Result<Model, ExperimentError>> {
         Some(Ok(self.with_input(None)))
+    }
+
+    fn is_its_own_equations(&self) -> bool {
+        true
     }
 }
 

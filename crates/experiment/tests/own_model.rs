@@ -1,5 +1,5 @@
 //! A Rust user's own model through the whole pipeline: written in code (the traits
-//! `HybridSystem`, `InputOutput`, `Parametric`, `Rhythmic`), driven from its limit cycle, its
+//! `HybridSystem`, `InputOutput`, `Parametric`, `Rhythmic`; `support/oscillator.rs`), driven from its limit cycle, its
 //! HTFs estimated from the record and its stiffness and damping fitted, against the analytic
 //! truth of a forced linear oscillator `m x'' + c x' + k x = a cos(2 pi t / T) + u`, whose only
 //! HTF is `G_0(jw) = 1 / (k - m w^2 + j c w)`.
@@ -7,109 +7,17 @@
 use std::sync::Arc;
 
 use htfid_estimate::{estimate_experiment, Alpha, Estimator, Layout, Request, Sampled};
-use htfid_experiment::{drive, orbit_deviation, ExperimentError, Input, Rhythmic};
-use htfid_hybrid::{HybridSystem, Options};
-use htfid_identify::{fit_to_htf, HtfFitSpec, Parametric};
-use htfid_ltp::InputOutput;
-use htfid_orbit::{find_limit_cycle, LimitCycle, ShootingOptions};
+use htfid_experiment::{drive, orbit_deviation, Input, Rhythmic};
+use htfid_hybrid::Options;
+use htfid_identify::{fit_to_htf, HtfFitSpec};
+use htfid_orbit::ShootingOptions;
 use htfid_theory::{HarmonicTransferFunction, LinearisedHtf};
 use num_complex::Complex64;
 
-/// The forcing period, s.
-const PERIOD: f64 = 2.0;
+#[path = "support/oscillator.rs"]
+mod oscillator;
 
-#[derive(Clone)]
-struct Oscillator {
-    m: f64,
-    k: f64,
-    c: f64,
-    input: Option<Input>,
-}
-
-impl std::fmt::Debug for Oscillator {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Oscillator(m {}, k {}, c {})", self.m, self.k, self.c)
-    }
-}
-
-impl HybridSystem for Oscillator {
-    type Mode = ();
-    fn dim(&self) -> usize {
-        2
-    }
-    fn vector_field(&self, _: (), t: f64, x: &[f64], dxdt: &mut [f64]) {
-        let u = self.input.as_ref().map_or(0.0, |u| u(t));
-        let f = (2.0 * std::f64::consts::PI * t / PERIOD).cos() + u;
-        dxdt[0] = x[1];
-        dxdt[1] = (f - self.k * x[0] - self.c * x[1]) / self.m;
-    }
-}
-
-impl InputOutput for Oscillator {
-    fn input_gain(&self, _: (), _t: f64, _x: &[f64], b: &mut [f64]) {
-        b[0] = 0.0;
-        b[1] = 1.0 / self.m;
-    }
-    fn output_gain(&self, _: (), _t: f64, _x: &[f64], c: &mut [f64]) {
-        c[0] = 1.0;
-        c[1] = 0.0;
-    }
-    fn is_piecewise_constant(&self) -> bool {
-        true
-    }
-}
-
-impl Parametric for Oscillator {
-    fn parameter(&self, name: &str) -> Option<(f64, (f64, f64))> {
-        match name {
-            "k" => Some((self.k, (1e-9, f64::INFINITY))),
-            "c" => Some((self.c, (0.0, f64::INFINITY))),
-            _ => None,
-        }
-    }
-    fn unforced_with(&self, changes: &[(&str, f64)]) -> Result<Self, String> {
-        let mut o = self.with_input(None);
-        for &(name, v) in changes {
-            match name {
-                "k" => o.k = v,
-                "c" => o.c = v,
-                _ => return Err(format!("no parameter {name}")),
-            }
-        }
-        Ok(o)
-    }
-    fn forcing_period(&self) -> Option<f64> {
-        Some(PERIOD)
-    }
-}
-
-impl Rhythmic for Oscillator {
-    fn limit_cycle(
-        &self,
-        shooting: &ShootingOptions,
-        integrator: &Options,
-    ) -> Result<LimitCycle<()>, ExperimentError> {
-        let free = self.with_input(None);
-        Ok(find_limit_cycle(
-            &free,
-            (),
-            0.0,
-            &[0.0, 0.0],
-            PERIOD,
-            shooting,
-            integrator,
-        )?)
-    }
-    fn with_input(&self, input: Option<Input>) -> Self {
-        Oscillator {
-            input,
-            ..self.clone()
-        }
-    }
-    fn outputs(&self, _: (), _t: f64, x: &[f64], _u: f64, y: &mut [f64]) {
-        y[0] = x[0];
-    }
-}
+use oscillator::{Oscillator, PERIOD};
 
 fn opts() -> Options {
     Options {
@@ -121,12 +29,7 @@ fn opts() -> Options {
 
 #[test]
 fn a_users_own_model_is_simulated_estimated_and_fitted() {
-    let truth = Oscillator {
-        m: 1.0,
-        k: 5.0,
-        c: 0.5,
-        input: None,
-    };
+    let truth = Oscillator::new(1.0, 5.0, 0.5);
     let cycle = truth
         .limit_cycle(&ShootingOptions::default(), &opts())
         .unwrap();
