@@ -29,7 +29,7 @@ pub const EQUATIONS_TOLERANCE: f64 = 1e-6;
 
 /// Periods of the check: the model and its equations are each driven for three forcing periods
 /// from their limit cycles, by the first three periods of the record's input.
-const CHECK_PERIODS: f64 = 3.0;
+const CHECK_PERIODS: usize = 3;
 
 /// Samples per period of the check's grid.
 const CHECK_SAMPLES: usize = 64;
@@ -38,10 +38,10 @@ const CHECK_SAMPLES: usize = 64;
 /// phase by the record's first [`CHECK_PERIODS`] periods of input (its values moved in time to
 /// the check's start, read between samples by the cubic spline of the diagnosis), every output
 /// within [`EQUATIONS_TOLERANCE`] of its spread. A model-language model is its own equations
-/// and is not checked. A model without a forcing period, or one
-/// whose limit cycle its own code does not find (the built-in hopper without its forcing, whose
-/// orbit finder expects a damper that switches once each way per period), has no common start
-/// and is not checked.
+/// and is not checked. Nor are a model without a forcing period and one whose limit cycle its
+/// own code does not find (the built-in hopper without its forcing, whose orbit finder expects
+/// a damper that switches once each way per period): they have no common start. A record of
+/// fewer than two samples is left to the diagnosis to refuse ([`DiagnoseError::TooShort`]).
 ///
 /// # Errors
 /// [`DiagnoseError::EquationsDisagree`] naming the output, its largest difference, its spread
@@ -86,12 +86,11 @@ pub(crate) fn check_equations<S: Rhythmic>(
         return Ok(());
     };
     let n = rec.len();
+    if n < 2 {
+        return Ok(());
+    }
     let (t_rec, t_end) = (rec.time()[0], rec.time()[n - 1]);
-    let dt = if n > 1 {
-        (t_end - t_rec) / (n - 1) as f64
-    } else {
-        1.0
-    };
+    let dt = (t_end - t_rec) / (n - 1) as f64;
     let signal = Arc::new(SampledSignal::new(
         t_rec,
         dt,
@@ -102,7 +101,7 @@ pub(crate) fn check_equations<S: Rhythmic>(
     let start = own.t0.max(written.t0);
     let input: Input = Arc::new(move |t| signal.eval(t_rec + (t - start)));
     let step = period / CHECK_SAMPLES as f64;
-    let times: Vec<f64> = (0..(CHECK_PERIODS as usize) * CHECK_SAMPLES)
+    let times: Vec<f64> = (0..CHECK_PERIODS * CHECK_SAMPLES)
         .map(|k| start + step * k as f64)
         .collect();
     let a = drive(system, &own, Some(input.clone()), &times, &opts)
