@@ -51,7 +51,7 @@ pub(crate) fn check_equations<S: Rhythmic>(
     system: &S,
     equations: &Model,
     rec: &TimeSeries,
-    rtol: f64,
+    opts: &Options,
 ) -> Result<(), DiagnoseError> {
     if system.is_its_own_equations() {
         return Ok(());
@@ -71,29 +71,22 @@ pub(crate) fn check_equations<S: Rhythmic>(
             ),
         });
     }
-    let opts = Options {
-        rtol,
-        atol: rtol * 1e-2,
-        ..Options::default()
-    };
+    if rec.len() < 2 {
+        return Ok(());
+    }
     let shooting = ShootingOptions::default();
     // Without both orbits there is no common start. The equations' own failure is the
     // diagnosis's to report, with its tolerance (`DiagnoseError::StartState`).
     let (Ok(own), Ok(written)) = (
-        system.limit_cycle(&shooting, &opts),
-        Rhythmic::limit_cycle(equations, &shooting, &opts),
+        system.limit_cycle(&shooting, opts),
+        Rhythmic::limit_cycle(equations, &shooting, opts),
     ) else {
         return Ok(());
     };
-    let n = rec.len();
-    if n < 2 {
-        return Ok(());
-    }
-    let (t_rec, t_end) = (rec.time()[0], rec.time()[n - 1]);
-    let dt = (t_end - t_rec) / (n - 1) as f64;
+    let t_rec = rec.time()[0];
     let signal = Arc::new(SampledSignal::new(
         t_rec,
-        dt,
+        rec.dt(),
         rec.input(),
         Interpolation::CubicSpline,
     ));
@@ -104,9 +97,9 @@ pub(crate) fn check_equations<S: Rhythmic>(
     let times: Vec<f64> = (0..CHECK_PERIODS * CHECK_SAMPLES)
         .map(|k| start + step * k as f64)
         .collect();
-    let a = drive(system, &own, Some(input.clone()), &times, &opts)
+    let a = drive(system, &own, Some(input.clone()), &times, opts)
         .map_err(|e| failed("the model driven by the record's input", &e))?;
-    let b = drive(equations, &written, Some(input), &times, &opts)
+    let b = drive(equations, &written, Some(input), &times, opts)
         .map_err(|e| failed("the equations driven by the record's input", &e))?;
     for (o, (ya, yb)) in a.outputs.iter().zip(&b.outputs).enumerate() {
         let (lo, hi) = ya

@@ -90,10 +90,9 @@ pub struct ModelFitOptions {
     pub rival_margin: f64,
     /// Of the effects within `rival_margin` held out, the one with the lowest BIC on the fit
     /// data is named; the others are its rivals only when their BIC is within this margin of
-    /// it (default 10: a likelihood ratio of about 10
-    /// at equal parameter counts). Near the noise floor the held-out NRMSEs of a right and a
-    /// wrong effect differ by a few percent, while the fit data still tell them apart by
-    /// hundreds.
+    /// it (default 10: a likelihood ratio of about 10 at equal parameter counts). Near the
+    /// noise floor the held-out NRMSEs of a right and a wrong effect differ by a few percent,
+    /// while the fit data still tell them apart by hundreds.
     pub bic_margin: f64,
     /// The answer is `unexplained` when the best model's held-out residual stays above this
     /// many times the noise floor while its effect removes less than `min_explained` of the
@@ -107,14 +106,12 @@ pub struct ModelFitOptions {
     pub resolution: f64,
     /// Most effects named together (forward selection stops there); at least 1.
     pub max_effects: usize,
-    /// The measured input's
-    /// own noise, read from its spectrum, is propagated through the refitted model into the
-    /// noise floor unless white noise of that level would carry more than this share of the
-    /// input's variance; 0 leaves it out. Default 0.1.
+    /// The measured input's own noise, read from its spectrum, is propagated through the
+    /// refitted model into the noise floor unless white noise of that level would carry more
+    /// than this share of the input's variance; 0 leaves it out. Default 0.1.
     pub input_noise_share: f64,
-    /// The input's
-    /// noise band is read as white noise only where its quarters' levels lie within this
-    /// factor of each other, `>= 1`. Default 1.5.
+    /// The input's noise band is read as white noise only where its quarters' levels lie
+    /// within this factor of each other, `>= 1`. Default 1.5.
     pub input_noise_flatness: f64,
     /// Band of the residual's (and the input's) spectrum whose level is the noise floor, as
     /// fractions of the Nyquist frequency, `0 < lo < hi <= 1`. Default (0.6, 0.95).
@@ -135,6 +132,18 @@ pub struct ModelFitOptions {
     /// against the refitted parameters), each iteration a handful of simulations. It stops
     /// there, its score so far reported, and its note says so. Default 80.
     pub candidate_max_iterations: usize,
+}
+
+impl ModelFitOptions {
+    /// The integrator of every simulation of the diagnosis: DOP853 at `rtol`, its absolute
+    /// tolerance a hundredth of it.
+    pub(crate) fn integrator(&self) -> htfid_hybrid::Options {
+        htfid_hybrid::Options {
+            rtol: self.rtol,
+            atol: self.rtol * 1e-2,
+            ..htfid_hybrid::Options::default()
+        }
+    }
 }
 
 impl Default for ModelFitOptions {
@@ -458,7 +467,7 @@ pub fn diagnose_model<S: Rhythmic>(
         .map_err(|e| DiagnoseError::Equations {
             reason: e.to_string(),
         })?;
-    crate::equations::check_equations(system, &equations, rec, opts.rtol)?;
+    crate::equations::check_equations(system, &equations, rec, &opts.integrator())?;
     let model = &equations;
     let cut = match validation {
         Some(_) => rec.len(),

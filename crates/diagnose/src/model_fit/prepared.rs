@@ -244,11 +244,7 @@ impl<'a> Prepared<'a> {
             rec.input(),
             Interpolation::CubicSpline,
         ));
-        let sim_opts = Options {
-            rtol: opts.rtol,
-            atol: opts.rtol * 1e-2,
-            ..Options::default()
-        };
+        let sim_opts = opts.integrator();
         let (mode0, guess) = start_state(model, rec.time()[0], &sim_opts)?;
         let mut prepared = Prepared {
             rec,
